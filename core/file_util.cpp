@@ -1,0 +1,63 @@
+#include "core/file_util.h"
+
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+
+#include "core/error.h"
+
+namespace lfgi {
+
+std::vector<std::byte> readFileBytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) fail("{}: cannot open for reading ({})", path.string(), std::strerror(errno));
+  const std::streamoff size = in.tellg();
+  if (size < 0) fail("{}: cannot determine file size", path.string());
+  std::vector<std::byte> bytes(static_cast<std::size_t>(size));
+  in.seekg(0);
+  if (size > 0 && !in.read(reinterpret_cast<char*>(bytes.data()), size))
+    fail("{}: read failed after {} of {} bytes", path.string(), in.gcount(), size);
+  return bytes;
+}
+
+void writeViaTempFile(const std::filesystem::path& path,
+                      const std::function<void(const std::filesystem::path&)>& write) {
+  if (path.has_parent_path()) {
+    std::error_code ec;
+    std::filesystem::create_directories(path.parent_path(), ec);
+    if (ec) fail("{}: cannot create directory ({})", path.parent_path().string(), ec.message());
+  }
+  std::filesystem::path tmp = path;
+  tmp += ".tmp." + std::to_string(::getpid());
+  try {
+    write(tmp);
+  } catch (...) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    throw;
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    fail("{}: cannot move finished file into place ({})", path.string(), ec.message());
+  }
+}
+
+void writeFileAtomic(const std::filesystem::path& path, std::span<const std::byte> bytes) {
+  writeViaTempFile(path, [&](const std::filesystem::path& tmp) {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) fail("{}: cannot open for writing ({})", tmp.string(), std::strerror(errno));
+    out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    out.flush();
+    if (!out) fail("{}: write failed ({})", tmp.string(), std::strerror(errno));
+  });
+}
+
+void writeFileAtomic(const std::filesystem::path& path, const std::string& text) {
+  writeFileAtomic(path, std::as_bytes(std::span(text.data(), text.size())));
+}
+
+}  // namespace lfgi
