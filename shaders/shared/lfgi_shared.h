@@ -19,8 +19,9 @@
 #define LFGI_SHARED_END }
 // clang-format on
 #define LFGI_INLINE inline
-#define LFGI_CHECK_SIZE(T, bytes) static_assert(sizeof(T) == (bytes), #T " size differs from GLSL std430")
-#define LFGI_CHECK_OFFSET(T, m, off) static_assert(offsetof(T, m) == (off), #T "." #m " offset differs")
+// Layout checks are written without a trailing semicolon (GLSL rejects a stray one at global scope).
+#define LFGI_CHECK_SIZE(T, bytes) static_assert(sizeof(T) == (bytes), #T " size differs from GLSL std430");
+#define LFGI_CHECK_OFFSET(T, m, off) static_assert(offsetof(T, m) == (off), #T "." #m " offset differs");
 #else
 #define LFGI_SHARED_BEGIN
 #define LFGI_SHARED_END

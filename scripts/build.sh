@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Configures and builds lfgi. Usage: scripts/build.sh [BUILD_DIR [TARGET...]]   (default: build/, all)
+# Environment: LFGI_WERROR=ON (warnings are errors; CI), LFGI_SANITIZE=address,undefined,
+# LFGI_BUILD_TYPE (default RelWithDebInfo), LFGI_JOBS (default: all cores).
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+build="${1:-$root/build}"
+shift || true
+targets=()
+for t in "$@"; do targets+=(--target "$t"); done
+start=$(date +%s)
+cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE="${LFGI_BUILD_TYPE:-RelWithDebInfo}" \
+  -DLFGI_WERROR="${LFGI_WERROR:-OFF}" -DLFGI_SANITIZE="${LFGI_SANITIZE:-}" >/dev/null
+cmake --build "$build" -j "${LFGI_JOBS:-$(nproc)}" "${targets[@]}"
+echo "build: $build done in $(( $(date +%s) - start )) s"
