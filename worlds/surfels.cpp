@@ -1,0 +1,213 @@
+#include "worlds/surfels.h"
+
+#include <draco/compression/decode.h>
+#include <draco/compression/encode.h>
+#include <draco/point_cloud/point_cloud_builder.h>
+
+#include <algorithm>
+#include <cstring>
+#include <cmath>
+#include <numbers>
+
+#include "core/error.h"
+#include "core/half.h"
+
+namespace lfgi::worlds {
+namespace {
+
+// splitmix64 finaliser (Steele et al. 2014): a counter-based hash, so each triangle's randomness depends
+// only on (seed, triangle index), never on iteration order.
+uint64_t mix64(uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+double unitFloat(uint64_t h) { return double(h >> 11) * (1.0 / 9007199254740992.0); }
+
+constexpr float kRadiusUnit = 1e-4f;  // radius stored as uint16 in 0.1 mm units (max 6.55 m)
+
+// Our 12-byte header before the Draco stream: magic, version, surfel count. The count lets the decoder
+// reject a stream that decodes to a different number of points, and an empty cloud needs no Draco
+// stream at all (Draco 1.5 crashes encoding zero points).
+constexpr uint32_t kSurfelMagic = 0x4653464cu;  // "LFSF" little-endian
+constexpr uint32_t kSurfelVersion = 1;
+constexpr size_t kHeaderBytes = 12;
+
+}  // namespace
+
+float surfelSpacingForProbeSpacing(float probeSpacingM) { return std::clamp(probeSpacingM * 0.25f, 0.05f, 2.0f); }
+
+std::vector<Surfel> sampleSurfels(const TriangleMesh& mesh, const SurfelOptions& options) {
+  const double s = options.spacing;
+  if (!std::isfinite(s) || s <= 0.0) fail("surfel spacing must be finite and > 0 (got {})", s);
+  mesh.validate("surfel sampling input");
+  const double cellArea = s * s;
+  // R2 sequence: generalised golden ratio for 2D (Roberts 2018, "The Unreasonable Effectiveness of
+  // Quasirandom Sequences").
+  const double g = 1.32471795724474602596;
+  const double a1 = 1.0 / g, a2 = 1.0 / (g * g);
+
+  std::vector<Surfel> out;
+  out.reserve(size_t(mesh.totalArea() / cellArea * 1.05) + 16);
+  for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+    const double area = mesh.triangleArea(t);
+    if (!(area > 0.0)) continue;
+    const uint64_t h = mix64(options.seed ^ mix64(uint64_t(t) + 1));
+    const double expected = area / cellArea;
+    const int count = int(std::floor(expected + unitFloat(h)));
+    if (count <= 0) continue;
+    const float radius = float(expected >= 1.0 ? std::sqrt(area / (double(count) * std::numbers::pi))
+                                               : std::sqrt(cellArea / std::numbers::pi));
+    const Material& mat = mesh.materials[mesh.triangleMaterial[t]];
+    const Texture* tex = mat.albedoTexture >= 0 ? &mesh.textures[size_t(mat.albedoTexture)] : nullptr;
+    const glm::vec3 n = mesh.faceNormal(t);
+    const glm::vec3 p0 = mesh.vertex(t, 0), p1 = mesh.vertex(t, 1), p2 = mesh.vertex(t, 2);
+    const uint32_t* idx = &mesh.indices[t * 3];
+    const double o1 = unitFloat(mix64(h ^ 0x1234567ull)), o2 = unitFloat(mix64(h ^ 0x89abcdefull));
+    for (int k = 0; k < count; ++k) {
+      double u = std::fmod(o1 + a1 * (k + 1), 1.0), v = std::fmod(o2 + a2 * (k + 1), 1.0);
+      if (u + v > 1.0) {  // fold the unit square onto the triangle (uniform in area)
+        u = 1.0 - u;
+        v = 1.0 - v;
+      }
+      const float fu = float(u), fv = float(v), fw = 1.0f - fu - fv;
+      glm::vec3 albedo = mat.albedo;
+      if (tex && !mesh.uvs.empty()) {
+        glm::vec2 uv = mesh.uvs[idx[0]] * fw + mesh.uvs[idx[1]] * fu + mesh.uvs[idx[2]] * fv;
+        albedo *= tex->sampleLinear(uv);
+      }
+      Surfel sf;
+      sf.positionRadius = glm::vec4(p0 * fw + p1 * fu + p2 * fv, radius);
+      sf.normal = glm::vec4(n, 0.0f);
+      sf.albedo = glm::vec4(glm::clamp(albedo, 0.0f, 1.0f), 1.0f);
+      sf.emission = glm::vec4(mat.emission, 0.0f);
+      out.push_back(sf);
+    }
+  }
+  return out;
+}
+
+double surfelArea(std::span<const Surfel> surfels) {
+  double sum = 0.0;
+  for (const Surfel& s : surfels) sum += std::numbers::pi * double(s.positionRadius.w) * double(s.positionRadius.w);
+  return sum;
+}
+
+std::vector<std::byte> encodeSurfels(std::span<const Surfel> surfels, int positionBits, SurfelCodecStats* stats) {
+  if (positionBits < 8 || positionBits > 30) fail("surfel position bits must be in [8, 30] (got {})", positionBits);
+  const size_t n = surfels.size();
+  if (n > 0xffffffffull) fail("too many surfels to encode ({})", n);
+  std::vector<std::byte> bytes(kHeaderBytes);
+  const uint32_t header[3] = {kSurfelMagic, kSurfelVersion, uint32_t(n)};
+  std::memcpy(bytes.data(), header, kHeaderBytes);
+  if (stats) {
+    stats->rawBytes = n * 13 * sizeof(float);
+    stats->encodedBytes = bytes.size();
+  }
+  if (n == 0) return bytes;
+  std::vector<float> pos(n * 3), nrm(n * 3);
+  std::vector<uint8_t> alb(n * 3);
+  std::vector<uint16_t> emi(n * 3), rad(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Surfel& s = surfels[i];
+    for (int c = 0; c < 3; ++c) {
+      pos[i * 3 + size_t(c)] = s.positionRadius[c];
+      nrm[i * 3 + size_t(c)] = s.normal[c];
+      alb[i * 3 + size_t(c)] = uint8_t(std::lround(std::clamp(s.albedo[c], 0.0f, 1.0f) * 255.0f));
+      emi[i * 3 + size_t(c)] = floatToHalfClamped(s.emission[c]);
+    }
+    rad[i] = uint16_t(std::clamp(std::lround(s.positionRadius.w / kRadiusUnit), 0l, 65535l));
+  }
+  draco::PointCloudBuilder builder;
+  builder.Start(uint32_t(n));
+  int aPos = builder.AddAttribute(draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32);
+  int aNrm = builder.AddAttribute(draco::GeometryAttribute::NORMAL, 3, draco::DT_FLOAT32);
+  int aAlb = builder.AddAttribute(draco::GeometryAttribute::COLOR, 3, draco::DT_UINT8);
+  int aEmi = builder.AddAttribute(draco::GeometryAttribute::GENERIC, 3, draco::DT_UINT16);
+  int aRad = builder.AddAttribute(draco::GeometryAttribute::GENERIC, 1, draco::DT_UINT16);
+  builder.SetAttributeValuesForAllPoints(aPos, pos.data(), 3 * sizeof(float));
+  builder.SetAttributeValuesForAllPoints(aNrm, nrm.data(), 3 * sizeof(float));
+  builder.SetAttributeValuesForAllPoints(aAlb, alb.data(), 3);
+  builder.SetAttributeValuesForAllPoints(aEmi, emi.data(), 3 * sizeof(uint16_t));
+  builder.SetAttributeValuesForAllPoints(aRad, rad.data(), sizeof(uint16_t));
+  std::unique_ptr<draco::PointCloud> pc = builder.Finalize(false);
+  if (!pc) fail("Draco: cannot build a point cloud of {} surfels", n);
+
+  draco::Encoder encoder;
+  encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, positionBits);
+  encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, 10);
+  encoder.SetSpeedOptions(5, 5);
+  encoder.SetEncodingMethod(draco::POINT_CLOUD_KD_TREE_ENCODING);
+  draco::EncoderBuffer buffer;
+  draco::Status status = encoder.EncodePointCloudToBuffer(*pc, &buffer);
+  if (!status.ok()) fail("Draco: encoding {} surfels failed: {}", n, status.error_msg_string());
+  bytes.resize(kHeaderBytes + buffer.size());
+  std::memcpy(bytes.data() + kHeaderBytes, buffer.data(), buffer.size());
+  if (stats) stats->encodedBytes = bytes.size();
+  return bytes;
+}
+
+std::vector<Surfel> decodeSurfels(std::span<const std::byte> bytes, std::string_view what) {
+  if (bytes.size() < kHeaderBytes) fail("{}: surfel data truncated ({} bytes, header needs {})", what, bytes.size(), kHeaderBytes);
+  uint32_t header[3];
+  std::memcpy(header, bytes.data(), kHeaderBytes);
+  if (header[0] != kSurfelMagic) fail("{}: not lfgi surfel data (bad magic)", what);
+  if (header[1] != kSurfelVersion) fail("{}: surfel data version {} (this build reads {})", what, header[1], kSurfelVersion);
+  const uint32_t count = header[2];
+  if (count == 0) {
+    if (bytes.size() != kHeaderBytes) fail("{}: {} trailing bytes after an empty surfel cloud", what, bytes.size() - kHeaderBytes);
+    return {};
+  }
+  if (bytes.size() == kHeaderBytes) fail("{}: surfel data truncated (no Draco stream for {} surfels)", what, count);
+  draco::DecoderBuffer buffer;
+  buffer.Init(reinterpret_cast<const char*>(bytes.data() + kHeaderBytes), bytes.size() - kHeaderBytes);
+  draco::Decoder decoder;
+  auto result = decoder.DecodePointCloudFromBuffer(&buffer);
+  if (!result.ok()) fail("{}: corrupt surfel data (Draco: {})", what, result.status().error_msg_string());
+  std::unique_ptr<draco::PointCloud> pc = std::move(result).value();
+  if (pc->num_points() != count)
+    fail("{}: surfel data holds {} points, header says {}", what, pc->num_points(), count);
+  const draco::PointAttribute* aPos = pc->GetNamedAttribute(draco::GeometryAttribute::POSITION);
+  const draco::PointAttribute* aNrm = pc->GetNamedAttribute(draco::GeometryAttribute::NORMAL);
+  const draco::PointAttribute* aAlb = pc->GetNamedAttribute(draco::GeometryAttribute::COLOR);
+  const draco::PointAttribute* aEmi = pc->GetNamedAttribute(draco::GeometryAttribute::GENERIC, 0);
+  const draco::PointAttribute* aRad = pc->GetNamedAttribute(draco::GeometryAttribute::GENERIC, 1);
+  auto expect = [&](const draco::PointAttribute* a, const char* name, int comps, draco::DataType type) {
+    if (!a) fail("{}: surfel data lacks the {} attribute", what, name);
+    if (a->num_components() != comps || a->data_type() != type)
+      fail("{}: surfel {} attribute has {} components of type {}, expected {} of type {}", what, name,
+           int(a->num_components()), int(a->data_type()), comps, int(type));
+  };
+  expect(aPos, "position", 3, draco::DT_FLOAT32);
+  expect(aNrm, "normal", 3, draco::DT_FLOAT32);
+  expect(aAlb, "albedo", 3, draco::DT_UINT8);
+  expect(aEmi, "emission", 3, draco::DT_UINT16);
+  expect(aRad, "radius", 1, draco::DT_UINT16);
+
+  std::vector<Surfel> out(pc->num_points());
+  for (draco::PointIndex i(0); i < pc->num_points(); ++i) {
+    float p[3], nn[3];
+    uint8_t al[3];
+    uint16_t em[3], r;
+    aPos->GetMappedValue(i, p);
+    aNrm->GetMappedValue(i, nn);
+    aAlb->GetMappedValue(i, al);
+    aEmi->GetMappedValue(i, em);
+    aRad->GetMappedValue(i, &r);
+    Surfel& s = out[i.value()];
+    for (float v : {p[0], p[1], p[2], nn[0], nn[1], nn[2]})
+      if (!std::isfinite(v)) fail("{}: surfel {} has a non-finite position or normal", what, i.value());
+    glm::vec3 normal(nn[0], nn[1], nn[2]);
+    float len = glm::length(normal);
+    s.positionRadius = glm::vec4(p[0], p[1], p[2], float(r) * kRadiusUnit);
+    s.normal = glm::vec4(len > 0.0f ? normal / len : glm::vec3(0.0f, 1.0f, 0.0f), 0.0f);
+    s.albedo = glm::vec4(float(al[0]) / 255.0f, float(al[1]) / 255.0f, float(al[2]) / 255.0f, 1.0f);
+    s.emission = glm::vec4(halfToFloat(em[0]), halfToFloat(em[1]), halfToFloat(em[2]), 0.0f);
+    for (int c = 0; c < 3; ++c)
+      if (!std::isfinite(s.emission[c])) fail("{}: surfel {} has a non-finite emission", what, i.value());
+  }
+  return out;
+}
+
+}  // namespace lfgi::worlds

@@ -1,0 +1,57 @@
+// Surfels: an area-proportional point cloud of a mesh (position, normal, albedo, emission, radius) — the
+// input of View-Independent Rasterization (Marrs, Watson & Healey 2017), which splats every surfel into
+// every nearby probe. Stored compressed with Draco.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <vector>
+
+#include "shared/surfel.h"
+#include "worlds/mesh.h"
+
+namespace lfgi::worlds {
+
+using Surfel = shared::Surfel;
+
+// Surfel spacing for a probe spacing: a 16x16 octahedral texel subtends ~0.22 rad, i.e. a footprint of
+// ~0.22 * d at distance d; the nearest surfaces of a probe are ~1 spacing away, so surfels 1/4 of the probe
+// spacing apart keep about two surfels per texel there. Clamped to [0.05 m, 2 m].
+float surfelSpacingForProbeSpacing(float probeSpacingM);
+
+struct SurfelOptions {
+  float spacing = 0.5f;  // mean distance between neighbouring surfels, m (density 1 / spacing^2 per m^2)
+  uint64_t seed = 1;
+};
+
+// Samples the mesh: triangle t gets floor(A_t / s^2 + u_t) surfels (u_t a hash of (seed, t)), placed by a
+// randomly offset R2 low-discrepancy sequence (Roberts 2018) folded into the triangle. Radii make the disc
+// areas sum to A_t exactly when A_t >= s^2 (r = sqrt(A_t / (k pi))); smaller triangles get 0 or 1 surfel of
+// area s^2 with probability A_t / s^2, so the total disc area is an unbiased estimate of the mesh area.
+// Albedo = material albedo x texture at the interpolated uv; emission = material emission; normal =
+// geometric normal. Deterministic: same mesh + options => identical output. Throws lfgi::Error if
+// spacing is not finite and > 0, or the mesh fails validate().
+std::vector<Surfel> sampleSurfels(const TriangleMesh& mesh, const SurfelOptions& options);
+
+// Sum of disc areas (pi r^2).
+double surfelArea(std::span<const Surfel> surfels);
+
+// Draco point-cloud encoding: position quantized to `positionBits` over the cloud's bounds (error <=
+// extent / 2^bits), normal to 10 bits, albedo as 8-bit linear, emission as FP16 bits (clamped to 65504,
+// see core/half.h) and radius in units of 0.1 mm as uint16 (both lossless integer streams). Point order is
+// not preserved (kd-tree coding). Deterministic bytes for the same input.
+struct SurfelCodecStats {
+  size_t rawBytes = 0;      // surfels * 13 floats (pos, normal, albedo, emission, radius)
+  size_t encodedBytes = 0;  // Draco bytes
+  double ratio() const { return encodedBytes ? double(rawBytes) / double(encodedBytes) : 0.0; }
+};
+std::vector<std::byte> encodeSurfels(std::span<const Surfel> surfels, int positionBits = 16,
+                                     SurfelCodecStats* stats = nullptr);
+
+// Decodes Draco bytes. `what` names the source (file or cell) in errors. Throws lfgi::Error on truncated
+// or corrupt data or a missing attribute; never returns partial data.
+std::vector<Surfel> decodeSurfels(std::span<const std::byte> bytes, std::string_view what);
+
+}  // namespace lfgi::worlds
