@@ -35,23 +35,24 @@ using glm::exp;
 
 // Everything the per-direction evaluation needs, precomputed by makeSky. std430: vec4 members only.
 struct SkyParams {
-  vec4 perezY;         // Perez A, B, C, D for luminance Y at the effective turbidity (Preetham app. A.2)
-  vec4 perezX;         // Perez A, B, C, D for chromaticity x
-  vec4 perezCy;        // Perez A, B, C, D for chromaticity y
-  vec4 perezE;         // Perez E for (Y, x, y); w = 0
-  vec4 sunSkyDir;      // xyz: sun direction used for gamma (elevation clamped to >= 0); w = 0
-  vec4 sunSkyZenith;   // (weight * Yz / F_Y(0, ts), xz / F_x(0, ts), yz / F_y(0, ts), 0); Yz in kcd/m^2
-  vec4 moonSkyDir;     // as sunSkyDir, for the moon
-  vec4 moonSkyZenith;  // as sunSkyZenith, weight includes the moon/sun irradiance ratio
-  vec4 overcastZenith; // rgb: CIE overcast zenith radiance (sum over sun and moon); w = 0
-  vec4 floorRadiance;  // rgb: night-sky floor radiance (> 0); w = 0
-  vec4 sunDirection;   // xyz: unit direction towards the sun; w: cos(angular radius)
-  vec4 sunRadiance;    // rgb: disc radiance after atmosphere and clouds; w: disc solid angle (sr)
-  vec4 sunIrradiance;  // rgb: irradiance on a surface facing the sun = radiance * solid angle *
-                       // visible fraction (kilolux); w: visible fraction of the disc above the horizon
-  vec4 moonDirection;  // as sunDirection, for the moon
-  vec4 moonRadiance;   // as sunRadiance, for the moon
-  vec4 moonIrradiance; // as sunIrradiance, for the moon
+  vec4 perezY;          // Perez A, B, C, D for luminance Y at the effective turbidity (Preetham app. A.2)
+  vec4 perezX;          // Perez A, B, C, D for chromaticity x
+  vec4 perezCy;         // Perez A, B, C, D for chromaticity y
+  vec4 perezE;          // Perez E for (Y, x, y); w = 0
+  vec4 sunSkyDir;       // xyz: sun direction used for gamma (elevation clamped to >= 0); w = 0
+  vec4 sunSkyZenith;    // (weight * Yz / F_Y(0, ts), xz / F_x(0, ts), yz / F_y(0, ts), 0); Yz in kcd/m^2;
+                        // x = 0: term off
+  vec4 moonSkyDir;      // as sunSkyDir, for the moon
+  vec4 moonSkyZenith;   // as sunSkyZenith, weight includes the moon/sun irradiance ratio
+  vec4 overcastZenith;  // rgb: CIE overcast zenith radiance (sum over sun and moon); w = 0
+  vec4 floorRadiance;   // rgb: night-sky floor radiance (> 0); w = 0
+  vec4 sunDirection;    // xyz: unit direction towards the sun; w: cos(angular radius)
+  vec4 sunRadiance;     // rgb: disc radiance after atmosphere and clouds; w: disc solid angle (sr)
+  vec4 sunIrradiance;   // rgb: irradiance on a surface facing the sun = radiance * solid angle *
+                        // visible fraction (kilolux); w: visible fraction of the disc above the horizon
+  vec4 moonDirection;   // as sunDirection, for the moon
+  vec4 moonRadiance;    // as sunRadiance, for the moon
+  vec4 moonIrradiance;  // as sunIrradiance, for the moon
 };
 LFGI_CHECK_SIZE(SkyParams, 256)
 LFGI_CHECK_OFFSET(SkyParams, overcastZenith, 128)
@@ -85,16 +86,24 @@ LFGI_INLINE vec3 skyEvalDirection(vec3 dir) {
   return l > 1e-6f * length(dir) ? v * (1.0f / l) : vec3(1.0f, 0.0f, 0.0f);
 }
 
-// One Preetham term (sun-lit or moon-lit) in linear Rec.709, >= 0. v: unit, v.y >= 0.
-LFGI_INLINE vec3 skyPreethamTerm(SkyParams p, vec3 v, vec4 sourceDir, vec4 zenith) {
-  // cos(theta) floor of 1e-3: e^(B / 1e-3) underflows to 0 for every B < -0.09, i.e. exactly the
-  // horizon value, and no division by zero reaches the GPU.
-  float cosTheta = max(v.y, 0.001f);
+// The Perez gradation factors (1 + A e^(B / cos theta)) for (Y, x, y); shared by the sun and moon terms.
+// cos(theta) is floored at 1e-3: e^(B / 1e-3) underflows to 0 for every B < -0.09, i.e. exactly the
+// horizon value, and no division by zero reaches the GPU.
+LFGI_INLINE vec3 skyGradation(SkyParams p, float cosTheta) {
+  float c = max(cosTheta, 0.001f);
+  return vec3(1.0f + p.perezY.x * exp(p.perezY.y / c), 1.0f + p.perezX.x * exp(p.perezX.y / c),
+              1.0f + p.perezCy.x * exp(p.perezCy.y / c));
+}
+
+// One Preetham term (sun-lit or moon-lit) in linear Rec.709, >= 0. v: unit, v.y >= 0; gradation from
+// skyGradation(p, v.y).
+LFGI_INLINE vec3 skyPreethamTerm(SkyParams p, vec3 v, vec3 gradation, vec4 sourceDir, vec4 zenith) {
   float cosGamma = clamp(v.x * sourceDir.x + v.y * sourceDir.y + v.z * sourceDir.z, -1.0f, 1.0f);
   float gamma = acos(cosGamma);
-  float lum = zenith.x * skyPerez(p.perezY, p.perezE.x, cosTheta, gamma, cosGamma);
-  float cx = zenith.y * skyPerez(p.perezX, p.perezE.y, cosTheta, gamma, cosGamma);
-  float cy = zenith.z * skyPerez(p.perezCy, p.perezE.z, cosTheta, gamma, cosGamma);
+  float c2 = cosGamma * cosGamma;
+  float lum = zenith.x * gradation.x * (1.0f + p.perezY.z * exp(p.perezY.w * gamma) + p.perezE.x * c2);
+  float cx = zenith.y * gradation.y * (1.0f + p.perezX.z * exp(p.perezX.w * gamma) + p.perezE.y * c2);
+  float cy = zenith.z * gradation.z * (1.0f + p.perezCy.z * exp(p.perezCy.w * gamma) + p.perezE.z * c2);
   vec3 xyz = vec3(cx / cy * lum, lum, (1.0f - cx - cy) / cy * lum);
   return max(skyXyzToRec709(xyz), vec3(0.0f));
 }
@@ -104,10 +113,15 @@ LFGI_INLINE vec3 skyPreethamTerm(SkyParams p, vec3 v, vec4 sourceDir, vec4 zenit
 // (horizon value at the same azimuth).
 LFGI_INLINE vec3 skyRadiance(SkyParams p, vec3 dir) {
   vec3 v = skyEvalDirection(dir);
-  vec3 l = skyPreethamTerm(p, v, p.sunSkyDir, p.sunSkyZenith);
-  l = l + skyPreethamTerm(p, v, p.moonSkyDir, p.moonSkyZenith);
-  l = l + vec3(p.overcastZenith) * ((1.0f + 2.0f * v.y) * (1.0f / 3.0f));
-  return l + vec3(p.floorRadiance);
+  vec3 l = vec3(p.floorRadiance) + vec3(p.overcastZenith) * ((1.0f + 2.0f * v.y) * (1.0f / 3.0f));
+  // A Preetham term whose weight makeSky set to 0 (overcast 1, or the source so far below the horizon
+  // that it adds < 1e-3 of the floor) is skipped: a uniform branch, it halves the cost by day.
+  if (p.sunSkyZenith.x > 0.0f || p.moonSkyZenith.x > 0.0f) {
+    vec3 g = skyGradation(p, v.y);
+    if (p.sunSkyZenith.x > 0.0f) l = l + skyPreethamTerm(p, v, g, p.sunSkyDir, p.sunSkyZenith);
+    if (p.moonSkyZenith.x > 0.0f) l = l + skyPreethamTerm(p, v, g, p.moonSkyDir, p.moonSkyZenith);
+  }
+  return l;
 }
 
 // Radiance of a disc (direction.w = cos angular radius) in direction dir: the disc radiance inside the
