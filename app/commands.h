@@ -2,7 +2,9 @@
 // lfgi::Error and turned into exit code 1 by main().
 #pragma once
 
+#include <cstdint>
 #include <string>
+#include <vector>
 
 namespace lfgi::app {
 
@@ -16,5 +18,30 @@ struct DemoOptions {
   int resolution = 64;
 };
 int runDemo(const DemoOptions& options);
+
+struct WorldGenerateOptions {
+  double sizeM = 4096;
+  double cellM = 64;
+  uint64_t seed = 1;
+  std::string outDir;
+  bool all = false;
+  std::vector<std::string> cells;  // "X,Z"
+  int threads = 0;                 // 0: all cores
+};
+// Writes the manifest and the requested cells; resumable; returns 130 when interrupted.
+int runWorldGenerate(const WorldGenerateOptions& options);
+
+struct WorldInfoOptions {
+  std::string dir;
+  bool json = false;
+};
+int runWorldInfo(const WorldInfoOptions& options);
+
+struct WorldExportOptions {
+  std::string dir;
+  std::string cell;  // "X,Z"
+  std::string out;
+};
+int runWorldExportCell(const WorldExportOptions& options);
 
 }  // namespace lfgi::app

@@ -28,6 +28,26 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(4, 512))
       ->capture_default_str();
 
+  CLI::App* world = app.add_subcommand("world", "Synthetic world: generate cells, summarise, export")->require_subcommand(1);
+  lfgi::app::WorldGenerateOptions genOpt;
+  CLI::App* gen = world->add_subcommand("generate", "Write a world manifest and (with --all or --cells) its cells");
+  gen->add_option("--size", genOpt.sizeM, "World size in metres (square)")->capture_default_str();
+  gen->add_option("--cell", genOpt.cellM, "Streaming cell size in metres")->capture_default_str();
+  gen->add_option("--seed", genOpt.seed, "World seed")->capture_default_str();
+  gen->add_option("--out", genOpt.outDir, "Output directory")->required();
+  gen->add_flag("--all", genOpt.all, "Generate every cell now (resumable; progress on stderr)");
+  gen->add_option("--cells", genOpt.cells, "Generate these cells, e.g. --cells 0,0 1,0");
+  gen->add_option("--threads", genOpt.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 256));
+  lfgi::app::WorldInfoOptions infoOpt;
+  CLI::App* info = world->add_subcommand("info", "Cells, triangles, surfels, probes, per-category counts");
+  info->add_option("dir", infoOpt.dir, "World directory")->required();
+  info->add_flag("--json", infoOpt.json, "Print JSON");
+  lfgi::app::WorldExportOptions exportOpt;
+  CLI::App* exportCell = world->add_subcommand("export-cell", "Write one cell as a binary glTF (.glb)");
+  exportCell->add_option("dir", exportOpt.dir, "World directory")->required();
+  exportCell->add_option("--cell", exportOpt.cell, "Cell as X,Z")->required();
+  exportCell->add_option("--out", exportOpt.out, "Output .glb file")->required();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -45,6 +65,9 @@ int main(int argc, char** argv) {
   try {
     if (*device) return lfgi::app::runDevice(deviceOpt);
     if (*demo) return lfgi::app::runDemo(demoOpt);
+    if (*gen) return lfgi::app::runWorldGenerate(genOpt);
+    if (*info) return lfgi::app::runWorldInfo(infoOpt);
+    if (*exportCell) return lfgi::app::runWorldExportCell(exportOpt);
     std::fputs(app.help().c_str(), stdout);
     return 0;
   } catch (const lfgi::Error& e) {
