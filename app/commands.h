@@ -15,7 +15,11 @@ int runDevice(const DeviceOptions& options);
 
 struct DemoOptions {
   std::string outDir = "out/demo";
-  int resolution = 64;
+  int resolution = 64;        // octahedral radiance map of the sky probe
+  float timeOfDay = 15.5f;    // local solar time, hours
+  float overcast = 0.0f;      // 0 clear .. 1 overcast
+  uint64_t seed = 1;
+  double worldSizeM = 256.0;  // the small embedded default world
 };
 int runDemo(const DemoOptions& options);
 

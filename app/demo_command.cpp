@@ -1,8 +1,11 @@
-// `lfgi demo`: the newest end-to-end path that exists, run on this machine's Vulkan device.
-// A sky-like environment (gradient sky, dark ground, a bright sun lobe) is stored in an octahedral
-// radiance map; the GPU convolves it to an irradiance map (exact solid angles); the CPU computes the
-// same integral and the SH L1/L2 approximations (Ramamoorthi & Hanrahan 2001). Writes EXR + PNG maps,
-// a side-by-side picture, a Chrome trace and report.{json,md} with the measured errors and timings.
+// `lfgi demo`: the newest end-to-end path that exists, on the small embedded default world.
+//  1. Sky probe: the Preetham sky + sun for the chosen time and weather in an octahedral radiance map;
+//     irradiance by the GPU pass (exact solid angles), checked against the CPU integral, and the SH L1/L2
+//     approximations (Ramamoorthi & Hanrahan 2001) measured against it.
+//  2. World: the 256 m x 256 m default synthetic world, every cell built (mesh, probes placed and
+//     classified, surfels + Draco), resumable.
+//  3. Pictures: a top-down sunlit preview of the world, the sky map and its irradiance maps.
+// Writes report.md / report.json, EXR + PNG images and a Chrome trace under --out.
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
@@ -18,24 +21,17 @@
 #include "core/image.h"
 #include "core/metrics.h"
 #include "core/octahedral.h"
+#include "core/progress.h"
 #include "core/sh.h"
 #include "core/trace.h"
 #include "gpu/context.h"
 #include "gpu/irradiance_pass.h"
+#include "worlds/sky.h"
+#include "worlds/topdown_preview.h"
+#include "worlds/world_cells.h"
 
 namespace lfgi::app {
 namespace {
-
-// Radiance of the demo environment in direction d (+Y up), linear RGB. Smooth sky + a sun lobe that
-// L2 cannot represent: the SH error in the report is the real cost of a 9-coefficient fallback.
-glm::vec3 demoSky(glm::vec3 d) {
-  const glm::vec3 sunDir = glm::normalize(glm::vec3(0.4f, 0.6f, 0.3f));
-  float up = std::max(d.y, 0.0f);
-  glm::vec3 zenith(0.25f, 0.45f, 0.95f), horizon(0.9f, 0.85f, 0.8f), ground(0.12f, 0.1f, 0.08f);
-  glm::vec3 sky = d.y >= 0.0f ? glm::mix(horizon, zenith, std::sqrt(up)) : ground;
-  float sun = 60.0f * std::exp(80.0f * (glm::dot(d, sunDir) - 1.0f));
-  return sky + glm::vec3(1.0f, 0.92f, 0.8f) * sun;
-}
 
 Image mapImage(const std::vector<glm::vec3>& texels, int n) {
   Image img(n, n, {"R", "G", "B"});
@@ -54,12 +50,75 @@ void blitPanel(Image& dst, const std::vector<glm::vec3>& texels, int n, int x0, 
     }
 }
 
+struct ProbeDemo {
+  double gpuMs = 0.0, gpuVsCpu = 0.0, l1Err = 0.0, l2Err = 0.0;
+  int n = 0, m = 0;
+};
+
+ProbeDemo skyProbe(gpu::Context& ctx, const worlds::SkyModel& sky, int n, const std::filesystem::path& out,
+                   TraceWriter& trace) {
+  ProbeDemo r;
+  r.n = n;
+  r.m = std::max(4, n / 2);
+  const int m = r.m;
+  std::vector<float> flat = worlds::skyOctahedralMap(sky, n, true);
+  std::vector<glm::vec3> radiance(size_t(n) * size_t(n));
+  for (size_t i = 0; i < radiance.size(); ++i) radiance[i] = {flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]};
+  std::vector<glm::vec3> irrGpu;
+  {
+    TraceScope s(&trace, "GPU irradiance convolution (incl. upload, readback)");
+    gpu::IrradianceConvolution pass(ctx);
+    irrGpu = pass.run(radiance, n, m, 1, &r.gpuMs);
+  }
+  std::vector<glm::vec3> irrCpu(size_t(m) * size_t(m)), irrL1(irrCpu.size()), irrL2(irrCpu.size());
+  {
+    TraceScope s(&trace, "CPU brute-force irradiance + SH L1/L2");
+    std::vector<double> omega = octTexelSolidAngles(n);
+    ShL1 l1 = shProject<4>(flat, n);
+    ShL2 l2 = shProject<9>(flat, n);
+    for (int j = 0; j < m; ++j)
+      for (int i = 0; i < m; ++i) {
+        glm::vec3 normal = octTexelDirection(i, j, m);
+        size_t k = size_t(j) * size_t(m) + size_t(i);
+        irrCpu[k] = bruteForceIrradiance(flat, n, normal, omega);
+        irrL1[k] = shIrradiance(l1, normal);
+        irrL2[k] = shIrradiance(l2, normal);
+      }
+  }
+  auto span = [](const std::vector<glm::vec3>& v) { return std::span<const float>(&v[0].x, v.size() * 3); };
+  r.gpuVsCpu = relativeRms(span(irrGpu), span(irrCpu));
+  r.l1Err = relativeRms(span(irrL1), span(irrCpu));
+  r.l2Err = relativeRms(span(irrL2), span(irrCpu));
+
+  TraceScope s(&trace, "write probe images");
+  writeExr(out / "sky_radiance.exr", mapImage(radiance, n));
+  writeExr(out / "irradiance_gpu.exr", mapImage(irrGpu, m));
+  writeExr(out / "irradiance_sh_l2.exr", mapImage(irrL2, m));
+  // Side by side: sky radiance | irradiance (GPU, exact) | SH L2 irradiance | L2 error.
+  const int size = 256, gap = 8;
+  Image panel(4 * size + 3 * gap, size, {"R", "G", "B"});
+  double meanIrr = 0.0;
+  for (const glm::vec3& v : irrCpu) meanIrr += (v.r + v.g + v.b) / 3.0;
+  meanIrr /= double(irrCpu.size());
+  const float scale = float(0.35 / meanIrr);
+  std::vector<glm::vec3> skyOnly(radiance.size());  // the sun texels would saturate the picture
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) skyOnly[size_t(j) * size_t(n) + size_t(i)] = worlds::skyRadiance(sky, octTexelDirection(i, j, n));
+  blitPanel(panel, skyOnly, n, 0, size, scale * std::numbers::pi_v<float> * 2.0f);
+  blitPanel(panel, irrGpu, m, size + gap, size, scale);
+  blitPanel(panel, irrL2, m, 2 * (size + gap), size, scale);
+  std::vector<glm::vec3> relErr(irrCpu.size());
+  for (size_t k = 0; k < relErr.size(); ++k)
+    relErr[k] = glm::vec3(10.0f * glm::length(irrL2[k] - irrCpu[k]) / glm::length(irrCpu[k]));
+  blitPanel(panel, relErr, m, 3 * (size + gap), size, 1.0f);
+  writePng(out / "probe.png", panel, 0.0f, ToneMap::kReinhard);
+  return r;
+}
+
 }  // namespace
 
 int runDemo(const DemoOptions& opt) {
   const std::filesystem::path out = opt.outDir;
-  const int n = opt.resolution;
-  const int m = std::max(4, n / 2);
   TraceWriter trace;
   trace.setThreadName("main");
   nlohmann::ordered_json report;
@@ -70,99 +129,130 @@ int runDemo(const DemoOptions& opt) {
     ctx = gpu::createContext();
   }
   spdlog::info("device: {} ({})", ctx->info.name, ctx->info.type);
+  worlds::SkyState state;
+  state.timeOfDayHours = opt.timeOfDay;
+  state.overcast = opt.overcast;
+  const worlds::SkyModel sky = worlds::makeSky(state);
 
-  std::vector<glm::vec3> radiance(size_t(n) * size_t(n));
-  {
-    TraceScope s(&trace, "evaluate environment");
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i) radiance[size_t(j) * size_t(n) + size_t(i)] = demoSky(octTexelDirection(i, j, n));
-  }
+  // 1. Sky probe.
+  ProbeDemo probe = skyProbe(*ctx, sky, opt.resolution, out, trace);
+  spdlog::info("sky probe: GPU irradiance {:.3f} ms; GPU vs CPU rel RMS {:.2e}; SH L1 {:.1f} %, L2 {:.1f} % rel RMS",
+               probe.gpuMs, probe.gpuVsCpu, 100.0 * probe.l1Err, 100.0 * probe.l2Err);
+  if (probe.gpuVsCpu > 1e-4)
+    fail("GPU and CPU irradiance disagree (relative RMS {:.2e} > 1e-4) on '{}'", probe.gpuVsCpu, ctx->info.name);
 
-  double gpuMs = 0.0;
-  std::vector<glm::vec3> irrGpu;
+  // 2. World.
+  worlds::WorldParams wp = worlds::WorldParams::smallDefault(opt.seed);
+  wp.sizeM = opt.worldSizeM;
+  worlds::SyntheticWorld world(wp);
+  const std::filesystem::path worldDir = out / "world";
+  worlds::writeWorldManifest(worldDir, wp);
+  const size_t cellCount = size_t(world.cellsX()) * size_t(world.cellsZ());
+  nlohmann::ordered_json totals = {{"cells", cellCount}, {"triangles", 0}, {"surfels", 0}, {"surfel_raw_bytes", 0},
+                                   {"surfel_draco_bytes", 0}, {"probes", 0}, {"probes_active", 0},
+                                   {"probes_relocated", 0}, {"probes_disabled", 0}, {"probes_sky_only", 0}};
   {
-    TraceScope s(&trace, "GPU irradiance convolution (incl. upload, readback)");
-    gpu::IrradianceConvolution pass(*ctx);
-    irrGpu = pass.run(radiance, n, m, 1, &gpuMs);
-  }
-  double now = trace.nowUs();
-  trace.complete("GPU irradiance pass (device timestamps)", "gpu", now - gpuMs * 1e3, gpuMs * 1e3);
-
-  std::vector<glm::vec3> irrCpu(size_t(m) * size_t(m)), irrL1(irrCpu.size()), irrL2(irrCpu.size());
-  std::span<const float> rgb(&radiance[0].x, radiance.size() * 3);
-  {
-    TraceScope s(&trace, "CPU brute-force irradiance + SH");
-    std::vector<double> omega = octTexelSolidAngles(n);
-    ShL1 l1 = shProject<4>(rgb, n, omega);
-    ShL2 l2 = shProject<9>(rgb, n, omega);
-    for (int j = 0; j < m; ++j)
-      for (int i = 0; i < m; ++i) {
-        glm::vec3 normal = octTexelDirection(i, j, m);
-        size_t k = size_t(j) * size_t(m) + size_t(i);
-        irrCpu[k] = bruteForceIrradiance(rgb, n, normal, omega);
-        irrL1[k] = shIrradiance(l1, normal);
-        irrL2[k] = shIrradiance(l2, normal);
+    TraceScope s(&trace, "build world cells");
+    InterruptGuard guard;
+    Progress progress("world cells", cellCount, "cells");
+    size_t done = 0;
+    for (int z = 0; z < world.cellsZ(); ++z)
+      for (int x = 0; x < world.cellsX(); ++x) {
+        if (InterruptGuard::interrupted()) {
+          progress.finish();
+          spdlog::warn("interrupted; run the demo again to resume");
+          return 130;
+        }
+        if (!worlds::cellDone(worldDir, {x, z})) {
+          TraceScope cs(&trace, fmt::format("cell {},{}", x, z), "cell");
+          worlds::writeCell(worldDir, worlds::buildCell(world, {x, z}));
+        }
+        nlohmann::ordered_json j = worlds::readCellJson(worldDir, {x, z});
+        totals["triangles"] = totals["triangles"].get<size_t>() + j["triangles"].get<size_t>();
+        totals["surfels"] = totals["surfels"].get<size_t>() + j["surfels"]["count"].get<size_t>();
+        totals["surfel_raw_bytes"] = totals["surfel_raw_bytes"].get<size_t>() + j["surfels"]["raw_bytes"].get<size_t>();
+        totals["surfel_draco_bytes"] =
+            totals["surfel_draco_bytes"].get<size_t>() + j["surfels"]["draco_bytes"].get<size_t>();
+        for (const char* k : {"total", "active", "relocated", "disabled", "sky_only"}) {
+          std::string key = std::string("probes") + (std::string(k) == "total" ? "" : std::string("_") + k);
+          totals[key] = totals[key].get<size_t>() + j["probes"][k].get<size_t>();
+        }
+        progress.update(++done);
       }
+    progress.finish();
   }
-  auto flat = [](const std::vector<glm::vec3>& v) { return std::span<const float>(&v[0].x, v.size() * 3); };
-  const double gpuVsCpu = relativeRms(flat(irrGpu), flat(irrCpu));
-  const double l1Err = relativeRms(flat(irrL1), flat(irrCpu));
-  const double l2Err = relativeRms(flat(irrL2), flat(irrCpu));
 
+  // 3. Top-down preview of the whole world (all cells' meshes in one BVH: fine at the default 256 m).
   {
-    TraceScope s(&trace, "write images");
-    writeExr(out / "radiance.exr", mapImage(radiance, n));
-    writeExr(out / "irradiance_gpu.exr", mapImage(irrGpu, m));
-    writeExr(out / "irradiance_sh_l2.exr", mapImage(irrL2, m));
-    // Side by side: radiance | irradiance (GPU, exact) | SH L2 irradiance | |L2 - exact| / exact x 10.
-    const int size = 256, gap = 8;
-    Image panel(4 * size + 3 * gap, size, {"R", "G", "B"});
-    double meanIrr = 0.0;
-    for (const glm::vec3& v : irrCpu) meanIrr += (v.r + v.g + v.b) / 3.0;
-    meanIrr /= double(irrCpu.size());
-    const float scale = float(0.35 / meanIrr);
-    blitPanel(panel, radiance, n, 0, size, scale * std::numbers::pi_v<float>);
-    blitPanel(panel, irrGpu, m, size + gap, size, scale);
-    blitPanel(panel, irrL2, m, 2 * (size + gap), size, scale);
-    std::vector<glm::vec3> relErr(irrCpu.size());
-    for (size_t k = 0; k < relErr.size(); ++k)
-      relErr[k] = glm::vec3(10.0f * glm::length(irrL2[k] - irrCpu[k]) / glm::length(irrCpu[k]));
-    blitPanel(panel, relErr, m, 3 * (size + gap), size, 1.0f);
-    writePng(out / "demo.png", panel, 0.0f, ToneMap::kReinhard);
-    writePng(out / "radiance.png", mapImage(radiance, n), std::log2(scale * std::numbers::pi_v<float>));
+    TraceScope s(&trace, "top-down preview");
+    worlds::TriangleMesh all;
+    for (int z = 0; z < world.cellsZ(); ++z)
+      for (int x = 0; x < world.cellsX(); ++x) all.append(world.generateCell({x, z}));
+    worlds::TriangleBvh bvh(all);
+    worlds::Aabb region = all.bounds();
+    region.min.x = 0.0f;
+    region.min.z = 0.0f;
+    region.max.x = float(wp.sizeM);
+    region.max.z = float(wp.sizeM);
+    Image img = worlds::renderTopDown(all, bvh, sky, region);
+    // Exposure: map the median pixel luminance to 0.18.
+    std::vector<float> lum;
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x) lum.push_back(0.2126f * img.at(x, y, 0) + 0.7152f * img.at(x, y, 1) + 0.0722f * img.at(x, y, 2));
+    std::nth_element(lum.begin(), lum.begin() + long(lum.size() / 2), lum.end());
+    const float median = std::max(lum[lum.size() / 2], 1e-12f);
+    writeExr(out / "world_topdown.exr", img);
+    writePng(out / "world_topdown.png", img, std::log2(0.18f / median));
   }
 
   report["device"] = ctx->info.name;
   report["device_type"] = ctx->info.type;
-  report["radiance_resolution"] = n;
-  report["irradiance_resolution"] = m;
-  report["gpu_irradiance_ms"] = gpuMs;
-  report["gpu_vs_cpu_irr_rel_rms"] = gpuVsCpu;
-  report["sh_l1_irr_rel_rms"] = l1Err;
-  report["sh_l2_irr_rel_rms"] = l2Err;
+  report["sky"] = {{"time_of_day_h", state.timeOfDayHours}, {"latitude_deg", state.latitudeDeg},
+                   {"day_of_year", state.dayOfYear}, {"turbidity", state.turbidity}, {"overcast", state.overcast},
+                   {"sun_elevation_deg", sky.sunPosition.elevationDeg}};
+  report["probe"] = {{"radiance_resolution", probe.n},        {"irradiance_resolution", probe.m},
+                     {"gpu_irradiance_ms", probe.gpuMs},       {"gpu_vs_cpu_irr_rel_rms", probe.gpuVsCpu},
+                     {"sh_l1_irr_rel_rms", probe.l1Err},       {"sh_l2_irr_rel_rms", probe.l2Err}};
+  report["world"] = {{"size_m", wp.sizeM}, {"cell_m", wp.cellM}, {"seed", wp.seed}};
+  report["world"].update(totals);
   report["validation_errors"] = ctx->validationErrors.load();
   writeFileAtomic(out / "report.json", report.dump(2) + "\n");
   trace.save(out / "trace.json");
 
+  const double ratio = double(totals["surfel_raw_bytes"].get<size_t>()) /
+                       std::max<double>(1.0, double(totals["surfel_draco_bytes"].get<size_t>()));
   std::string md = fmt::format(
       "# lfgi demo\n\n"
-      "Device: **{}** ({}). Octahedral radiance map {}x{}, irradiance map {}x{}.\n\n"
-      "![radiance | exact irradiance (GPU) | SH L2 irradiance | L2 relative error x10](demo.png)\n\n"
-      "Panels: radiance | exact irradiance (GPU) | SH L2 irradiance | L2 relative error (brighter = larger; x10, tone-mapped).\n\n"
+      "Device: **{}** ({}). Sky: {:.1f} h, latitude {:.0f}, day {}, turbidity {:.1f}, overcast {:.2f} "
+      "(sun elevation {:.1f} deg).\n\n"
+      "## World ({:.0f} m x {:.0f} m, cells of {:.0f} m, seed {})\n\n"
+      "![top-down preview: direct sun with shadows + sky, no bounces](world_topdown.png)\n\n"
+      "| measure | value |\n|---|---|\n"
+      "| cells | {} |\n| triangles | {} |\n| surfels | {} (Draco {:.1f} MB, {:.2f} x smaller than raw) |\n"
+      "| probes | {} placed: {} active, {} relocated, {} disabled (in solid), {} sky-only |\n\n"
+      "Cells, probes and surfels are in `world/` (`lfgi world info {}`; `lfgi world export-cell {} --cell 1,1 "
+      "--out cell.glb` writes a cell for any glTF viewer).\n\n"
+      "## Sky probe\n\n"
+      "![sky radiance | exact irradiance (GPU) | SH L2 irradiance | L2 relative error](probe.png)\n\n"
+      "Panels: sky radiance (sun left out of the picture, not the maths) | exact irradiance (GPU) | SH L2 "
+      "irradiance | L2 relative error (brighter = larger; x10, tone-mapped). Octahedral {}x{} radiance, "
+      "{}x{} irradiance.\n\n"
       "| measure | value |\n|---|---|\n"
       "| GPU irradiance pass (device time) | {:.3f} ms |\n"
       "| GPU vs CPU exact irradiance, relative RMS | {:.2e} |\n"
-      "| SH L1 irradiance vs exact, relative RMS | {:.2f} % |\n"
-      "| SH L2 irradiance vs exact, relative RMS | {:.2f} % |\n\n"
-      "Files: radiance.exr, irradiance_gpu.exr, irradiance_sh_l2.exr (linear float), report.json, "
-      "trace.json (open in https://ui.perfetto.dev).\n",
-      ctx->info.name, ctx->info.type, n, n, m, m, gpuMs, gpuVsCpu, 100.0 * l1Err, 100.0 * l2Err);
+      "| SH L1 irradiance vs exact, relative RMS | {:.1f} % |\n"
+      "| SH L2 irradiance vs exact, relative RMS | {:.1f} % |\n\n"
+      "Files: `*.exr` (linear float), `report.json`, `trace.json` (open in https://ui.perfetto.dev).\n",
+      ctx->info.name, ctx->info.type, state.timeOfDayHours, state.latitudeDeg, state.dayOfYear, state.turbidity,
+      state.overcast, sky.sunPosition.elevationDeg, wp.sizeM, wp.sizeM, wp.cellM, wp.seed, cellCount,
+      totals["triangles"].get<size_t>(), totals["surfels"].get<size_t>(),
+      double(totals["surfel_draco_bytes"].get<size_t>()) * 1e-6, ratio, totals["probes"].get<size_t>(),
+      totals["probes_active"].get<size_t>(), totals["probes_relocated"].get<size_t>(),
+      totals["probes_disabled"].get<size_t>(), totals["probes_sky_only"].get<size_t>(), worldDir.string(),
+      worldDir.string(), probe.n, probe.n, probe.m, probe.m, probe.gpuMs, probe.gpuVsCpu, 100.0 * probe.l1Err,
+      100.0 * probe.l2Err);
   writeFileAtomic(out / "report.md", md);
-
-  spdlog::info("GPU irradiance {:.3f} ms; GPU vs CPU rel RMS {:.2e}; SH L1 {:.2f} %, L2 {:.2f} % rel RMS", gpuMs,
-               gpuVsCpu, 100.0 * l1Err, 100.0 * l2Err);
   spdlog::info("wrote {}", (out / "report.md").string());
-  if (gpuVsCpu > 1e-4) fail("GPU and CPU irradiance disagree (relative RMS {:.2e} > 1e-4) on '{}'", gpuVsCpu, ctx->info.name);
   return 0;
 }
 

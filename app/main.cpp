@@ -22,10 +22,18 @@ int main(int argc, char** argv) {
 
   lfgi::app::DemoOptions demoOpt;
   CLI::App* demo = app.add_subcommand(
-      "demo", "End-to-end check on this machine: GPU octahedral probe pass, SH vs brute-force irradiance, report");
+      "demo", "End-to-end run on the small default world: sky probe on the GPU, world cells, preview, report");
   demo->add_option("--out", demoOpt.outDir, "Output directory")->capture_default_str();
-  demo->add_option("--resolution", demoOpt.resolution, "Octahedral map resolution (texels per side)")
+  demo->add_option("--resolution", demoOpt.resolution, "Sky probe octahedral map resolution (texels per side)")
       ->check(CLI::Range(4, 512))
+      ->capture_default_str();
+  demo->add_option("--time", demoOpt.timeOfDay, "Time of day, hours")->check(CLI::Range(0.0, 24.0))->capture_default_str();
+  demo->add_option("--overcast", demoOpt.overcast, "Weather, 0 clear .. 1 overcast")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  demo->add_option("--seed", demoOpt.seed, "World seed")->capture_default_str();
+  demo->add_option("--world-size", demoOpt.worldSizeM, "World size in metres")
+      ->check(CLI::Range(64.0, 1024.0))
       ->capture_default_str();
 
   CLI::App* world = app.add_subcommand("world", "Synthetic world: generate cells, summarise, export")->require_subcommand(1);
