@@ -118,12 +118,21 @@ std::optional<TriangleBvh::Hit> TriangleBvh::intersect(glm::vec3 o, glm::vec3 d,
   const glm::vec3 invDir(1.0f / d.x, 1.0f / d.y, 1.0f / d.z);
   std::optional<Hit> best;
   float closest = tMax;
-  uint32_t stack[128];
+  // Stack of (node, entry distance): a popped node whose entry lies beyond the closest hit found since it
+  // was pushed is skipped without testing its box again.
+  struct Entry {
+    uint32_t node;
+    float enter;
+  };
+  Entry stack[128];
   int sp = 0;
-  stack[sp++] = 0;
+  const float rootEnter = hitBox(nodes_[0].lo, nodes_[0].hi, o, invDir, closest);
+  if (rootEnter == INFINITY) return std::nullopt;
+  stack[sp++] = {0, rootEnter};
   while (sp > 0) {
-    const Node& node = nodes_[stack[--sp]];
-    if (hitBox(node.lo, node.hi, o, invDir, closest) == INFINITY) continue;
+    const Entry e = stack[--sp];
+    if (e.enter > closest) continue;
+    const Node& node = nodes_[e.node];
     if (node.count > 0) {
       for (uint32_t i = node.first; i < node.first + node.count; ++i) {
         const Tri& tr = tris_[i];
@@ -145,16 +154,16 @@ std::optional<TriangleBvh::Hit> TriangleBvh::intersect(glm::vec3 o, glm::vec3 d,
         }
       }
     } else {
-      uint32_t left = uint32_t(&node - nodes_.data()) + 1, right = node.first;
+      uint32_t left = e.node + 1, right = node.first;
       float tl = hitBox(nodes_[left].lo, nodes_[left].hi, o, invDir, closest);
       float tr = hitBox(nodes_[right].lo, nodes_[right].hi, o, invDir, closest);
       if (sp + 2 > 128) continue;  // depth is capped at 60 in build, so this cannot happen
       if (tl <= tr) {  // push the farther child first so the nearer is popped first
-        if (tr != INFINITY) stack[sp++] = right;
-        if (tl != INFINITY) stack[sp++] = left;
+        if (tr != INFINITY) stack[sp++] = {right, tr};
+        if (tl != INFINITY) stack[sp++] = {left, tl};
       } else {
-        if (tl != INFINITY) stack[sp++] = left;
-        if (tr != INFINITY) stack[sp++] = right;
+        if (tl != INFINITY) stack[sp++] = {left, tl};
+        if (tr != INFINITY) stack[sp++] = {right, tr};
       }
     }
   }
