@@ -50,12 +50,23 @@ std::vector<Surfel> sampleSurfels(const TriangleMesh& mesh, const SurfelOptions&
 
   std::vector<Surfel> out;
   out.reserve(size_t(mesh.totalArea() / cellArea * 1.05) + 16);
+  // Triangles smaller than one surfel share a running sum (systematic sampling): each gets one surfel of
+  // area s^2 when the sum crosses an integer, so their total disc area is within s^2 of their total area
+  // (independent coin flips would leave a sqrt(count) s^2 error).
+  double smallCarry = unitFloat(mix64(options.seed ^ 0x5bd1e995ull));
   for (size_t t = 0; t < mesh.triangleCount(); ++t) {
     const double area = mesh.triangleArea(t);
     if (!(area > 0.0)) continue;
     const uint64_t h = mix64(options.seed ^ mix64(uint64_t(t) + 1));
     const double expected = area / cellArea;
-    const int count = int(std::floor(expected + unitFloat(h)));
+    int count = 0;
+    if (expected >= 1.0) {
+      count = int(std::floor(expected + unitFloat(h)));
+    } else {
+      const double before = std::floor(smallCarry);
+      smallCarry += expected;
+      count = int(std::floor(smallCarry) - before);
+    }
     if (count <= 0) continue;
     const float radius = float(expected >= 1.0 ? std::sqrt(area / (double(count) * std::numbers::pi))
                                                : std::sqrt(cellArea / std::numbers::pi));

@@ -26,10 +26,11 @@ struct SurfelOptions {
   uint64_t seed = 1;
 };
 
-// Samples the mesh: triangle t gets floor(A_t / s^2 + u_t) surfels (u_t a hash of (seed, t)), placed by a
-// randomly offset R2 low-discrepancy sequence (Roberts 2018) folded into the triangle. Radii make the disc
-// areas sum to A_t exactly when A_t >= s^2 (r = sqrt(A_t / (k pi))); smaller triangles get 0 or 1 surfel of
-// area s^2 with probability A_t / s^2, so the total disc area is an unbiased estimate of the mesh area.
+// Samples the mesh: triangle t with A_t >= s^2 gets k = floor(A_t / s^2 + u_t) surfels (u_t a hash of
+// (seed, t)) of radius sqrt(A_t / (k pi)), so their disc areas sum to A_t exactly; smaller triangles are
+// sampled systematically in mesh order (a running sum of A_t / s^2; one surfel of area s^2 each time it
+// crosses an integer), so the total disc area is within s^2 of the mesh area. Positions follow a
+// randomly offset R2 low-discrepancy sequence (Roberts 2018) folded into the triangle.
 // Albedo = material albedo x texture at the interpolated uv; emission = material emission; normal =
 // geometric normal. Deterministic: same mesh + options => identical output. Throws lfgi::Error if
 // spacing is not finite and > 0, or the mesh fails validate().

@@ -37,8 +37,9 @@ TEST(Surfels, DiscAreaMatchesMeshAreaWithinOnePercent) {
     SurfelOptions opt;
     opt.spacing = spacing;
     std::vector<Surfel> s = sampleSurfels(m, opt);
-    double rel = std::abs(surfelArea(s) - m.totalArea()) / m.totalArea();
-    EXPECT_LT(rel, 0.01) << "spacing " << spacing << ": " << s.size() << " surfels";
+    double absErr = std::abs(surfelArea(s) - m.totalArea());
+    EXPECT_LT(absErr / m.totalArea(), 0.01) << "spacing " << spacing << ": " << s.size() << " surfels";
+    EXPECT_LE(absErr, double(spacing) * spacing * 1.0001) << "bound: one surfel's area";
     EXPECT_NEAR(double(s.size()), m.totalArea() / (spacing * spacing), 0.02 * m.totalArea() / (spacing * spacing));
   }
 }
