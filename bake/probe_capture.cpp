@@ -308,6 +308,25 @@ ProbeCapture captureOne(const EmbreeScene& scene, const worlds::SkyModel& sky, g
 
 }  // namespace
 
+uint64_t ProbeCapture::contentHash() const {
+  uint64_t h = 0xcbf29ce484222325ULL;
+  auto bytes = [&h](const void* data, size_t size) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < size; ++i) h = (h ^ p[i]) * 0x100000001b3ULL;
+  };
+  auto floats = [&bytes](const std::vector<float>& v) {
+    const uint64_t count = v.size();
+    bytes(&count, sizeof count);
+    bytes(v.data(), v.size() * sizeof(float));
+  };
+  bytes(&resolution, sizeof resolution);
+  bytes(&irradianceResolution, sizeof irradianceResolution);
+  bytes(&position, sizeof position);
+  for (const std::vector<float>* v : {&radiance, &radianceStdError, &distance, &normal, &albedo, &irradiance})
+    floats(*v);
+  return h;
+}
+
 void validateCaptureOptions(const CaptureOptions& o) {
   auto range = [](const char* name, int v, int lo, int hi) {
     if (v < lo || v > hi) fail("CaptureOptions.{} = {} outside [{}, {}]", name, v, lo, hi);

@@ -89,6 +89,10 @@ struct ProbeCapture {
   // Mean over texels with non-zero luminance of (std error of luminance) / luminance; 0 if none.
   double meanRelativeStdError = 0.0;
   uint64_t rays = 0;  // closest-hit + shadow rays traced for this probe
+
+  // 64-bit FNV-1a of the resolutions, position and every map's bytes (not rays or the error summary):
+  // equal hashes mean bit-identical maps (DESIGN.md §2: determinism is hashed and tested).
+  uint64_t contentHash() const;
 };
 
 struct CaptureResult {
