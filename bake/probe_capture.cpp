@@ -12,6 +12,7 @@
 #include <numbers>
 #include <optional>
 
+#include "bake/brdf.h"
 #include "core/error.h"
 #include "core/octahedral.h"
 #include "core/progress.h"
@@ -71,19 +72,6 @@ TexelSample primarySample(int i, int j, int n, int s, int samples, PathRng& rng)
   t.direction = glm::vec3(d / len);
   t.weight = 1.0 / (len * len * len);
   return t;
-}
-
-// Cosine-distributed direction about unit n (Malley's method, branchless ONB of Duff et al. 2017).
-glm::vec3 cosineSample(glm::vec3 n, float u1, float u2) {
-  const float sign = std::copysign(1.0f, n.z);
-  const float a = -1.0f / (sign + n.z);
-  const float b = n.x * n.y * a;
-  const glm::vec3 t(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x);
-  const glm::vec3 bt(b, sign + n.y * n.y * a, -n.y);
-  const float r = std::sqrt(u1);
-  const float phi = 2.0f * float(std::numbers::pi) * u2;
-  const float z = std::sqrt(std::max(0.0f, 1.0f - u1));
-  return glm::normalize(r * std::cos(phi) * t + r * std::sin(phi) * bt + z * n);
 }
 
 float luminance(glm::vec3 c) {
@@ -159,28 +147,45 @@ glm::vec3 tracePath(const EmbreeScene& scene, const worlds::SkyModel& sky, const
     const glm::vec3 p = origin + hit->t * dir;
     const float scale = std::max(1.0f, std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z))));
     const glm::vec3 po = p + n * (o.rayEpsilon * scale);
+    const SurfaceBrdf brdf{albedo, m.roughness, m.metallic};
+    const bool lambertian = brdf.isLambertian();
+    const glm::vec3 wo = -dir;
     for (int d = 0; d < discs.count; ++d) {
       const worlds::DiscLight& l = *discs.light[d];
       if (glm::dot(n, l.direction) <= 0.0f) continue;
+      const glm::vec3 f = lambertian ? albedo * kInvPi : evalBrdf(brdf, n, wo, l.direction);
+      if (!(maxComponent(f) > 0.0f)) continue;
       ++rays;
-      if (!scene.occluded(po, l.direction, 0.0f, o.maxDistance))
-        radiance += throughput * albedo * kInvPi * l.irradiance(n);
+      if (!scene.occluded(po, l.direction, 0.0f, o.maxDistance)) radiance += throughput * f * l.irradiance(n);
     }
-    // Lambertian bounce with cosine sampling: f cos / pdf = albedo.
-    throughput *= albedo;
-    if (!(maxComponent(throughput) > 0.0f)) break;
+    // Bounce. Lambertian with cosine sampling: f cos / pdf = albedo exactly; otherwise brdf.h's mixture.
+    glm::vec3 weight;
+    if (lambertian) {
+      weight = albedo;
+      const float u1 = rng.nextFloat();
+      const float u2 = rng.nextFloat();
+      dir = cosineSampleHemisphere(n, u1, u2);
+    } else {
+      const float u0 = rng.nextFloat();
+      const float u1 = rng.nextFloat();
+      const float u2 = rng.nextFloat();
+      const BrdfSample bs = sampleBrdf(brdf, n, wo, u0, u1, u2);
+      if (!bs.valid) break;
+      weight = bs.weight;
+      dir = bs.wi;
+    }
+    if (!(maxComponent(weight) > 0.0f)) break;
     if (k >= o.rouletteAfter) {
-      // Survival by the vertex's albedo, not by the path throughput: the path weight then never grows
-      // (throughput * albedo / q <= throughput), which keeps single samples bounded and the standard
-      // error estimate trustworthy. Throughput-based survival (pbrt-v4) gave 1/q weights of 16 and more
-      // in a furnace of albedo 0.5 and a heavy-tailed, underestimated noise.
-      const float q = std::min(0.95f, maxComponent(albedo));
+      // Survival by this bounce's weight (the albedo for Lambertian), not by the path throughput: the
+      // path weight then never grows through roulette (weight / q <= 1 per bounce while weight <= 0.95),
+      // which keeps single samples bounded and the standard error estimate trustworthy.
+      // Throughput-based survival (as in pbrt-v4) gave 1/q factors of 16 and more in a furnace of albedo
+      // 0.5 and a heavy-tailed, underestimated noise.
+      const float q = std::min(0.95f, maxComponent(weight));
       if (rng.nextFloat() >= q) break;
-      throughput /= q;
+      weight /= q;
     }
-    const float u1 = rng.nextFloat();
-    const float u2 = rng.nextFloat();
-    dir = cosineSample(n, u1, u2);
+    throughput *= weight;
     origin = po;
   }
   return radiance;

@@ -20,9 +20,10 @@
 // sqrt(sum w^2 (f - mean)^2) / sum w (conservative: it ignores the variance reduction of stratification).
 //
 // Light transport (per primary sample, a path of diffuse bounces):
-// - Surfaces are Lambertian with the material's albedo (times its texture at the hit's uv).
-//   GGX specular is NOT implemented: metallic and roughness are ignored. A single-sided material seen
-//   from the back is a black absorber (the inside of solid geometry); double-sided ones shade either side.
+// - Surfaces: bake/brdf.h with the material's albedo (times its texture at the hit's uv), roughness and
+//   metallic: exactly Lambertian for the default roughness 1 / metallic 0, else Lambertian + single-
+//   scatter GGX. A single-sided material seen from the back is a black absorber (the inside of solid
+//   geometry); double-sided ones shade either side. No transmission (glass is opaque).
 // - Emission (Material::emission, same unit as the sky) is added at every hit of a front side (either
 //   side when double-sided).
 // - Sun and moon (SkyModel::sun / moon DiscLight) are handled only by next-event estimation: at each
@@ -36,7 +37,8 @@
 // - Depth: emission is collected at hits 0..maxBounces (hit 0 = the first surface the probe sees) and NEE
 //   at hits 0..maxBounces-1, so a furnace (closed, albedo a, emission E) converges to
 //   E (1 - a^(maxBounces+1)) / (1 - a). Russian roulette from hit index `rouletteAfter` on, with survival
-//   probability min(0.95, max component of the hit's albedo) (unbiased; the path weight never grows).
+//   probability min(0.95, max component of the bounce weight f cos / pdf, i.e. the albedo for Lambertian)
+//   (unbiased; roulette never makes a path's weight grow).
 // Irradiance: the sky/emission/bounce part is bruteForceIrradiance (core/sh.h, exact texel solid angles)
 // of the radiance map with the disc deposits removed, plus each disc's analytic irradiance(normal) if the
 // probe sees it, so the sun's contribution carries no texel discretisation error.

@@ -297,15 +297,19 @@ TEST(ProbeCapture, SealedBoxUnderTheSunIsExactlyDark) {
   EXPECT_GT(total, 0.0);
 }
 
-// A small scene with every light path: sun, sky, an emitter, occluders, bounces.
+// A small scene with every light path: sun, sky, an emitter, occluders, diffuse and GGX bounces.
 worlds::TriangleMesh courtyard() {
   worlds::TriangleMesh mesh;
   const uint32_t ground = mesh.addMaterial(material(glm::vec3(0.4f, 0.35f, 0.3f), glm::vec3(0.0f), false));
   const uint32_t wall = mesh.addMaterial(material(glm::vec3(0.7f), glm::vec3(0.0f), false));
+  worlds::Material metal = material(glm::vec3(0.9f, 0.7f, 0.4f), glm::vec3(0.0f), false);
+  metal.metallic = 1.0f;
+  metal.roughness = 0.3f;
+  const uint32_t glossy = mesh.addMaterial(metal);
   const uint32_t lamp = mesh.addMaterial(material(glm::vec3(0.0f), glm::vec3(50.0f, 40.0f, 30.0f), true));
   mesh.addBox(glm::vec3(-20.0f, -1.0f, -20.0f), glm::vec3(20.0f, 0.0f, 20.0f), ground);
   mesh.addBox(glm::vec3(-6.0f, 0.0f, -6.0f), glm::vec3(-4.0f, 8.0f, 6.0f), wall);
-  mesh.addBox(glm::vec3(4.0f, 0.0f, -6.0f), glm::vec3(6.0f, 5.0f, 6.0f), wall);
+  mesh.addBox(glm::vec3(4.0f, 0.0f, -6.0f), glm::vec3(6.0f, 5.0f, 6.0f), glossy);
   mesh.addBox(glm::vec3(-4.0f, 6.0f, -6.0f), glm::vec3(4.0f, 6.5f, 0.0f), wall);
   mesh.addBox(glm::vec3(-0.5f, 3.0f, 2.0f), glm::vec3(0.5f, 3.2f, 3.0f), lamp);
   return mesh;
