@@ -347,6 +347,42 @@ void validateCaptureOptions(const CaptureOptions& o) {
     fail("CaptureOptions.rayEpsilon = {} must be finite and in (0, 0.1)", o.rayEpsilon);
 }
 
+std::vector<float> prefilterRadianceGgx(std::span<const float> radiance, int n, float roughness, int outN) {
+  if (n < 1 || n > 256 || outN < 1 || outN > 256)
+    fail("prefilterRadianceGgx: resolution {} -> {} outside [1, 256]", n, outN);
+  if (radiance.size() != octInteriorFloats(n, 3))
+    fail("prefilterRadianceGgx: {} floats for a {} x {} RGB map (expected {})", radiance.size(), n, n,
+         octInteriorFloats(n, 3));
+  if (!(roughness >= 0.0f && roughness <= 1.0f))
+    fail("prefilterRadianceGgx: roughness {} outside [0, 1]", roughness);
+  const std::vector<double> omega = octTexelSolidAngles(n);
+  std::vector<glm::dvec3> dirs(size_t(n) * size_t(n));
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) dirs[size_t(j * n + i)] = glm::dvec3(octTexelDirection(i, j, n));
+  const double a = std::max(double(roughness) * double(roughness), 1e-3);
+  const double a2 = a * a;
+  std::vector<float> out(octInteriorFloats(outN, 3), 0.0f);
+  for (int j = 0; j < outN; ++j) {
+    for (int i = 0; i < outN; ++i) {
+      const glm::dvec3 r(octTexelDirection(i, j, outN));
+      glm::dvec3 sum(0.0);
+      double wsum = 0.0;
+      for (size_t t = 0; t < dirs.size(); ++t) {
+        const double rw = glm::dot(r, dirs[t]);
+        if (rw <= 0.0) continue;
+        const double nh = glm::dot(r, glm::normalize(r + dirs[t]));
+        const double d = nh * nh * (a2 - 1.0) + 1.0;
+        const double w = a2 / (std::numbers::pi * d * d) * rw * omega[t];
+        sum += w * glm::dvec3(radiance[t * 3], radiance[t * 3 + 1], radiance[t * 3 + 2]);
+        wsum += w;
+      }
+      const size_t o = (size_t(j) * size_t(outN) + size_t(i)) * 3;
+      for (int ch = 0; ch < 3; ++ch) out[o + size_t(ch)] = wsum > 0.0 ? float(sum[ch] / wsum) : 0.0f;
+    }
+  }
+  return out;
+}
+
 TexelSample texelSample(int i, int j, int n, int s, int samplesPerTexel, uint64_t seed, glm::vec3 position) {
   if (n < 1 || i < 0 || j < 0 || i >= n || j >= n || s < 0 || samplesPerTexel < 1 || s >= samplesPerTexel)
     fail("texelSample: texel ({}, {}) sample {} outside an {} x {} map with {} samples", i, j, s, n, n,

@@ -117,6 +117,14 @@ CaptureResult captureProbes(const EmbreeScene& scene, const worlds::SkyModel& sk
                             std::span<const glm::vec3> positions, const CaptureOptions& options,
                             bool showProgress = false);
 
+// Roughness-prefiltered radiance for specular lookups (the split-sum approximation, Karis 2013, "Real
+// Shading in Unreal Engine 4": N = V = R): an outN x outN octahedral map whose texel with centre
+// direction R holds sum_w L(w) K(R, w) Omega_w / sum_w K(R, w) Omega_w over the n x n interior radiance
+// map, K = D_GGX(R . h) max(0, R . w), h = normalize(R + w), alpha = max(roughness^2, 1e-3) (brdf.h).
+// Normalised, so a constant map stays exactly constant. O(outN^2 n^2). Throws lfgi::Error for
+// radiance.size() != n*n*3, n or outN outside [1, 256], or roughness outside [0, 1] (NaN included).
+std::vector<float> prefilterRadianceGgx(std::span<const float> radiance, int n, float roughness, int outN);
+
 // The s-th primary sample (0 <= s < samplesPerTexel) of texel (i, j) of an n x n map for a probe at
 // `position`: its unit direction and its Jacobian weight 1/|p|^3. This is exactly what the capture uses.
 struct TexelSample {

@@ -158,8 +158,7 @@ TEST(ProbeCapture, FurnaceInAClosedSpherePerChannel) {
 
 // GGX path: a closed sphere of smooth white metal (roughness 0.05, directional albedo rho ~ 1: 0.99996 at
 // 30 deg in brdf_test, >= 0.99 assumed at all angles) emitting E: the radiance is E sum_{k<=D} rho^k,
-// between E sum 0.99^k and
-// E (D + 1). A wrong sampling weight or pdf would land far outside.
+// between E sum 0.99^k and E (D + 1). A wrong sampling weight or pdf would land far outside.
 TEST(ProbeCapture, SmoothMetalFurnaceStaysWithinItsAlbedoBounds) {
   worlds::Material metal = material(glm::vec3(1.0f), glm::vec3(1.0f), true);
   metal.metallic = 1.0f;
@@ -455,6 +454,29 @@ TEST(ProbeCapture, ReportsRaysPerSecond) {
               probes.size(), r.seconds, r.raysPerSecond() * 1e-6, 1e3 * r.seconds / double(probes.size()),
               4e3 * r.seconds / double(probes.size()));
   for (const ProbeCapture& c : r.probes) EXPECT_GT(c.meanRelativeStdError, 0.0);
+}
+
+TEST(ProbeCapture, GgxPrefilterKeepsConstantsAndIsTheIdentityWhenSmooth) {
+  const int n = 16;
+  std::vector<float> constant(size_t(n * n * 3));
+  for (size_t t = 0; t < constant.size(); ++t) constant[t] = t % 3 == 0 ? 2.0f : t % 3 == 1 ? 1.0f : 0.5f;
+  for (float roughness : {0.0f, 0.3f, 1.0f}) {
+    const std::vector<float> p = prefilterRadianceGgx(constant, 16, roughness, 8);
+    for (size_t t = 0; t < p.size(); ++t) EXPECT_NEAR(p[t], constant[t % 3], 1e-5f) << roughness;
+  }
+  // A smooth sky map: roughness 0 at the same resolution returns the input (every texel's own weight
+  // dominates); roughness 1 blurs it (the zenith texel drops towards the hemisphere mean).
+  const worlds::SkyModel sky = noonSky();
+  const std::vector<float> skyMap = worlds::skyOctahedralMap(sky, n, false);
+  const std::vector<float> sharp = prefilterRadianceGgx(skyMap, n, 0.0f, n);
+  for (size_t t = 0; t < sharp.size(); ++t) EXPECT_NEAR(sharp[t], skyMap[t], 1e-4f * skyMap[t]);
+  const std::vector<float> rough = prefilterRadianceGgx(skyMap, n, 1.0f, n);
+  double change = 0.0;
+  for (size_t t = 0; t < rough.size(); ++t) change = std::max(change, double(std::abs(rough[t] - skyMap[t]) / skyMap[t]));
+  EXPECT_GT(change, 0.05);
+  EXPECT_THROW(prefilterRadianceGgx(skyMap, n, std::numeric_limits<float>::quiet_NaN(), n), Error);
+  EXPECT_THROW(prefilterRadianceGgx(skyMap, n + 1, 0.5f, n), Error);
+  EXPECT_THROW(prefilterRadianceGgx(skyMap, n, 0.5f, 0), Error);
 }
 
 // The capture on a real synthetic city cell at the default settings (16 x 16, 64 spp, 12 bounces):
