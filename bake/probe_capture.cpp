@@ -111,6 +111,33 @@ glm::vec3 hitAlbedo(const worlds::TriangleMesh& mesh, const worlds::Material& m,
   return a;
 }
 
+// The hit point from the triangle's vertices and barycentrics (more accurate than origin + t dir far from
+// the origin).
+glm::vec3 hitPoint(const worlds::TriangleMesh& mesh, const RayHit& hit) {
+  const size_t t = hit.triangle;
+  return (1.0f - hit.barycentric.x - hit.barycentric.y) * mesh.positions[mesh.indices[t * 3]] +
+         hit.barycentric.x * mesh.positions[mesh.indices[t * 3 + 1]] +
+         hit.barycentric.y * mesh.positions[mesh.indices[t * 3 + 2]];
+}
+
+// Secondary ray origin: p pushed off the surface along n by a fixed number of float ulps (256 per unit
+// of n), or by 1/65536 m near the world origin (Waechter & Binder 2019, "A Fast and Robust Method for
+// Avoiding Self-Intersection", Ray Tracing Gems ch. 6). An offset relative to |p| instead would grow to
+// decimetres in a km-sized world and could push origins through thin walls and out of corners.
+glm::vec3 offsetRayOrigin(glm::vec3 p, glm::vec3 n) {
+  constexpr float kOriginRegion = 1.0f / 32.0f;
+  constexpr float kFloatScale = 1.0f / 65536.0f;
+  constexpr float kIntScale = 256.0f;
+  glm::vec3 out;
+  for (int k = 0; k < 3; ++k) {
+    const int32_t ulps = int32_t(kIntScale * n[k]);
+    const int32_t bits = std::bit_cast<int32_t>(p[k]);
+    const float moved = std::bit_cast<float>(bits + (p[k] < 0.0f ? -ulps : ulps));
+    out[k] = std::abs(p[k]) < kOriginRegion ? p[k] + kFloatScale * n[k] : moved;
+  }
+  return out;
+}
+
 struct FirstHit {
   float r = 0.0f;
   glm::vec3 normal{0.0f};
@@ -144,9 +171,7 @@ glm::vec3 tracePath(const EmbreeScene& scene, const worlds::SkyModel& sky, const
     if (hit->backface && !m.doubleSided) break;  // inside solid: black absorber
     radiance += throughput * m.emission;
     if (k >= o.maxBounces) break;
-    const glm::vec3 p = origin + hit->t * dir;
-    const float scale = std::max(1.0f, std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z))));
-    const glm::vec3 po = p + n * (o.rayEpsilon * scale);
+    const glm::vec3 po = offsetRayOrigin(hitPoint(mesh, *hit), n);
     const SurfaceBrdf brdf{albedo, m.roughness, m.metallic};
     const bool lambertian = brdf.isLambertian();
     const glm::vec3 wo = -dir;
@@ -343,8 +368,6 @@ void validateCaptureOptions(const CaptureOptions& o) {
   range("rouletteAfter", o.rouletteAfter, 1, 1 << 20);
   if (!(std::isfinite(o.maxDistance) && o.maxDistance > 0.0f))
     fail("CaptureOptions.maxDistance = {} must be finite and > 0", o.maxDistance);
-  if (!(std::isfinite(o.rayEpsilon) && o.rayEpsilon > 0.0f && o.rayEpsilon < 0.1f))
-    fail("CaptureOptions.rayEpsilon = {} must be finite and in (0, 0.1)", o.rayEpsilon);
 }
 
 std::vector<float> prefilterRadianceGgx(std::span<const float> radiance, int n, float roughness, int outN) {

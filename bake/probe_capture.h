@@ -71,7 +71,6 @@ struct CaptureOptions {
   int maxBounces = 12;            // [0, 256]; see the depth rule above
   int rouletteAfter = 3;          // first hit index with Russian roulette, >= 1
   float maxDistance = 1.0e4f;     // m: distance recorded for a miss; also the ray length limit, > 0
-  float rayEpsilon = 1.0e-4f;     // relative offset of secondary ray origins (times max(1, |p|)), > 0
   uint64_t seed = 1;
 };
 
