@@ -330,6 +330,37 @@ TEST(ProbeCapture, SealedBoxUnderTheSunIsExactlyDark) {
   EXPECT_GT(total, 0.0);
 }
 
+// DESIGN.md §5's leak case in the ground truth: a room sealed by 0.15 m slabs (six overlapping solid
+// boxes, as the synthetic world builds walls) under a low afternoon sun that hits one wall's outside;
+// probes 2 cm from that wall and in a corner must still see exactly nothing.
+TEST(ProbeCapture, ThinWalledSealedRoomStaysExactlyDarkNearItsWalls) {
+  worlds::TriangleMesh mesh;
+  const uint32_t m = mesh.addMaterial(material(glm::vec3(0.9f), glm::vec3(0.0f), false));
+  const float w = 0.15f;
+  const glm::vec3 lo(0.0f), hi(4.0f, 3.0f, 4.0f);
+  mesh.addBox({lo.x - w, lo.y - w, lo.z - w}, {hi.x + w, lo.y, hi.z + w}, m);  // floor
+  mesh.addBox({lo.x - w, hi.y, lo.z - w}, {hi.x + w, hi.y + w, hi.z + w}, m);  // roof
+  mesh.addBox({lo.x - w, lo.y - w, lo.z - w}, {lo.x, hi.y + w, hi.z + w}, m);  // -X wall
+  mesh.addBox({hi.x, lo.y - w, lo.z - w}, {hi.x + w, hi.y + w, hi.z + w}, m);  // +X wall
+  mesh.addBox({lo.x - w, lo.y - w, lo.z - w}, {hi.x + w, hi.y + w, lo.z}, m);  // -Z wall
+  mesh.addBox({lo.x - w, lo.y - w, hi.z}, {hi.x + w, hi.y + w, hi.z + w}, m);  // +Z wall
+  const EmbreeScene scene(mesh, "sealed room");
+  const worlds::SkyModel sky = worlds::makeSky(worlds::SkyState{16.5f, 45.0f, 172, 3.0f, 0.0f});
+  ASSERT_LT(sky.sun.direction.x, -0.3f);  // afternoon sun in the west (-X): the -X wall is sunlit outside
+  CaptureOptions o;
+  o.resolution = 16;
+  o.samplesPerTexel = 16;
+  o.maxBounces = 4;
+  const std::vector<glm::vec3> probes = {{3.98f, 1.5f, 2.0f}, {0.02f, 1.5f, 2.0f}, {0.01f, 0.01f, 0.01f},
+                                         {3.99f, 2.99f, 3.99f}, {2.0f, 1.5f, 2.0f}};
+  const CaptureResult r = captureProbes(scene, sky, probes, o);
+  ASSERT_EQ(r.probesDone, probes.size());
+  for (const ProbeCapture& c : r.probes) {
+    for (float v : c.radiance) ASSERT_EQ(v, 0.0f) << "probe at " << c.position.x << "," << c.position.y << "," << c.position.z;
+    for (float v : c.irradiance) ASSERT_EQ(v, 0.0f);
+  }
+}
+
 // A small scene with every light path: sun, sky, an emitter, occluders, diffuse and GGX bounces.
 worlds::TriangleMesh courtyard() {
   worlds::TriangleMesh mesh;
