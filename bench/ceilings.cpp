@@ -21,6 +21,8 @@
 #include "gpu/timing.h"
 #include "shared/ceilings.h"
 
+extern "C" char* openblas_get_corename();  // OpenBLAS extension: the kernel set in use
+
 namespace lfgi::bench {
 namespace {
 
@@ -169,7 +171,8 @@ int main(int argc, char** argv) {
     spdlog::info("copy: {:.2f} GB/s", copy);
     const int sgemmSize = quick ? 512 : 1024;
     const double sgemm = bench::cpuSgemmGflops(sgemmSize);
-    spdlog::info("OpenBLAS sgemm {}^3: {:.1f} GFLOP/s", sgemmSize, sgemm);
+    spdlog::info("OpenBLAS sgemm {}^3: {:.1f} GFLOP/s (kernels: {}; set OPENBLAS_CORETYPE if that is wrong, "
+                 "scripts/env.sh does)", sgemmSize, sgemm, openblas_get_corename());
     const double triad = bench::cpuTriadGbPerSecond(quick);
     spdlog::info("CPU triad: {:.1f} GB/s", triad);
 
@@ -186,6 +189,7 @@ int main(int argc, char** argv) {
     s["atomics64_per_s"] = atomics;
     s["copy_gb_per_s"] = copy;
     s["cpu_triad_gb_per_s"] = triad;
+    s["openblas_core"] = openblas_get_corename();
     o.save();
     spdlog::info("wrote {}", (o.dir() / "summary.json").string());
   } catch (const Error& e) {

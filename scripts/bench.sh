@@ -5,6 +5,7 @@
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
+source "$root/scripts/env.sh"
 if [[ $# -lt 1 ]]; then
   echo "usage: scripts/bench.sh NAME [--quick]   (NAME: $(ls bench/*.gp 2>/dev/null | xargs -n1 basename | sed 's/\.gp$//' | tr '\n' ' '))" >&2
   exit 2

@@ -4,6 +4,7 @@
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
+source "$root/scripts/env.sh"
 "$root/scripts/setup.sh"
 "$root/scripts/build.sh" "$root/build"
 "$root/build/bin/lfgi" device

@@ -6,6 +6,7 @@
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
+source "$root/scripts/env.sh"
 "$root/scripts/setup.sh"
 jobs="${LFGI_JOBS:-$(nproc)}"
 
