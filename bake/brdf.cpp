@@ -87,6 +87,11 @@ glm::vec3 evalBrdf(const SurfaceBrdf& b, glm::vec3 n, glm::vec3 wo, glm::vec3 wi
   return f;
 }
 
+glm::vec3 diffuseBrdf(const SurfaceBrdf& b) {
+  if (b.isLambertian()) return b.albedo * (1.0f / kPi);
+  return diffuseWeight(b) * (1.0f / kPi);
+}
+
 float brdfPdf(const SurfaceBrdf& b, glm::vec3 n, glm::vec3 wo, glm::vec3 wi) {
   const float nl = glm::dot(n, wi);
   if (nl <= 0.0f) return 0.0f;

@@ -40,6 +40,9 @@ struct SurfaceBrdf {
 
 // f(wo, wi) without the cosine; 0 when either direction is below the surface (n . w <= 0).
 glm::vec3 evalBrdf(const SurfaceBrdf& b, glm::vec3 n, glm::vec3 wo, glm::vec3 wi);
+// The diffuse part of f (a constant: (1 - metallic) (1 - 0.04) albedo / pi, or albedo / pi when
+// isLambertian()); f - diffuseBrdf is the specular lobe. Used to split a path's first bounce by lobe.
+glm::vec3 diffuseBrdf(const SurfaceBrdf& b);
 // Solid-angle density of sampleBrdf producing wi.
 float brdfPdf(const SurfaceBrdf& b, glm::vec3 n, glm::vec3 wo, glm::vec3 wi);
 

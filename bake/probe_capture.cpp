@@ -12,7 +12,7 @@
 #include <numbers>
 #include <optional>
 
-#include "bake/brdf.h"
+#include "bake/path_trace.h"
 #include "core/error.h"
 #include "core/octahedral.h"
 #include "core/progress.h"
@@ -21,14 +21,8 @@
 namespace lfgi::bake {
 namespace {
 
-constexpr float kInvPi = float(1.0 / std::numbers::pi);
-
-// splitmix64's finaliser (Steele, Lea & Flood 2014): a strong 64-bit mix for counter-based streams.
-uint64_t mix64(uint64_t z) {
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
+using detail::mix64;
+using detail::PathRng;
 
 uint64_t probeKey(uint64_t seed, glm::vec3 p) {
   uint64_t h = mix64(seed ^ 0x6c666769'70726f62ULL);
@@ -36,20 +30,6 @@ uint64_t probeKey(uint64_t seed, glm::vec3 p) {
   h = mix64(h ^ (uint64_t(std::bit_cast<uint32_t>(p.y)) << 32));
   return mix64(h ^ std::bit_cast<uint32_t>(p.z));
 }
-
-// Random numbers of one path: element `counter` of the stream `key`, independent of thread and order.
-class PathRng {
- public:
-  PathRng(uint64_t probe, int texel, int sample)
-      : key_(mix64(probe ^ mix64((uint64_t(uint32_t(texel)) << 32) | uint32_t(sample)))) {}
-  double nextDouble() { return double(next() >> 11) * 0x1.0p-53; }
-  float nextFloat() { return float(next() >> 40) * 0x1.0p-24f; }
-
- private:
-  uint64_t next() { return mix64(key_ + (++counter_) * 0x9e3779b97f4a7c15ULL); }
-  uint64_t key_;
-  uint64_t counter_ = 0;
-};
 
 // Primary sample s of texel (i, j); draws the first two numbers of rng.
 TexelSample primarySample(int i, int j, int n, int s, int samples, PathRng& rng) {
@@ -78,142 +58,8 @@ float luminance(glm::vec3 c) {
   return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z;
 }
 
-float maxComponent(glm::vec3 c) {
-  return std::max(c.x, std::max(c.y, c.z));
-}
-
 bool finite(glm::vec3 v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
-}
-
-struct Discs {
-  const worlds::DiscLight* light[2];
-  int count = 0;
-};
-
-Discs activeDiscs(const worlds::SkyModel& sky) {
-  Discs d{};
-  for (const worlds::DiscLight* l : {&sky.sun, &sky.moon}) {
-    if (maxComponent(l->irradianceNormal()) > 0.0f) d.light[d.count++] = l;
-  }
-  return d;
-}
-
-glm::vec3 hitAlbedo(const worlds::TriangleMesh& mesh, const worlds::Material& m, const RayHit& hit) {
-  glm::vec3 a = m.albedo;
-  if (m.albedoTexture >= 0 && !mesh.uvs.empty()) {
-    const size_t t = hit.triangle;
-    const glm::vec2 uv = (1.0f - hit.barycentric.x - hit.barycentric.y) * mesh.uvs[mesh.indices[t * 3]] +
-                         hit.barycentric.x * mesh.uvs[mesh.indices[t * 3 + 1]] +
-                         hit.barycentric.y * mesh.uvs[mesh.indices[t * 3 + 2]];
-    a *= mesh.textures[size_t(m.albedoTexture)].sampleLinear(uv);
-  }
-  return a;
-}
-
-// The hit point from the triangle's vertices and barycentrics (more accurate than origin + t dir far from
-// the origin).
-glm::vec3 hitPoint(const worlds::TriangleMesh& mesh, const RayHit& hit) {
-  const size_t t = hit.triangle;
-  return (1.0f - hit.barycentric.x - hit.barycentric.y) * mesh.positions[mesh.indices[t * 3]] +
-         hit.barycentric.x * mesh.positions[mesh.indices[t * 3 + 1]] +
-         hit.barycentric.y * mesh.positions[mesh.indices[t * 3 + 2]];
-}
-
-// Secondary ray origin: p pushed off the surface along n by a fixed number of float ulps (256 per unit
-// of n), or by 1/65536 m near the world origin (Waechter & Binder 2019, "A Fast and Robust Method for
-// Avoiding Self-Intersection", Ray Tracing Gems ch. 6). An offset relative to |p| instead would grow to
-// decimetres in a km-sized world and could push origins through thin walls and out of corners.
-glm::vec3 offsetRayOrigin(glm::vec3 p, glm::vec3 n) {
-  constexpr float kOriginRegion = 1.0f / 32.0f;
-  constexpr float kFloatScale = 1.0f / 65536.0f;
-  constexpr float kIntScale = 256.0f;
-  glm::vec3 out;
-  for (int k = 0; k < 3; ++k) {
-    const int32_t ulps = int32_t(kIntScale * n[k]);
-    const int32_t bits = std::bit_cast<int32_t>(p[k]);
-    const float moved = std::bit_cast<float>(bits + (p[k] < 0.0f ? -ulps : ulps));
-    out[k] = std::abs(p[k]) < kOriginRegion ? p[k] + kFloatScale * n[k] : moved;
-  }
-  return out;
-}
-
-struct FirstHit {
-  float r = 0.0f;
-  glm::vec3 normal{0.0f};
-  glm::vec3 albedo{0.0f};
-};
-
-// One path from the probe along dir; returns its radiance estimate (discs excluded on the primary
-// segment: the caller deposits them).
-glm::vec3 tracePath(const EmbreeScene& scene, const worlds::SkyModel& sky, const Discs& discs,
-                    const CaptureOptions& o, glm::vec3 origin, glm::vec3 dir, PathRng& rng, FirstHit& first,
-                    uint64_t& rays) {
-  const worlds::TriangleMesh& mesh = scene.mesh();
-  glm::vec3 radiance(0.0f);
-  glm::vec3 throughput(1.0f);
-  first = FirstHit{o.maxDistance, glm::vec3(0.0f), glm::vec3(0.0f)};
-  for (int k = 0;; ++k) {
-    const std::optional<RayHit> hit = scene.intersect(origin, dir, 0.0f, o.maxDistance);
-    ++rays;
-    if (!hit) {
-      radiance += throughput * worlds::skyRadiance(sky, dir);
-      break;
-    }
-    const worlds::Material& m = mesh.materials[mesh.triangleMaterial[hit->triangle]];
-    const glm::vec3 albedo = hitAlbedo(mesh, m, *hit);
-    const glm::vec3 n = hit->backface ? -hit->normal : hit->normal;  // faces the incoming ray
-    if (k == 0) {
-      first.r = hit->t;
-      first.normal = m.doubleSided ? n : hit->normal;
-      first.albedo = albedo;
-    }
-    if (hit->backface && !m.doubleSided) break;  // inside solid: black absorber
-    radiance += throughput * m.emission;
-    if (k >= o.maxBounces) break;
-    const glm::vec3 po = offsetRayOrigin(hitPoint(mesh, *hit), n);
-    const SurfaceBrdf brdf{albedo, m.roughness, m.metallic};
-    const bool lambertian = brdf.isLambertian();
-    const glm::vec3 wo = -dir;
-    for (int d = 0; d < discs.count; ++d) {
-      const worlds::DiscLight& l = *discs.light[d];
-      if (glm::dot(n, l.direction) <= 0.0f) continue;
-      const glm::vec3 f = lambertian ? albedo * kInvPi : evalBrdf(brdf, n, wo, l.direction);
-      if (!(maxComponent(f) > 0.0f)) continue;
-      ++rays;
-      if (!scene.occluded(po, l.direction, 0.0f, o.maxDistance)) radiance += throughput * f * l.irradiance(n);
-    }
-    // Bounce. Lambertian with cosine sampling: f cos / pdf = albedo exactly; otherwise brdf.h's mixture.
-    glm::vec3 weight;
-    if (lambertian) {
-      weight = albedo;
-      const float u1 = rng.nextFloat();
-      const float u2 = rng.nextFloat();
-      dir = cosineSampleHemisphere(n, u1, u2);
-    } else {
-      const float u0 = rng.nextFloat();
-      const float u1 = rng.nextFloat();
-      const float u2 = rng.nextFloat();
-      const BrdfSample bs = sampleBrdf(brdf, n, wo, u0, u1, u2);
-      if (!bs.valid) break;
-      weight = bs.weight;
-      dir = bs.wi;
-    }
-    if (!(maxComponent(weight) > 0.0f)) break;
-    if (k >= o.rouletteAfter) {
-      // Survival by this bounce's weight (the albedo for Lambertian), not by the path throughput: the
-      // path weight then never grows through roulette (weight / q <= 1 per bounce while weight <= 0.95),
-      // which keeps single samples bounded and the standard error estimate trustworthy.
-      // Throughput-based survival (as in pbrt-v4) gave 1/q factors of 16 and more in a furnace of albedo
-      // 0.5 and a heavy-tailed, underestimated noise.
-      const float q = std::min(0.95f, maxComponent(weight));
-      if (rng.nextFloat() >= q) break;
-      weight /= q;
-    }
-    throughput *= weight;
-    origin = po;
-  }
-  return radiance;
 }
 
 void validatePosition(glm::vec3 p, size_t index) {
@@ -237,7 +83,11 @@ ProbeCapture captureOne(const EmbreeScene& scene, const worlds::SkyModel& sky, g
   c.albedo.assign(texels * 3, 0.0f);
   std::vector<float> luminanceStdError(texels, 0.0f);
   const uint64_t key = probeKey(o.seed, position);
-  const Discs discs = activeDiscs(sky);
+  const detail::Discs discs = detail::activeDiscs(sky);
+  detail::PathOptions po;
+  po.maxBounces = o.maxBounces;
+  po.rouletteAfter = o.rouletteAfter;
+  po.maxDistance = o.maxDistance;
   std::atomic<uint64_t> rays{0};
 
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 1), [&](const tbb::blocked_range<int>& rows) {
@@ -252,8 +102,9 @@ ProbeCapture captureOne(const EmbreeScene& scene, const worlds::SkyModel& sky, g
         for (int s = 0; s < S; ++s) {
           PathRng rng(key, texel, s);
           const TexelSample ts = primarySample(i, j, n, s, S, rng);
-          FirstHit first;
-          const glm::vec3 L = tracePath(scene, sky, discs, o, position, ts.direction, rng, first, localRays);
+          detail::FirstHit first;
+          const glm::vec3 L =
+              detail::tracePath(scene, sky, discs, po, position, ts.direction, rng, first, localRays);
           const double w = ts.weight;
           sw += w;
           sw2 += w * w;

@@ -1,0 +1,75 @@
+// Internal to bake/: the path tracer shared by probe capture (probe_capture.h) and reference images
+// (reference_render.h), so both see exactly the same materials, lights and transport. Not a public API:
+// the rules (NEE for the discs, sky only on escape, depth, roulette, ray offsets) are documented at the
+// top of probe_capture.h; the direct / indirect split is documented in reference_render.h.
+#pragma once
+
+#include <cstdint>
+
+#include <glm/glm.hpp>
+
+#include "bake/embree_scene.h"
+#include "worlds/sky.h"
+
+namespace lfgi::bake::detail {
+
+// splitmix64's finaliser (Steele, Lea & Flood 2014): a strong 64-bit mix for counter-based streams.
+inline uint64_t mix64(uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+// Random numbers of one path: element `counter` of the stream keyed by (key, index, sample), independent
+// of thread and order.
+class PathRng {
+ public:
+  PathRng(uint64_t key, int index, int sample)
+      : key_(mix64(key ^ mix64((uint64_t(uint32_t(index)) << 32) | uint32_t(sample)))) {}
+  double nextDouble() { return double(next() >> 11) * 0x1.0p-53; }
+  float nextFloat() { return float(next() >> 40) * 0x1.0p-24f; }
+
+ private:
+  uint64_t next() { return mix64(key_ + (++counter_) * 0x9e3779b97f4a7c15ULL); }
+  uint64_t key_;
+  uint64_t counter_ = 0;
+};
+
+struct PathOptions {
+  int maxBounces = 12;
+  int rouletteAfter = 3;
+  float maxDistance = 1.0e4f;
+  // A primary ray that escapes also adds discRadiance (the camera sees the sun disc); the capture
+  // deposits the discs itself and leaves this off.
+  bool discsOnPrimaryMiss = false;
+};
+
+// The sun and moon discs with non-zero energy.
+struct Discs {
+  const worlds::DiscLight* light[2];
+  int count = 0;
+};
+Discs activeDiscs(const worlds::SkyModel& sky);
+
+struct FirstHit {
+  float r = 0.0f;
+  glm::vec3 normal{0.0f};
+  glm::vec3 albedo{0.0f};
+};
+
+// The path's radiance split by what reached the first hit (reference_render.h): direct + the two
+// indirect parts equal the returned total up to float rounding.
+struct PathSplit {
+  glm::vec3 direct{0.0f};
+  glm::vec3 indirectDiffuse{0.0f};
+  glm::vec3 indirectSpecular{0.0f};
+};
+
+// One path from origin along unit dir; returns its radiance estimate. first receives the first hit
+// (r = maxDistance and zeros on a miss); rays counts closest-hit and shadow rays; split, if not null,
+// receives the split (costs a few vector operations per vertex; the total is computed identically).
+glm::vec3 tracePath(const EmbreeScene& scene, const worlds::SkyModel& sky, const Discs& discs, const PathOptions& o,
+                    glm::vec3 origin, glm::vec3 dir, PathRng& rng, FirstHit& first, uint64_t& rays,
+                    PathSplit* split = nullptr);
+
+}  // namespace lfgi::bake::detail
