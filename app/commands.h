@@ -48,4 +48,43 @@ struct WorldExportOptions {
 };
 int runWorldExportCell(const WorldExportOptions& options);
 
+// `lfgi capture` (app/bake_command.cpp): probe capture of world cells or a test scene; resumable, 130
+// when interrupted.
+struct CaptureCommandOptions {
+  std::string world;               // world directory, or
+  std::vector<std::string> cells;  // "X,Z" (with --world)
+  std::string scene;               // preset name or .gltf/.glb file
+  std::string scenesDir = "../shared/scenes";
+  float scale = 1.0f;              // for a scene file
+  std::string probes;              // "NX,NY,NZ" probe grid override for scenes
+  float timeOfDay = 17.5f;
+  float overcast = 0.0f;
+  int resolution = 16;
+  int spp = 64;
+  int bounces = 12;
+  uint64_t seed = 1;
+  std::string outDir;
+  int threads = 0;  // 0: all cores
+};
+int runCapture(const CaptureCommandOptions& options);
+
+// `lfgi reference`: a layered path-traced EXR (bake/reference_render.h) + a tone-mapped PNG beside it.
+struct ReferenceCommandOptions {
+  std::string world;
+  std::string scene;
+  std::string scenesDir = "../shared/scenes";
+  float scale = 1.0f;
+  std::string camera;  // px,py,pz,tx,ty,tz
+  float fov = 60.0f;
+  std::string size = "640x360";
+  int spp = 64;
+  int bounces = 12;
+  float timeOfDay = 17.5f;
+  float overcast = 0.0f;
+  uint64_t seed = 1;
+  std::string out;
+  int threads = 0;
+};
+int runReference(const ReferenceCommandOptions& options);
+
 }  // namespace lfgi::app

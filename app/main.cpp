@@ -56,6 +56,40 @@ int main(int argc, char** argv) {
   exportCell->add_option("--cell", exportOpt.cell, "Cell as X,Z")->required();
   exportCell->add_option("--out", exportOpt.out, "Output .glb file")->required();
 
+  lfgi::app::CaptureCommandOptions capOpt;
+  CLI::App* capture = app.add_subcommand("capture", "Ground-truth probe capture of world cells or a test scene (resumable)");
+  CLI::Option* capWorld = capture->add_option("--world", capOpt.world, "World directory (with --cells)");
+  capture->add_option("--cells", capOpt.cells, "Cells to capture, e.g. --cells 0,0 1,0");
+  capture->add_option("--scene", capOpt.scene, "Scene preset name or .gltf/.glb file")->excludes(capWorld);
+  capture->add_option("--scenes-dir", capOpt.scenesDir, "Folder of the scene presets")->capture_default_str();
+  capture->add_option("--scale", capOpt.scale, "Unit scale of a scene file (metres per unit)")->check(CLI::PositiveNumber);
+  capture->add_option("--probes", capOpt.probes, "Scene probe grid NX,NY,NZ (default: the preset's)");
+  capture->add_option("--time", capOpt.timeOfDay, "Time of day, hours")->check(CLI::Range(0.0, 24.0))->capture_default_str();
+  capture->add_option("--overcast", capOpt.overcast, "Weather, 0 clear .. 1 overcast")->check(CLI::Range(0.0, 1.0))->capture_default_str();
+  capture->add_option("--resolution", capOpt.resolution, "Octahedral map resolution")->check(CLI::Range(1, 256))->capture_default_str();
+  capture->add_option("--spp", capOpt.spp, "Samples per texel")->check(CLI::Range(1, 65536))->capture_default_str();
+  capture->add_option("--bounces", capOpt.bounces, "Maximum bounces")->check(CLI::Range(0, 256))->capture_default_str();
+  capture->add_option("--seed", capOpt.seed, "Random seed")->capture_default_str();
+  capture->add_option("--out", capOpt.outDir, "Output directory")->required();
+  capture->add_option("--threads", capOpt.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 256));
+
+  lfgi::app::ReferenceCommandOptions refOpt;
+  CLI::App* reference = app.add_subcommand("reference", "Path-traced reference image with direct/indirect layers (EXR + PNG)");
+  CLI::Option* refWorld = reference->add_option("--world", refOpt.world, "World directory (the camera's cell and its neighbours)");
+  reference->add_option("--scene", refOpt.scene, "Scene preset name or .gltf/.glb file")->excludes(refWorld);
+  reference->add_option("--scenes-dir", refOpt.scenesDir, "Folder of the scene presets")->capture_default_str();
+  reference->add_option("--scale", refOpt.scale, "Unit scale of a scene file (metres per unit)")->check(CLI::PositiveNumber);
+  reference->add_option("--camera", refOpt.camera, "Camera position and target: px,py,pz,tx,ty,tz")->required();
+  reference->add_option("--fov", refOpt.fov, "Vertical field of view, degrees")->capture_default_str();
+  reference->add_option("--size", refOpt.size, "Image size WIDTHxHEIGHT")->capture_default_str();
+  reference->add_option("--spp", refOpt.spp, "Samples per pixel")->check(CLI::Range(1, 65536))->capture_default_str();
+  reference->add_option("--bounces", refOpt.bounces, "Maximum bounces")->check(CLI::Range(0, 256))->capture_default_str();
+  reference->add_option("--time", refOpt.timeOfDay, "Time of day, hours")->check(CLI::Range(0.0, 24.0))->capture_default_str();
+  reference->add_option("--overcast", refOpt.overcast, "Weather, 0 clear .. 1 overcast")->check(CLI::Range(0.0, 1.0))->capture_default_str();
+  reference->add_option("--seed", refOpt.seed, "Random seed")->capture_default_str();
+  reference->add_option("--out", refOpt.out, "Output .exr (a .png is written beside it)")->required();
+  reference->add_option("--threads", refOpt.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 256));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -76,6 +110,8 @@ int main(int argc, char** argv) {
     if (*gen) return lfgi::app::runWorldGenerate(genOpt);
     if (*info) return lfgi::app::runWorldInfo(infoOpt);
     if (*exportCell) return lfgi::app::runWorldExportCell(exportOpt);
+    if (*capture) return lfgi::app::runCapture(capOpt);
+    if (*reference) return lfgi::app::runReference(refOpt);
     std::fputs(app.help().c_str(), stdout);
     return 0;
   } catch (const lfgi::Error& e) {
