@@ -223,7 +223,7 @@ int captureOne(const fs::path& out, const std::string& name, const std::string& 
   const bake::CaptureResult r = bake::captureProbes(scene, sky, positions, co, /*showProgress=*/true);
   if (r.interrupted) return 130;
   writeCapture(out, name, source, sky, co, r, gridIndex, probesTotal, grid);
-  spdlog::info("{}: {} probes, {:.2f} s, {:.2f} M rays/s -> {}", name, positions.size(), r.seconds,
+  spdlog::info("{}: {} probes, {:.3f} s, {:.2f} M rays/s -> {}", name, positions.size(), r.seconds,
                r.raysPerSecond() * 1e-6, (out / (name + ".json")).string());
   return 0;
 }
@@ -380,7 +380,7 @@ int runReference(const ReferenceCommandOptions& opt) {
   writeExr(exr, r.image);
   const float median = medianLuminance(r.image);
   writePng(png, r.image, std::log2(0.18f / median));
-  spdlog::info("reference {}x{}, {} spp: {:.2f} s, {:.2f} M rays/s, median luminance {:.4g} -> {}, {}", ro.width,
+  spdlog::info("reference {}x{}, {} spp: {:.3f} s, {:.2f} M rays/s, median luminance {:.4g} -> {}, {}", ro.width,
                ro.height, ro.samplesPerPixel, r.seconds, r.raysPerSecond() * 1e-6, median, exr.string(), png.string());
   return 0;
 }
