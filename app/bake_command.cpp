@@ -3,11 +3,15 @@
 // capture output, per cell (cell_X_Z) or scene (its preset name or file stem), in --out:
 //   <name>_radiance.exr    atlas of the probes' n x n maps: probe k at tile (k % columns, k / columns),
 //                          texel (i, j) at pixel (column * n + i, row * n + j); channels radiance.R/G/B,
-//                          radiance_std_error.R/G/B, distance.mean, distance.sq, normal.X/Y/Z, albedo.R/G/B
+//                          radiance_std_error.R/G/B, distance.mean, distance.sq, normal.X/Y/Z, albedo.R/G/B;
+//                          columns = ceil(sqrt(probes)); unused tiles are 0
 //   <name>_irradiance.exr  the same layout of the m x m irradiance maps, channels R/G/B
 //   <name>.json            summary (probes, rays, rays/s, mean relative std error, seconds) and, per probe,
 //                          its grid index, position and tile; written last, so its presence marks a
 //                          finished cell and a rerun skips it. Every file is written atomically.
+// World mode captures the ACTIVE probes of worlds::buildCell (kProbeDisabledSolid skipped) in the cell's
+// mesh plus its 8 neighbours'; scene mode captures presetProbeGrid (or --probes) over the scene bounds.
+// reference: the camera's cell and its 8 neighbours (world) or the scene; aborted runs write nothing.
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
