@@ -114,6 +114,45 @@ TEST(ReferenceRender, FurnaceSplitsIntoDirectAndIndirect) {
               r.raysPerSecond() * 1e-6);
 }
 
+// A pure metal has no diffuse lobe (diffuseBrdf = 0): all indirect light goes to the specular layer.
+// White rough metal in a closed emissive box: direct = E + rho E with rho <= 1 the single-scatter GGX
+// reflectance of the first bounce, so direct lies in [E, 2E] on average (single samples of f cos / pdf
+// can exceed 1: h is sampled by D, not by visible normals), and each further bounce adds at most E.
+TEST(ReferenceRender, MetalFurnaceIsAllSpecular) {
+  worlds::Material metal = material(glm::vec3(1.0f), glm::vec3(1.0f));
+  metal.metallic = 1.0f;
+  metal.roughness = 0.3f;
+  worlds::TriangleMesh mesh;
+  addInwardBox(mesh, glm::vec3(-5.0f), glm::vec3(5.0f), mesh.addMaterial(metal));
+  const EmbreeScene scene(mesh);
+  RenderOptions o;
+  o.width = 16;
+  o.height = 16;
+  o.samplesPerPixel = 16;
+  o.maxBounces = 4;
+  PinholeCamera cam;
+  cam.position = glm::vec3(1.0f, 0.5f, -2.0f);
+  cam.target = glm::vec3(3.0f, -1.0f, 4.0f);
+  cam.verticalFovDeg = 90.0f;
+  const RenderResult r = renderReference(scene, worlds::makeSky(worlds::SkyState{}), cam, o);
+  expectLayersSumExactly(r.image);
+  for (int y = 0; y < o.height; ++y) {
+    for (int x = 0; x < o.width; ++x) {
+      ASSERT_EQ(channel(r.image, x, y, "indirect_diffuse.G"), 0.0f);
+      ASSERT_GE(channel(r.image, x, y, "direct.G"), 1.0f);
+    }
+  }
+  const ImageMean d = imageMean(r.image, "direct.G", "std_error.G");
+  const ImageMean t = imageMean(r.image, "G", "std_error.G");
+  const ImageMean sp = imageMean(r.image, "indirect_specular.G", "std_error.G");
+  EXPECT_LT(d.mean, 2.0 + 4.0 * t.se);
+  EXPECT_LT(t.mean, o.maxBounces + 1.0 + 4.0 * t.se);
+  EXPECT_GT(sp.mean, 0.5 * (t.mean - d.mean));
+  EXPECT_NEAR(sp.mean, t.mean - d.mean, 1e-4 * t.mean);
+  std::printf("metal furnace: direct %.4f, indirect specular %.4f, total %.4f +- %.4f\n", d.mean, sp.mean, t.mean,
+              t.se);
+}
+
 // A white Lambertian plane under the noon sun, nothing else: every pixel sees the plane, and its radiance
 // is albedo / pi (E_sun cos theta + E_sky) with E_sky the upper-hemisphere irradiance of skyRadiance
 // (the first bounce always escapes). All of it is direct; indirect is exactly 0.
