@@ -13,10 +13,10 @@ set ytics nomirror
 set y2tics
 set yrange [0:*]
 set y2range [0:*]
-plot dir.'/results.csv' every ::1 using (strcol(1) eq 'spp' ? $3 : 1/0):6 with linespoints lw 2 title 'ms/probe', \
-     '' every ::1 using (strcol(1) eq 'spp' ? $3 : 1/0):($8*100) axes x1y2 with linespoints lw 2 dt 2 title 'rel std error'
+plot dir.'/results.csv' every ::1 using (strcol(1) eq 'spp' ? $3 : 1/0):6 smooth unique with linespoints lw 2 title 'ms/probe', \
+     '' every ::1 using (strcol(1) eq 'spp' ? $3 : 1/0):($8*100) smooth unique axes x1y2 with linespoints lw 2 dt 2 title 'rel std error'
 set title 'resolution (64 samples per texel)'
 set xlabel 'octahedral map resolution (texels per side)'
-plot dir.'/results.csv' every ::1 using (strcol(1) eq 'resolution' || ($2 == 16 && $3 == 64) ? $2 : 1/0):6 with linespoints lw 2 title 'ms/probe', \
-     '' every ::1 using (strcol(1) eq 'resolution' || ($2 == 16 && $3 == 64) ? $2 : 1/0):($8*100) axes x1y2 with linespoints lw 2 dt 2 title 'rel std error'
+plot dir.'/results.csv' every ::1 using (strcol(1) eq 'resolution' ? $2 : 1/0):6 smooth unique with linespoints lw 2 title 'ms/probe', \
+     '' every ::1 using (strcol(1) eq 'resolution' ? $2 : 1/0):($8*100) smooth unique axes x1y2 with linespoints lw 2 dt 2 title 'rel std error'
 unset multiplot
