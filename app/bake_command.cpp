@@ -25,6 +25,7 @@
 #include <filesystem>
 #include <optional>
 
+#include "app/cli_args.h"
 #include "app/commands.h"
 #include "bake/probe_capture.h"
 #include "bake/reference_render.h"
@@ -57,14 +58,6 @@ std::vector<float> parseNumbers(const std::string& flag, const std::string& text
   }
   if (v.size() != count) fail("{} '{}': expected {} ({} numbers), got {}", flag, text, what, count, v.size());
   return v;
-}
-
-worlds::CellCoord parseCell(const std::string& text) {
-  int x = 0, z = 0;
-  char comma = 0, extra = 0;
-  if (std::sscanf(text.c_str(), "%d%c%d%c", &x, &comma, &z, &extra) != 3 || comma != ',')
-    fail("--cells '{}': expected X,Z (two integers)", text);
-  return {x, z};
 }
 
 worlds::SkyModel skyFor(float timeOfDay, float overcast) {
@@ -285,7 +278,7 @@ int runCapture(const CaptureCommandOptions& opt) {
   const worlds::SyntheticWorld world(worlds::readWorldManifest(opt.world));
   std::vector<worlds::CellCoord> cells;
   for (const std::string& c : opt.cells) {
-    const worlds::CellCoord cc = parseCell(c);
+    const worlds::CellCoord cc = parseCellArg(c, "--cells");
     if (!world.contains(cc))
       fail("--cells {}: outside the world ({} x {} cells)", c, world.cellsX(), world.cellsZ());
     cells.push_back(cc);

@@ -10,6 +10,7 @@
 #include <mutex>
 #include <thread>
 
+#include "app/cli_args.h"
 #include "app/commands.h"
 #include "core/error.h"
 #include "core/progress.h"
@@ -17,17 +18,6 @@
 #include "worlds/world_cells.h"
 
 namespace lfgi::app {
-namespace {
-
-worlds::CellCoord parseCell(const std::string& text) {
-  int x = 0, z = 0;
-  char comma = 0, extra = 0;
-  if (std::sscanf(text.c_str(), "%d%c%d%c", &x, &comma, &z, &extra) != 3 || comma != ',')
-    fail("--cell '{}': expected X,Z (two integers)", text);
-  return {x, z};
-}
-
-}  // namespace
 
 int runWorldGenerate(const WorldGenerateOptions& opt) {
   worlds::WorldParams params;
@@ -42,7 +32,7 @@ int runWorldGenerate(const WorldGenerateOptions& opt) {
       for (int x = 0; x < world.cellsX(); ++x) todo.push_back({x, z});
   }
   for (const std::string& c : opt.cells) {
-    worlds::CellCoord cc = parseCell(c);
+    worlds::CellCoord cc = parseCellArg(c, "--cells");
     if (!world.contains(cc)) fail("--cells {}: outside the world ({} x {} cells)", c, world.cellsX(), world.cellsZ());
     todo.push_back(cc);
   }
@@ -164,7 +154,7 @@ int runWorldInfo(const WorldInfoOptions& opt) {
 int runWorldExportCell(const WorldExportOptions& opt) {
   worlds::WorldParams params = worlds::readWorldManifest(opt.dir);
   worlds::SyntheticWorld world(params);
-  worlds::CellCoord c = parseCell(opt.cell);
+  worlds::CellCoord c = parseCellArg(opt.cell, "--cell");
   if (!world.contains(c)) fail("--cell {}: outside the world ({} x {} cells)", opt.cell, world.cellsX(), world.cellsZ());
   worlds::TriangleMesh mesh = world.generateCell(c);
   worlds::exportGlb(opt.out, mesh);

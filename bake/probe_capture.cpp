@@ -8,7 +8,6 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
-#include <mutex>
 #include <numbers>
 #include <optional>
 
@@ -285,7 +284,6 @@ CaptureResult captureProbes(const EmbreeScene& scene, const worlds::SkyModel& sk
   result.done.assign(positions.size(), 0);
   std::atomic<size_t> finished{0};
   std::atomic<bool> stopped{false};
-  std::mutex progressMutex;
   std::optional<Progress> progress;
   if (showProgress) progress.emplace("capture", positions.size(), "probes");
 
@@ -298,10 +296,7 @@ CaptureResult captureProbes(const EmbreeScene& scene, const worlds::SkyModel& sk
       result.probes[p] = captureOne(scene, sky, positions[p], options, solidAngles);
       result.done[p] = 1;
       finished.fetch_add(1);
-      if (progress) {  // Progress is single-threaded: whoever holds the lock reports the current count
-        std::unique_lock lock(progressMutex, std::try_to_lock);
-        if (lock.owns_lock()) progress->update(finished.load());
-      }
+      if (progress) progress->update(finished.load());
     }
   });
 

@@ -7,7 +7,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <mutex>
 #include <numbers>
 #include <optional>
 
@@ -133,7 +132,6 @@ RenderResult renderReference(const EmbreeScene& scene, const worlds::SkyModel& s
   std::atomic<size_t> finished{0};
   std::atomic<uint64_t> rays{0};
   std::atomic<bool> stopped{false};
-  std::mutex progressMutex;
   std::optional<Progress> progress;
   if (showProgress) progress.emplace("reference", result.tiles, "tiles");
   tbb::parallel_for(tbb::blocked_range<size_t>(0, result.tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
@@ -147,10 +145,7 @@ RenderResult renderReference(const EmbreeScene& scene, const worlds::SkyModel& s
                  int(t / size_t(tilesX)) * o.tileSize, result.image, localRays);
       rays.fetch_add(localRays, std::memory_order_relaxed);
       finished.fetch_add(1);
-      if (progress) {  // Progress is single-threaded: whoever holds the lock reports the current count
-        std::unique_lock lock(progressMutex, std::try_to_lock);
-        if (lock.owns_lock()) progress->update(finished.load());
-      }
+      if (progress) progress->update(finished.load());
     }
   });
   if (progress) {

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <csignal>
@@ -35,23 +36,31 @@ std::string Progress::formatDuration(double s) {
 }
 
 void Progress::update(size_t done) {
-  done_ = done;
+  size_t prev = done_.load();
+  while (prev < done && !done_.compare_exchange_weak(prev, done)) {
+  }
+  std::unique_lock lock(mutex_, std::try_to_lock);
+  if (!lock.owns_lock()) return;  // someone else is printing; the count is recorded
   auto now = std::chrono::steady_clock::now();
   double since = std::chrono::duration<double>(now - lastPrint_).count();
   if (since >= (tty_ ? 0.2 : 5.0)) print(false);
 }
 
-void Progress::finish() { print(true); }
+void Progress::finish() {
+  std::lock_guard lock(mutex_);
+  print(true);
+}
 
 void Progress::print(bool final) {
   lastPrint_ = std::chrono::steady_clock::now();
   double elapsed = std::chrono::duration<double>(lastPrint_ - start_).count();
-  double rate = elapsed > 0.0 ? double(done_ - startDone_) / elapsed : 0.0;
-  double eta = rate > 0.0 ? double(total_ - done_) / rate : -1.0;
+  const size_t done = done_.load();
+  double rate = elapsed > 0.0 ? double(done - startDone_) / elapsed : 0.0;
+  double eta = rate > 0.0 ? double(total_ - done) / rate : -1.0;
   const int width = 30;
-  int filled = total_ ? int(double(width) * double(done_) / double(total_)) : width;
+  int filled = total_ ? int(double(width) * double(done) / double(total_)) : width;
   std::string bar = std::string(size_t(filled), '#') + std::string(size_t(width - filled), '.');
-  std::string line = fmt::format("{} [{}] {}/{} {} {:.1f}/s elapsed {} eta {}", label_, bar, done_, total_, unit_,
+  std::string line = fmt::format("{} [{}] {}/{} {} {:.1f}/s elapsed {} eta {}", label_, bar, done, total_, unit_,
                                  rate, formatDuration(elapsed), final ? "0s" : formatDuration(eta));
   std::fprintf(stderr, tty_ ? "\r%s%s" : "%s%s", line.c_str(), (final || !tty_) ? "\n" : "");
   std::fflush(stderr);

@@ -6,8 +6,10 @@
 // interrupted() between work items, write what they finished, and exit so that a rerun resumes.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstddef>
+#include <mutex>
 #include <string>
 
 namespace lfgi {
@@ -16,10 +18,10 @@ class Progress {
  public:
   // alreadyDone: items finished by an earlier, interrupted run (counted in done/total, not in the rate).
   Progress(std::string label, size_t total, std::string unit = "items", size_t alreadyDone = 0);
-  // Records that `done` items are finished (monotonic) and prints if due. Thread-compatible (call from
-  // one thread).
+  // Records that `done` items are finished and prints if due. Thread-safe: any worker may call it; a
+  // call that finds another one printing returns at once, and the count never goes backwards.
   void update(size_t done);
-  // Prints the final line (always).
+  // Prints the final line (always). Thread-safe.
   void finish();
   // "1h02m", "3m05s", "12s"; "?" for a negative or non-finite value.
   static std::string formatDuration(double seconds);
@@ -27,9 +29,12 @@ class Progress {
  private:
   void print(bool final);
   std::string label_, unit_;
-  size_t total_, done_ = 0, startDone_ = 0;
+  size_t total_;
+  std::atomic<size_t> done_{0};  // highest count reported so far (recorded even when not printing)
+  size_t startDone_ = 0;
   bool tty_;
   std::chrono::steady_clock::time_point start_, lastPrint_;
+  std::mutex mutex_;
 };
 
 // While alive, SIGINT and SIGTERM set a flag instead of killing the process; restores the previous

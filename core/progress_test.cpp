@@ -4,6 +4,9 @@
 
 #include <cmath>
 #include <csignal>
+#include <string>
+#include <thread>
+#include <vector>
 
 namespace lfgi {
 namespace {
@@ -14,6 +17,24 @@ TEST(Progress, FormatsDurations) {
   EXPECT_EQ(Progress::formatDuration(3720.0), "1h02m");
   EXPECT_EQ(Progress::formatDuration(-1.0), "?");
   EXPECT_EQ(Progress::formatDuration(NAN), "?");
+}
+
+// Workers report concurrently and out of order; the final line shows the highest count.
+TEST(Progress, ConcurrentUpdatesNeverGoBackwards) {
+  testing::internal::CaptureStderr();
+  {
+    Progress p("work", 400, "items");
+    std::vector<std::thread> pool;
+    for (int t = 0; t < 4; ++t)
+      pool.emplace_back([&p, t] {
+        for (size_t i = 0; i <= 100; ++i) p.update(size_t(t) * 100 + i);
+      });
+    for (auto& th : pool) th.join();
+    p.update(5);  // a late, stale report
+    p.finish();
+  }
+  std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("400/400 items"), std::string::npos) << err;
 }
 
 // SIGINT inside the guard sets the flag instead of killing the test process; outside it, the old
