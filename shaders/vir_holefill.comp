@@ -1,0 +1,58 @@
+#version 450
+// VIR hole fill: one dilation pass in octahedral space. A hole texel (normal.w == 0) takes the average of
+// its 8 neighbours (wrapped across the fold with octBorderSource) that were valid before this pass
+// (0 < w <= pass + 1) and is marked w = pass + 2; holes with no such neighbour are counted in
+// counters[1 + pass]. Only holes are written and only texels not written by this pass are averaged,
+// so one buffer serves as input and output (a neighbour filled concurrently reads as invalid either way).
+#include "shared/octahedral.h"
+#include "shared/vir.h"
+
+layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+
+layout(std430, set = 0, binding = 0) buffer Distance { vec2 distanceMoments[]; };
+layout(std430, set = 0, binding = 1) buffer Normal { vec4 normals[]; };
+layout(std430, set = 0, binding = 2) buffer Albedo { vec4 albedos[]; };
+layout(std430, set = 0, binding = 3) buffer Radiance { vec4 radiances[]; };
+layout(std430, set = 0, binding = 4) buffer Counters { uint counters[]; };
+
+layout(push_constant) uniform Push { VirParams params; };
+
+void main() {
+  uvec3 id = gl_GlobalInvocationID;
+  uint n = params.res;
+  if (id.x >= n || id.y >= n || id.z >= params.probeCount) return;
+  uint base = id.z * n * n;
+  uint i = base + id.y * n + id.x;
+  if (normals[i].w != LFGI_VIR_HOLE) return;
+  float limit = float(params.fillPass) + 1.0;
+  vec2 dist = vec2(0.0);
+  vec3 nrm = vec3(0.0);
+  vec4 alb = vec4(0.0);
+  vec4 rad = vec4(0.0);
+  float count = 0.0;
+  for (int dy = -1; dy <= 1; ++dy) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      if (dx == 0 && dy == 0) continue;
+      uvec2 src = octBorderSource(uvec2(ivec2(id.xy) + ivec2(1 + dx, 1 + dy)), n);
+      uint j = base + src.y * n + src.x;
+      vec4 nj = normals[j];
+      if (nj.w > 0.0 && nj.w <= limit) {
+        dist += distanceMoments[j];
+        nrm += nj.xyz;
+        alb += albedos[j];
+        rad += radiances[j];
+        count += 1.0;
+      }
+    }
+  }
+  if (count == 0.0) {
+    atomicAdd(counters[1 + params.fillPass], 1u);
+    return;
+  }
+  float w = 1.0 / count;
+  distanceMoments[i] = dist * w;
+  float len = length(nrm);
+  normals[i] = vec4(len > 0.0 ? nrm / len : vec3(0.0), limit + 1.0);
+  albedos[i] = alb * w;
+  radiances[i] = rad * w;
+}

@@ -1,0 +1,83 @@
+#version 450
+// VIR splat (Marrs, Watson & Healey 2017): every surfel into every probe within range, keeping the
+// nearest per texel with a 64-bit atomicMin on (depth bits << 32 | surfel index).
+//
+// Work decomposition: one invocation per (surfel, probe) pair, surfels along x, probes along y. No shared
+// memory, no barriers, no binning: on lavapipe (CPU) barriers and shared memory are the expensive part
+// and the per-pair work (a <= (2k+1)^2 texel window) is small and uniform, so the flat pair grid is the
+// fastest barrier-free layout; on a GPU adjacent invocations read adjacent surfels (coalesced) and hit
+// the same probe map (cache-friendly atomics).
+//
+// Footprint: the texels whose centre ray hits the surfel disc (radius scaled by footprintScale), found
+// in a window of half-size k = min(maxFootprintRadius, ceil(atan(r/d) N/2)) texels around the texel that
+// contains the surfel direction (indices wrapped across the octahedral fold). The stored depth is the
+// exact distance along the texel-centre ray to the disc plane. The containing texel is always written
+// (a point splat for sub-texel surfels), with the plane distance along its centre ray even if that ray
+// misses the disc (capped at 2 d for grazing planes).
+// Back-facing surfels (normal away from the probe) are culled.
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_EXT_shader_atomic_int64 : require
+#include "shared/octahedral.h"
+#include "shared/surfel.h"
+#include "shared/vir.h"
+
+layout(local_size_x = 64, local_size_y = 1, local_size_z = 1) in;
+
+layout(std430, set = 0, binding = 0) readonly buffer Surfels { Surfel surfels[]; };
+layout(std430, set = 0, binding = 1) readonly buffer Probes { vec4 probes[]; };
+layout(std430, set = 0, binding = 2) buffer Slots { uint64_t slots[]; };
+
+layout(push_constant) uniform Push { VirParams params; };
+
+// Texel index t (|t - [0, n)| < n) of the octahedral map -> the interior texel it denotes across the
+// fold: the map mirrors across each edge midpoint (as octBorderSource, generalised to several texels).
+ivec2 octWrap(ivec2 t, int n) {
+  if (t.x < 0) {
+    t = ivec2(-1 - t.x, n - 1 - t.y);
+  } else if (t.x >= n) {
+    t = ivec2(2 * n - 1 - t.x, n - 1 - t.y);
+  }
+  if (t.y < 0) {
+    t = ivec2(n - 1 - t.x, -1 - t.y);
+  } else if (t.y >= n) {
+    t = ivec2(n - 1 - t.x, 2 * n - 1 - t.y);
+  }
+  return clamp(t, ivec2(0), ivec2(n - 1));
+}
+
+void main() {
+  uint s = gl_GlobalInvocationID.x;
+  uint p = gl_GlobalInvocationID.y;
+  if (s >= params.surfelCount || p >= params.probeCount) return;
+  vec4 pr = surfels[s].positionRadius;
+  vec3 nrm = surfels[s].normal.xyz;
+  vec3 o = probes[p].xyz;
+  vec3 toS = pr.xyz - o;
+  float d = length(toS);
+  if (d > params.maxRange || d < 1e-6) return;
+  float facing = -dot(nrm, toS);  // dot(n, probe - surfel)
+  if (facing <= 0.0) return;
+
+  vec3 dir = toS / d;
+  float r = pr.w * params.footprintScale;
+  int n = int(params.res);
+  int k = min(int(params.maxFootprintRadius), int(ceil(atan(r, d) * float(n) * 0.5)));
+  ivec2 c = ivec2(octDirectionTexel(dir, params.res));
+  uint base = p * params.res * params.res;
+  uint64_t low = uint64_t(s);
+  for (int dy = -k; dy <= k; ++dy) {
+    for (int dx = -k; dx <= k; ++dx) {
+      ivec2 t = octWrap(c + ivec2(dx, dy), n);
+      vec3 td = octTexelDirection(uvec2(t), params.res);
+      float denom = -dot(nrm, td);
+      float depth = -1.0;
+      float tt = denom > 1e-6 ? facing / denom : 1e30;  // o + tt td lies on the disc plane
+      vec3 h = o + tt * td - pr.xyz;
+      if (tt < 1e30 && dot(h, h) <= r * r) depth = tt;
+      if (depth < 0.0 && dx == 0 && dy == 0) depth = min(tt, 2.0 * d);
+      if (depth >= 0.0) {
+        atomicMin(slots[base + uint(t.y) * params.res + uint(t.x)], (uint64_t(floatBitsToUint(depth)) << 32) | low);
+      }
+    }
+  }
+}
