@@ -25,9 +25,11 @@ VirPass::VirPass(Context& ctx)
 
 ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const glm::vec3> probes,
                         const VirOptions& o, std::span<const glm::vec4> surfelIrradiance) {
-  if (surfels.empty() || probes.empty()) fail("VIR: {} surfels, {} probes: need at least one of each", surfels.size(), probes.size());
+  if (surfels.empty() || probes.empty())
+    fail("VIR: {} surfels, {} probes: need at least one of each", surfels.size(), probes.size());
   if (o.resolution < 1 || o.resolution > 1024) fail("VIR: resolution {} outside [1, 1024]", o.resolution);
-  if (!(std::isfinite(o.maxRange) && o.maxRange > 0.0f)) fail("VIR: maxRange {} must be finite and > 0", o.maxRange);
+  if (!(std::isfinite(o.maxRange) && o.maxRange > 0.0f))
+    fail("VIR: maxRange {} must be finite and > 0", o.maxRange);
   if (!(std::isfinite(o.footprintScale) && o.footprintScale > 0.0f))
     fail("VIR: footprintScale {} must be finite and > 0", o.footprintScale);
   if (o.maxFootprintRadius < 0 || o.maxFootprintRadius > 8)
@@ -41,8 +43,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   const uint64_t mapGroups = (uint64_t(o.resolution) + 7) / 8;
   if (splatGroupsX > maxGroups[0] || probes.size() > maxGroups[1] || probes.size() > maxGroups[2] ||
       surfels.size() > 0xFFFFFFFFull || mapGroups > maxGroups[0])
-    fail("VIR: {} surfels x {} probes exceeds the device's dispatch limits ({}, {}, {} workgroups)", surfels.size(),
-         probes.size(), maxGroups[0], maxGroups[1], maxGroups[2]);
+    fail("VIR: {} surfels x {} probes exceeds the device's dispatch limits ({}, {}, {} workgroups)",
+         surfels.size(), probes.size(), maxGroups[0], maxGroups[1], maxGroups[2]);
 
   const size_t n2 = size_t(o.resolution) * size_t(o.resolution);
   const size_t texels = n2 * probes.size();
@@ -84,8 +86,9 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     dispatch(ctx_, cmd, splat_, {&surfelBuf, &probeBuf, &slots}, params, {params.surfelCount, probeCount, 1});
     memoryBarrier(cmd);
     timer.stamp(cmd, 2);
-    dispatch(ctx_, cmd, resolve_, {&slots, &surfelBuf, &irrBuf, &distBuf, &normalBuf, &albedoBuf, &radianceBuf, &counters},
-             params, {res, res, probeCount});
+    dispatch(ctx_, cmd, resolve_,
+             {&slots, &surfelBuf, &irrBuf, &distBuf, &normalBuf, &albedoBuf, &radianceBuf, &counters}, params,
+             {res, res, probeCount});
     memoryBarrier(cmd);
     timer.stamp(cmd, 3);
     for (int pass = 0; pass < o.fillPasses; ++pass) {

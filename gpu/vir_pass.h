@@ -4,8 +4,7 @@
 // index), so the device needs shaderBufferInt64Atomics.
 //
 // Channels per probe, N x N texels each (octahedral, no border, shared/octahedral.h texel convention):
-//   distance: (r, r^2), r = distance along the texel-centre ray to the nearest surfel's disc plane
-//             (capped at twice the surfel's centre distance for grazing planes)
+//   distance: (r, r^2), r = distance along the texel-centre ray to the nearest surfel disc it hits
 //   normal:   xyz the surfel normal, w the coverage (0 hole, 1 covered, p + 2 filled by dilation pass p)
 //   albedo, radiance: rgb (radiance = emission + albedo * E / pi, E the per-surfel irradiance input)
 #pragma once
@@ -23,11 +22,11 @@
 namespace lfgi::gpu {
 
 struct VirOptions {
-  int resolution = 16;           // N
-  float maxRange = 64.0f;        // m; surfels farther from a probe are not splatted into it
-  float footprintScale = 1.5f;   // disc radius multiplier of the footprint test
-  int maxFootprintRadius = 2;    // splat window half-size in texels (5 x 5 window)
-  int fillPasses = 2;            // dilation passes, 0..kMaxFillPasses
+  int resolution = 16;          // N
+  float maxRange = 64.0f;       // m; surfels farther from a probe are not splatted into it
+  float footprintScale = 2.0f;  // disc radius multiplier of the footprint test (see vir_splat.comp)
+  int maxFootprintRadius = 2;   // splat window half-size in texels (5 x 5 window)
+  int fillPasses = 2;           // dilation passes, 0..kMaxFillPasses
   static constexpr int kMaxFillPasses = 8;
 };
 

@@ -8,12 +8,13 @@
 // fastest barrier-free layout; on a GPU adjacent invocations read adjacent surfels (coalesced) and hit
 // the same probe map (cache-friendly atomics).
 //
-// Footprint: the texels whose centre ray hits the surfel disc (radius scaled by footprintScale), found
-// in a window of half-size k = min(maxFootprintRadius, ceil(atan(r/d) N/2)) texels around the texel that
+// Footprint: the texels whose centre ray hits the surfel disc (radius scaled by footprintScale, 2 by
+// default, so the discs of a surface overlap and leave no gaps between texel-centre rays), found in a
+// window of half-size k = min(maxFootprintRadius, ceil(atan(r/d) N/2)) texels around the texel that
 // contains the surfel direction (indices wrapped across the octahedral fold). The stored depth is the
-// exact distance along the texel-centre ray to the disc plane. The containing texel is always written
-// (a point splat for sub-texel surfels), with the plane distance along its centre ray even if that ray
-// misses the disc (capped at 2 d for grazing planes).
+// exact distance along the texel-centre ray to the disc plane. A disc that no texel-centre ray hits
+// writes nothing (no point splat: writing the containing texel anyway put surfaces in front of their
+// silhouettes and over the sky; measured in bake/vir_accuracy_test.cpp).
 // Back-facing surfels (normal away from the probe) are culled.
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_atomic_int64 : require
@@ -70,13 +71,12 @@ void main() {
       ivec2 t = octWrap(c + ivec2(dx, dy), n);
       vec3 td = octTexelDirection(uvec2(t), params.res);
       float denom = -dot(nrm, td);
-      float depth = -1.0;
-      float tt = denom > 1e-6 ? facing / denom : 1e30;  // o + tt td lies on the disc plane
-      vec3 h = o + tt * td - pr.xyz;
-      if (tt < 1e30 && dot(h, h) <= r * r) depth = tt;
-      if (depth < 0.0 && dx == 0 && dy == 0) depth = min(tt, 2.0 * d);
-      if (depth >= 0.0) {
-        atomicMin(slots[base + uint(t.y) * params.res + uint(t.x)], (uint64_t(floatBitsToUint(depth)) << 32) | low);
+      if (denom <= 1e-6) continue;  // texel ray parallel to or away from the disc plane
+      float depth = facing / denom;  // o + depth td lies on the disc plane
+      vec3 h = o + depth * td - pr.xyz;
+      if (dot(h, h) <= r * r) {
+        uint slot = base + uint(t.y) * params.res + uint(t.x);
+        atomicMin(slots[slot], (uint64_t(floatBitsToUint(depth)) << 32) | low);
       }
     }
   }
