@@ -101,7 +101,8 @@ TEST(VirAccuracy, CityCellMatchesEmbreeTexelCentreRays) {
               relErr.size());
   ASSERT_GT(hits, probes.size() * n * n / 4);
   EXPECT_LE(medErr, 0.02);
-  EXPECT_LE(quantile(relErr, 0.9), 0.25);
+  EXPECT_LE(quantile(relErr, 0.9), 0.05);
+  EXPECT_LE(double(nearer + farther) / double(relErr.size()), 0.1);
   EXPECT_LE(medAngle, 5.0);
   EXPECT_LE(double(hitHoles) / double(hits), 0.01);
   EXPECT_EQ(ctx->validationErrors.load(), 0u);

@@ -24,8 +24,8 @@ namespace lfgi::gpu {
 struct VirOptions {
   int resolution = 16;          // N
   float maxRange = 64.0f;       // m; surfels farther from a probe are not splatted into it
-  float footprintScale = 2.0f;  // disc radius multiplier of the footprint test (see vir_splat.comp)
-  int maxFootprintRadius = 2;   // splat window half-size in texels (5 x 5 window)
+  float footprintScale = 1.5f;  // disc radius multiplier of the footprint test (see vir_splat.comp)
+  int maxFootprintRadius = 6;   // splat window half-size in texels (up to 13 x 13, near surfels only)
   int fillPasses = 2;           // dilation passes, 0..kMaxFillPasses
   static constexpr int kMaxFillPasses = 8;
 };

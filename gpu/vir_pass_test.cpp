@@ -92,8 +92,11 @@ TEST(VirPass, ClosedBoxMatchesAnalyticDistanceAndNormal) {
         glm::vec3 wallNormal(0.0f);
         const float ref = boxDistance(probes[p], dir, h, &wallNormal);
         relErr.push_back(std::abs(double(atlas.distance[t].x) - ref) / ref);
-        EXPECT_NEAR(atlas.distance[t].y, atlas.distance[t].x * atlas.distance[t].x,
-                    1e-3f * atlas.distance[t].y + 1e-5f);
+        if (atlas.normal[t].w == 1.0f)  // covered: r^2 of one surfel; filled: a mean of moments (>= mean^2)
+          EXPECT_NEAR(atlas.distance[t].y, atlas.distance[t].x * atlas.distance[t].x,
+                      1e-3f * atlas.distance[t].y + 1e-5f);
+        else
+          EXPECT_GE(atlas.distance[t].y, atlas.distance[t].x * atlas.distance[t].x * (1.0f - 1e-4f));
         const float c = std::clamp(glm::dot(glm::vec3(atlas.normal[t]), wallNormal), -1.0f, 1.0f);
         angleDeg.push_back(double(std::acos(c)) * 180.0 / std::numbers::pi);
       }

@@ -8,7 +8,7 @@
 // fastest barrier-free layout; on a GPU adjacent invocations read adjacent surfels (coalesced) and hit
 // the same probe map (cache-friendly atomics).
 //
-// Footprint: the texels whose centre ray hits the surfel disc (radius scaled by footprintScale, 2 by
+// Footprint: the texels whose centre ray hits the surfel disc (radius scaled by footprintScale, 1.5 by
 // default, so the discs of a surface overlap and leave no gaps between texel-centre rays), found in a
 // window of half-size k = min(maxFootprintRadius, ceil(atan(r/d) N/2)) texels around the texel that
 // contains the surfel direction (indices wrapped across the octahedral fold). The stored depth is the
