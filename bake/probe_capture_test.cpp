@@ -29,13 +29,6 @@ worlds::Material material(glm::vec3 albedo, glm::vec3 emission, bool doubleSided
   return m;
 }
 
-// Axis-aligned box whose triangles face inwards (seen from inside as front faces).
-void addInwardBox(worlds::TriangleMesh& mesh, glm::vec3 lo, glm::vec3 hi, uint32_t m) {
-  const size_t first = mesh.indices.size();
-  mesh.addBox(lo, hi, m);
-  for (size_t i = first; i < mesh.indices.size(); i += 3) std::swap(mesh.indices[i + 1], mesh.indices[i + 2]);
-}
-
 worlds::SkyModel noonSky() {
   return worlds::makeSky(worlds::SkyState{});
 }
@@ -56,7 +49,7 @@ TEST(ProbeCapture, FurnaceConvergesToTheTruncatedGeometricSeries) {
   const float E = 1.0f;
   worlds::TriangleMesh mesh;
   const uint32_t m = mesh.addMaterial(material(glm::vec3(a), glm::vec3(E), false));
-  addInwardBox(mesh, glm::vec3(-5.0f), glm::vec3(5.0f), m);
+  mesh.addInwardBox(glm::vec3(-5.0f), glm::vec3(5.0f), m);
   const EmbreeScene scene(mesh);
   CaptureOptions o;
   o.resolution = 8;
@@ -309,7 +302,7 @@ TEST(ProbeCapture, SealedBoxUnderTheSunIsExactlyDark) {
   worlds::TriangleMesh mesh;
   const uint32_t m = mesh.addMaterial(material(glm::vec3(0.8f), glm::vec3(0.0f), false));
   mesh.addBox(glm::vec3(-6.0f), glm::vec3(6.0f), m);
-  addInwardBox(mesh, glm::vec3(-5.0f), glm::vec3(5.0f), m);
+  mesh.addInwardBox(glm::vec3(-5.0f), glm::vec3(5.0f), m);
   const EmbreeScene scene(mesh);
   CaptureOptions o;
   o.resolution = 8;

@@ -22,13 +22,6 @@ worlds::Material material(glm::vec3 albedo, glm::vec3 emission) {
   return m;
 }
 
-// Axis-aligned box whose triangles face inwards (seen from inside as front faces).
-void addInwardBox(worlds::TriangleMesh& mesh, glm::vec3 lo, glm::vec3 hi, uint32_t m) {
-  const size_t first = mesh.indices.size();
-  mesh.addBox(lo, hi, m);
-  for (size_t i = first; i < mesh.indices.size(); i += 3) std::swap(mesh.indices[i + 1], mesh.indices[i + 2]);
-}
-
 float channel(const Image& img, int x, int y, const char* name) {
   return img.at(x, y, img.channelIndex(name));
 }
@@ -76,7 +69,7 @@ TEST(ReferenceRender, FurnaceSplitsIntoDirectAndIndirect) {
   const float a = 0.5f;
   const float E = 1.0f;
   worlds::TriangleMesh mesh;
-  addInwardBox(mesh, glm::vec3(-5.0f), glm::vec3(5.0f), mesh.addMaterial(material(glm::vec3(a), glm::vec3(E))));
+  mesh.addInwardBox(glm::vec3(-5.0f), glm::vec3(5.0f), mesh.addMaterial(material(glm::vec3(a), glm::vec3(E))));
   const EmbreeScene scene(mesh);
   RenderOptions o;
   o.width = 32;
@@ -123,7 +116,7 @@ TEST(ReferenceRender, MetalFurnaceIsAllSpecular) {
   metal.metallic = 1.0f;
   metal.roughness = 0.3f;
   worlds::TriangleMesh mesh;
-  addInwardBox(mesh, glm::vec3(-5.0f), glm::vec3(5.0f), mesh.addMaterial(metal));
+  mesh.addInwardBox(glm::vec3(-5.0f), glm::vec3(5.0f), mesh.addMaterial(metal));
   const EmbreeScene scene(mesh);
   RenderOptions o;
   o.width = 16;

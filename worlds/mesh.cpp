@@ -3,6 +3,7 @@
 #include <xxhash.h>
 
 #include <cmath>
+#include <utility>
 
 #include "core/error.h"
 
@@ -70,6 +71,12 @@ void TriangleMesh::addBox(glm::vec3 lo, glm::vec3 hi, uint32_t material) {
   addQuad(p[5], p[1], p[2], p[6], material);  // +X
   addQuad(p[3], p[7], p[6], p[2], material);  // +Y
   addQuad(p[0], p[1], p[5], p[4], material);  // -Y
+}
+
+void TriangleMesh::addInwardBox(glm::vec3 lo, glm::vec3 hi, uint32_t material) {
+  const size_t first = indices.size();
+  addBox(lo, hi, material);
+  for (size_t i = first; i < indices.size(); i += 3) std::swap(indices[i + 1], indices[i + 2]);
 }
 
 void TriangleMesh::append(const TriangleMesh& o) {

@@ -83,6 +83,8 @@ struct TriangleMesh {
   void addQuad(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d, uint32_t material);
   // Adds an axis-aligned box [lo, hi] with outward-facing triangles (12 triangles).
   void addBox(glm::vec3 lo, glm::vec3 hi, uint32_t material);
+  // The same box with inward-facing triangles: a closed room seen from inside (furnace tests, probes).
+  void addInwardBox(glm::vec3 lo, glm::vec3 hi, uint32_t material);
   // Appends another mesh (materials and textures are appended and re-indexed).
   void append(const TriangleMesh& other);
 

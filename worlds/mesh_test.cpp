@@ -24,6 +24,16 @@ TEST(TriangleMesh, BoxHasOutwardNormalsAndExactArea) {
   m.validate("box");
 }
 
+TEST(TriangleMesh, InwardBoxFacesTheInside) {
+  TriangleMesh m;
+  m.addInwardBox({0, 0, 0}, {2, 2, 2}, m.addMaterial({}));
+  EXPECT_EQ(m.triangleCount(), 12u);
+  for (size_t t = 0; t < m.triangleCount(); ++t) {
+    glm::vec3 mid = (m.vertex(t, 0) + m.vertex(t, 1) + m.vertex(t, 2)) / 3.0f;
+    EXPECT_LT(glm::dot(m.faceNormal(t), mid - glm::vec3(1.0f)), 0.0f) << "triangle " << t << " faces outward";
+  }
+}
+
 TEST(TriangleMesh, AppendReindexesMaterialsAndTextures) {
   TriangleMesh a, b;
   a.addTriangle({0, 0, 0}, {1, 0, 0}, {0, 1, 0}, a.addMaterial({.name = "a"}));
