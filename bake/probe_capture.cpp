@@ -9,12 +9,11 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
-#include <optional>
 
+#include "bake/parallel_work.h"
 #include "bake/path_trace.h"
 #include "core/error.h"
 #include "core/octahedral.h"
-#include "core/progress.h"
 #include "core/sh.h"
 
 namespace lfgi::bake {
@@ -282,30 +281,13 @@ CaptureResult captureProbes(const EmbreeScene& scene, const worlds::SkyModel& sk
   CaptureResult result;
   result.probes.resize(positions.size());
   result.done.assign(positions.size(), 0);
-  std::atomic<size_t> finished{0};
-  std::atomic<bool> stopped{false};
-  std::optional<Progress> progress;
-  if (showProgress) progress.emplace("capture", positions.size(), "probes");
-
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, positions.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t p = r.begin(); p < r.end(); ++p) {
-      if (InterruptGuard::interrupted()) {
-        stopped.store(true);
-        return;
-      }
-      result.probes[p] = captureOne(scene, sky, positions[p], options, solidAngles);
-      result.done[p] = 1;
-      finished.fetch_add(1);
-      if (progress) progress->update(finished.load());
-    }
-  });
-
-  if (progress) {
-    progress->update(finished.load());
-    progress->finish();
-  }
-  result.probesDone = finished.load();
-  result.interrupted = stopped.load() && result.probesDone < positions.size();
+  const detail::ParallelWorkResult run =
+      detail::runParallelInterruptible(positions.size(), "capture", "probes", showProgress, [&](size_t p) {
+        result.probes[p] = captureOne(scene, sky, positions[p], options, solidAngles);
+        result.done[p] = 1;
+      });
+  result.probesDone = run.done;
+  result.interrupted = run.interrupted;
   for (size_t p = 0; p < positions.size(); ++p) {
     if (result.done[p]) result.rays += result.probes[p].rays;
   }

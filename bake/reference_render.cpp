@@ -1,18 +1,15 @@
 #include "bake/reference_render.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <numbers>
-#include <optional>
 
+#include "bake/parallel_work.h"
 #include "bake/path_trace.h"
 #include "core/error.h"
-#include "core/progress.h"
 
 namespace lfgi::bake {
 namespace {
@@ -129,31 +126,16 @@ RenderResult renderReference(const EmbreeScene& scene, const worlds::SkyModel& s
   const detail::Discs discs = detail::activeDiscs(sky);
   const uint64_t key = detail::mix64(o.seed ^ 0x6c666769'63616d65ULL);
 
-  std::atomic<size_t> finished{0};
   std::atomic<uint64_t> rays{0};
-  std::atomic<bool> stopped{false};
-  std::optional<Progress> progress;
-  if (showProgress) progress.emplace("reference", result.tiles, "tiles");
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, result.tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t t = r.begin(); t < r.end(); ++t) {
-      if (InterruptGuard::interrupted()) {
-        stopped.store(true);
-        return;
-      }
-      uint64_t localRays = 0;
-      renderTile(scene, sky, discs, camera, o, po, key, int(t % size_t(tilesX)) * o.tileSize,
-                 int(t / size_t(tilesX)) * o.tileSize, result.image, localRays);
-      rays.fetch_add(localRays, std::memory_order_relaxed);
-      finished.fetch_add(1);
-      if (progress) progress->update(finished.load());
-    }
-  });
-  if (progress) {
-    progress->update(finished.load());
-    progress->finish();
-  }
-  result.tilesDone = finished.load();
-  result.interrupted = stopped.load() && result.tilesDone < result.tiles;
+  const detail::ParallelWorkResult run =
+      detail::runParallelInterruptible(result.tiles, "reference", "tiles", showProgress, [&](size_t t) {
+        uint64_t localRays = 0;
+        renderTile(scene, sky, discs, camera, o, po, key, int(t % size_t(tilesX)) * o.tileSize,
+                   int(t / size_t(tilesX)) * o.tileSize, result.image, localRays);
+        rays.fetch_add(localRays, std::memory_order_relaxed);
+      });
+  result.tilesDone = run.done;
+  result.interrupted = run.interrupted;
   result.rays = rays.load();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
