@@ -9,7 +9,10 @@ shift || true
 targets=()
 for t in "$@"; do targets+=(--target "$t"); done
 start=$(date +%s)
-cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE="${LFGI_BUILD_TYPE:-RelWithDebInfo}" \
+launcher=()
+# ccache only when present (developer machines; CI starts clean and does not install it).
+if command -v ccache >/dev/null 2>&1; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
+cmake -S "$root" -B "$build" -G Ninja "${launcher[@]}" -DCMAKE_BUILD_TYPE="${LFGI_BUILD_TYPE:-RelWithDebInfo}" \
   -DLFGI_WERROR="${LFGI_WERROR:-OFF}" -DLFGI_SANITIZE="${LFGI_SANITIZE:-}" >/dev/null
 cmake --build "$build" -j "${LFGI_JOBS:-$(nproc)}" "${targets[@]}"
 echo "build: $build done in $(( $(date +%s) - start )) s"
