@@ -1,0 +1,245 @@
+#include "gpu/relight_pass.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.h"
+#include "core/octahedral.h"
+#include "gpu/timing.h"
+
+namespace lfgi::gpu {
+
+namespace {
+
+Program requireInt64Atomics(Context& ctx, const char* name) {
+  if (!ctx.features.shaderBufferInt64Atomics)
+    fail("relight: device '{}' lacks shaderBufferInt64Atomics (64-bit buffer atomics)", ctx.info.name);
+  return Program(ctx, name);
+}
+
+float luminance(glm::vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+
+void validate(const RelightOptions& o) {
+  if (o.shadowResolution != 0 && (o.shadowResolution < 16 || o.shadowResolution > 4096))
+    fail("relight: shadowResolution {} outside [16, 4096] (or 0 for auto)", o.shadowResolution);
+  if (!(std::isfinite(o.shadowFootprintScale) && o.shadowFootprintScale > 0.0f))
+    fail("relight: shadowFootprintScale {} must be finite and > 0", o.shadowFootprintScale);
+  if (o.shadowMaxFootprintRadius < 0 || o.shadowMaxFootprintRadius > 64)
+    fail("relight: shadowMaxFootprintRadius {} outside [0, 64]", o.shadowMaxFootprintRadius);
+  if (!(std::isfinite(o.shadowBiasConstant) && o.shadowBiasConstant >= 0.0f) ||
+      !(std::isfinite(o.shadowBiasSlope) && o.shadowBiasSlope >= 0.0f))
+    fail("relight: shadow bias ({}, {}) must be finite and >= 0", o.shadowBiasConstant, o.shadowBiasSlope);
+  if (o.irradianceResolution < 1 || o.irradianceResolution > 64)
+    fail("relight: irradianceResolution {} outside [1, 64]", o.irradianceResolution);
+  if (!std::isfinite(o.normalBias)) fail("relight: normalBias {} must be finite", o.normalBias);
+  if (!(std::isfinite(o.missDistance) && o.missDistance > 0.0f))
+    fail("relight: missDistance {} must be finite and > 0", o.missDistance);
+}
+
+// Storage buffers of at least 16 bytes (an unused binding still needs a valid buffer).
+Buffer storage(Context& ctx, size_t bytes) { return createStorageBuffer(ctx, std::max<size_t>(bytes, 16)); }
+
+}  // namespace
+
+RelightPass::RelightPass(Context& ctx)
+    : ctx_(ctx),
+      shadowSplat_(requireInt64Atomics(ctx, "relight_shadow_splat")),
+      surfels_(ctx, "relight_surfels"),
+      probeIrradiance_(ctx, "relight_probe_irradiance"),
+      probeMoments_(ctx, "relight_probe_moments") {}
+
+RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, const RelightProbes& probes,
+                                   const shared::SkyParams& sky, const ProbeLighting* previous,
+                                   const RelightOptions& o) {
+  validate(o);
+  if (surfels.empty()) fail("relight: no surfels");
+  if (surfels.size() > 0xFFFFFFFFull) fail("relight: {} surfels exceed 2^32", surfels.size());
+  probes.grid.validate();
+  const size_t probeCount = size_t(probes.grid.probeCount());
+  if (probes.positions.size() != probeCount)
+    fail("relight: {} probe positions for a grid of {} probes", probes.positions.size(), probeCount);
+  if (!probes.active.empty() && probes.active.size() != probeCount)
+    fail("relight: {} probe active flags for a grid of {} probes", probes.active.size(), probeCount);
+  const bool bounce = o.bounce && previous && !previous->irradiance.empty();
+  if (bounce) {
+    const size_t m2 = size_t(previous->irradianceResolution) * size_t(previous->irradianceResolution);
+    const size_t n2 = size_t(previous->distanceResolution) * size_t(previous->distanceResolution);
+    if (size_t(previous->probeCount) != probeCount || previous->irradiance.size() != m2 * probeCount ||
+        previous->moments.size() != n2 * probeCount)
+      fail("relight: previous probe lighting has {} probes ({} irradiance, {} moment texels), grid has {}",
+           previous->probeCount, previous->irradiance.size(), previous->moments.size(), probeCount);
+  }
+
+  // Key disc: the brighter of sun and moon.
+  shared::RelightFrame frame{};
+  frame.sky = sky;
+  const glm::vec3 sunE(sky.sunIrradiance), moonE(sky.moonIrradiance);
+  const bool sunKey = luminance(sunE) >= luminance(moonE);
+  const glm::vec3 keyE = sunKey ? sunE : moonE;
+  glm::vec3 L = sunKey ? glm::vec3(sky.sunDirection) : glm::vec3(sky.moonDirection);
+  const bool keyOn = o.sun && luminance(keyE) > 0.0f && glm::length(L) > 0.5f;
+  RelightResult result;
+  result.irradiance.resize(surfels.size());
+
+  uint32_t shadowRes = 1;
+  if (keyOn) {
+    L = glm::normalize(L);
+    const glm::vec3 helper = std::abs(L.y) < 0.99f ? glm::vec3(0, 1, 0) : glm::vec3(1, 0, 0);
+    const glm::vec3 U = glm::normalize(glm::cross(helper, L));
+    const glm::vec3 V = glm::cross(L, U);
+    float umin = 1e30f, umax = -1e30f, vmin = 1e30f, vmax = -1e30f, hmax = -1e30f;
+    double radiusSum = 0.0;
+    for (const shared::Surfel& s : surfels) {
+      const glm::vec3 p(s.positionRadius);
+      const float r = s.positionRadius.w * o.shadowFootprintScale;
+      const float u = glm::dot(p, U), v = glm::dot(p, V), h = glm::dot(p, L);
+      if (!(std::isfinite(u) && std::isfinite(v) && std::isfinite(h) && std::isfinite(r)))
+        fail("relight: surfel at ({}, {}, {}) is not finite", p.x, p.y, p.z);
+      umin = std::min(umin, u - r), umax = std::max(umax, u + r);
+      vmin = std::min(vmin, v - r), vmax = std::max(vmax, v + r);
+      hmax = std::max(hmax, h + r);
+      radiusSum += double(s.positionRadius.w);
+    }
+    const float extent = std::max({umax - umin, vmax - vmin, 1e-3f}) * 1.001f;
+    if (o.shadowResolution > 0) {
+      shadowRes = uint32_t(o.shadowResolution);
+    } else {
+      const double texel = 0.75 * std::max(radiusSum / double(surfels.size()), 1e-4);
+      shadowRes = uint32_t(std::clamp(std::ceil(double(extent) / texel), 64.0, 2048.0));
+    }
+    const float ts = extent / float(shadowRes);
+    frame.keyDirection = glm::vec4(L, sunKey ? 1.0f : 2.0f);
+    frame.keyIrradiance = glm::vec4(keyE, 0.0f);
+    frame.shadowAxisU = glm::vec4(U, umin);
+    frame.shadowAxisV = glm::vec4(V, vmin);
+    frame.shadowDepth = glm::vec4(hmax + 1.0f, ts, o.shadowBiasConstant, o.shadowBiasSlope);
+    result.shadowResolution = int(shadowRes);
+    result.shadowTexelM = ts;
+    result.keyDirection = L;
+  }
+  const glm::vec3 sp = probes.grid.spacing;
+  const float normalBias = o.normalBias >= 0.0f ? o.normalBias : 0.2f * std::min({sp.x, sp.y, sp.z});
+  frame.gridOrigin = glm::vec4(probes.grid.origin, 0.0f);
+  frame.gridSpacing = glm::vec4(sp, normalBias);
+  frame.gridDims = glm::ivec4(probes.grid.dims, int(probeCount));
+
+  std::vector<glm::vec4> probe4(probeCount);
+  for (size_t i = 0; i < probeCount; ++i)
+    probe4[i] = glm::vec4(probes.positions[i], probes.active.empty() || probes.active[i] ? 1.0f : 0.0f);
+
+  shared::RelightParams params{};
+  params.surfelCount = uint32_t(surfels.size());
+  params.probeCount = uint32_t(probeCount);
+  params.shadowRes = shadowRes;
+  params.maxFootprintRadius = uint32_t(o.shadowMaxFootprintRadius);
+  params.irradianceRes = bounce ? uint32_t(previous->irradianceResolution) : 1u;
+  params.distanceRes = bounce ? uint32_t(previous->distanceResolution) : 1u;
+  params.flags = (keyOn ? LFGI_RELIGHT_SUN : 0u) | (bounce ? LFGI_RELIGHT_BOUNCE : 0u) |
+                 (o.chebyshev ? LFGI_RELIGHT_CHEBYSHEV : 0u);
+  params.footprintScale = o.shadowFootprintScale;
+  params.missDistance = o.missDistance;
+
+  Buffer surfelBuf = storage(ctx_, surfels.size_bytes());
+  Buffer frameBuf = storage(ctx_, sizeof(frame));
+  Buffer slots = storage(ctx_, size_t(shadowRes) * shadowRes * sizeof(uint64_t));
+  Buffer probeBuf = storage(ctx_, probe4.size() * sizeof(glm::vec4));
+  Buffer irrBuf = storage(ctx_, bounce ? previous->irradiance.size() * sizeof(glm::vec4) : 0);
+  Buffer momBuf = storage(ctx_, bounce ? previous->moments.size() * sizeof(glm::vec2) : 0);
+  Buffer outBuf = storage(ctx_, surfels.size() * sizeof(glm::vec4));
+  upload<shared::Surfel>(ctx_, surfelBuf, surfels);
+  upload<shared::RelightFrame>(ctx_, frameBuf, std::span(&frame, 1));
+  upload<glm::vec4>(ctx_, probeBuf, probe4);
+  if (bounce) {
+    upload<glm::vec4>(ctx_, irrBuf, previous->irradiance);
+    upload<glm::vec2>(ctx_, momBuf, previous->moments);
+  }
+
+  GpuTimer timer(ctx_, 3);
+  submitAndWait(ctx_, [&](VkCommandBuffer cmd) {
+    timer.reset(cmd);
+    vkCmdFillBuffer(cmd, slots.handle(), 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
+    memoryBarrier(cmd);
+    timer.stamp(cmd, 0);
+    if (keyOn) dispatch(ctx_, cmd, shadowSplat_, {&surfelBuf, &frameBuf, &slots}, params, {params.surfelCount, 1, 1});
+    memoryBarrier(cmd);
+    timer.stamp(cmd, 1);
+    dispatch(ctx_, cmd, surfels_, {&surfelBuf, &frameBuf, &slots, &probeBuf, &irrBuf, &momBuf, &outBuf}, params,
+             {params.surfelCount, 1, 1});
+    memoryBarrier(cmd);
+    timer.stamp(cmd, 2);
+  });
+  result.shadowMs = timer.elapsedMs(0, 1);
+  result.lightMs = timer.elapsedMs(1, 2);
+  readback<glm::vec4>(ctx_, outBuf, result.irradiance);
+  return result;
+}
+
+ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyParams& sky, const RelightOptions& o) {
+  validate(o);
+  const size_t n2 = size_t(atlas.resolution) * size_t(atlas.resolution);
+  const size_t texels = n2 * size_t(atlas.probeCount);
+  if (atlas.resolution < 1 || atlas.probeCount < 1 || atlas.radiance.size() != texels ||
+      atlas.normal.size() != texels || atlas.distance.size() != texels)
+    fail("relight: atlas of {} probes at N={} has {} radiance, {} normal, {} distance texels", atlas.probeCount,
+         atlas.resolution, atlas.radiance.size(), atlas.normal.size(), atlas.distance.size());
+  const uint32_t m = uint32_t(o.irradianceResolution);
+  ProbeLighting out;
+  out.irradianceResolution = int(m);
+  out.distanceResolution = atlas.resolution;
+  out.probeCount = atlas.probeCount;
+  out.irradiance.resize(size_t(m) * m * size_t(atlas.probeCount));
+  out.moments.resize(texels);
+
+  shared::RelightFrame frame{};
+  frame.sky = sky;
+  const std::vector<double> omega = octTexelSolidAngles(atlas.resolution);
+  const std::vector<float> omegaF(omega.begin(), omega.end());
+  shared::RelightParams params{};
+  params.probeCount = uint32_t(atlas.probeCount);
+  params.irradianceRes = m;
+  params.distanceRes = uint32_t(atlas.resolution);
+  params.flags = o.skyInProbes ? LFGI_RELIGHT_SKY : 0u;
+  params.missDistance = o.missDistance;
+
+  Buffer frameBuf = storage(ctx_, sizeof(frame));
+  Buffer radBuf = storage(ctx_, texels * sizeof(glm::vec4));
+  Buffer normalBuf = storage(ctx_, texels * sizeof(glm::vec4));
+  Buffer distBuf = storage(ctx_, texels * sizeof(glm::vec2));
+  Buffer omegaBuf = storage(ctx_, omegaF.size() * sizeof(float));
+  Buffer irrBuf = storage(ctx_, out.irradiance.size() * sizeof(glm::vec4));
+  Buffer momBuf = storage(ctx_, texels * sizeof(glm::vec2));
+  upload<shared::RelightFrame>(ctx_, frameBuf, std::span(&frame, 1));
+  upload<glm::vec4>(ctx_, radBuf, atlas.radiance);
+  upload<glm::vec4>(ctx_, normalBuf, atlas.normal);
+  upload<glm::vec2>(ctx_, distBuf, atlas.distance);
+  upload<float>(ctx_, omegaBuf, omegaF);
+  GpuTimer timer(ctx_, 2);
+  submitAndWait(ctx_, [&](VkCommandBuffer cmd) {
+    timer.reset(cmd);
+    timer.stamp(cmd, 0);
+    dispatch(ctx_, cmd, probeIrradiance_, {&frameBuf, &radBuf, &normalBuf, &omegaBuf, &irrBuf}, params,
+             {m, m, params.probeCount});
+    dispatch(ctx_, cmd, probeMoments_, {&distBuf, &normalBuf, &momBuf}, params,
+             {params.distanceRes, params.distanceRes, params.probeCount});
+    memoryBarrier(cmd);
+    timer.stamp(cmd, 1);
+  });
+  out.gpuMs = timer.elapsedMs(0, 1);
+  readback<glm::vec4>(ctx_, irrBuf, out.irradiance);
+  readback<glm::vec2>(ctx_, momBuf, out.moments);
+  return out;
+}
+
+RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const shared::Surfel> surfels,
+                           const RelightProbes& probes, const shared::SkyParams& sky, const VirOptions& virOptions,
+                           const RelightOptions& options, CellLighting& state) {
+  const ProbeLighting* previous = state.frames > 0 ? &state.probes : nullptr;
+  RelightResult result = relight.relight(surfels, probes, sky, previous, options);
+  state.atlas = vir.run(surfels, probes.positions, virOptions, result.irradiance);
+  state.probes = relight.convolve(state.atlas, sky, options);
+  state.surfelIrradiance = result.irradiance;
+  ++state.frames;
+  return result;
+}
+
+}  // namespace lfgi::gpu

@@ -1,0 +1,120 @@
+// GPU pass: relight a cell's surfels for the current sun/sky/weather and emissives, DDGI-style (Majercik
+// et al. 2019): each frame lights every surfel from
+//   - the key disc (the sun; the moon when it is brighter, i.e. at night), shadowed by a shadow map that
+//     is built by the same VIR splat as the probes, from the light's direction (orthographic depth map
+//     over the cell's surfels, 64-bit atomicMin, shaders/relight_shadow_splat.comp; single-tap depth
+//     compare with bias = biasConstant + biasSlope x texel x tan(theta), relight_surfels.comp),
+//   - last frame's probe irradiance (trilinear over the probe grid, DDGI backface and Chebyshev weights
+//     from the VIR distance moments): the sky as the probes see it (occluded), plus every bounce so far.
+//     There is no separate unoccluded sky term: a probe texel no surfel covered sees the sky, so sky
+//     light reaches surfels one frame late and occluded by what the probes see.
+// then VirPass::run re-splats with that irradiance (radiance = emission + albedo E / pi) and convolve()
+// turns the new radiance maps into the probe irradiance + distance moments of the next frame. Multi-
+// bounce therefore converges over frames: after k frames a closed furnace holds
+// pi Le (1 - a^k) / (1 - a) (gpu/relight_pass_test.cpp).
+// The other disc (moon by day, sun by night) is left out: it is < 1e-5 of the key disc whenever it is
+// above the horizon. Geometry outside the surfel list (neighbour cells) casts no shadow.
+//
+// Threading: a RelightPass uses its Context from the calling thread only; one thread at a time (the
+// streaming manager's render/GPU thread) calls relight()/convolve()/relightFrame(), once per frame per
+// resident cell. CellLighting is the per-cell state the caller keeps between frames; passes hold none.
+#pragma once
+
+#include <glm/glm.hpp>
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/probe_grid.h"
+#include "gpu/buffer.h"
+#include "gpu/program.h"
+#include "gpu/vir_pass.h"
+#include "shared/relight.h"
+#include "shared/sky.h"
+#include "shared/surfel.h"
+
+namespace lfgi::gpu {
+
+// The cell's probes as the relight pass reads them: a regular grid (core/probe_grid.h index order) whose
+// probe i actually sits at positions[i] (after relocation) and is used only where active[i] != 0.
+struct RelightProbes {
+  ProbeGrid grid;
+  std::vector<glm::vec3> positions;  // grid.probeCount() entries
+  std::vector<uint8_t> active;       // empty: every probe active
+};
+
+struct RelightOptions {
+  int shadowResolution = 0;           // shadow map texels per side, [16, 4096]; 0: texel = 0.75 x mean surfel
+                                      // radius, clamped to [64, 2048] texels
+  float shadowFootprintScale = 1.5f;  // disc radius multiplier of the shadow splat (as VirOptions)
+  int shadowMaxFootprintRadius = 16;  // shadow splat window half-size (texels), [0, 64]
+  float shadowBiasConstant = 0.02f;   // m
+  float shadowBiasSlope = 1.5f;       // texels x tan(theta)
+  int irradianceResolution = 8;       // M of the probe irradiance maps, [1, 64]
+  float normalBias = -1.0f;           // m, Chebyshev test point offset along the normal; < 0: 0.2 x min spacing
+  float missDistance = 1.0e4f;        // m, distance moment of a probe texel that sees the sky
+  bool sun = true;                    // key disc with the shadow map
+  bool bounce = true;                 // last frame's probe irradiance
+  bool chebyshev = true;              // Chebyshev visibility weights
+  bool skyInProbes = true;            // probe texels no surfel covered see the sky
+};
+
+// Per-probe maps derived from one VIR atlas: the next frame's relight input.
+struct ProbeLighting {
+  int irradianceResolution = 0;  // M
+  int distanceResolution = 0;    // N (the VIR resolution)
+  int probeCount = 0;
+  std::vector<glm::vec4> irradiance;  // probeCount * M^2: rgb E(normal = texel centre), without the discs
+  std::vector<glm::vec2> moments;     // probeCount * N^2: 3 x 3 filtered (r, r^2), sky = missDistance
+  double gpuMs = 0.0;
+};
+
+struct RelightResult {
+  std::vector<glm::vec4> irradiance;  // per surfel: rgb E (kilolux), w: key-light visibility (0 or 1)
+  int shadowResolution = 0;
+  float shadowTexelM = 0.0f;
+  glm::vec3 keyDirection{0.0f};  // towards the shadowed disc; 0 when neither disc is up
+  double shadowMs = 0.0, lightMs = 0.0;
+};
+
+// Everything a cell keeps between frames.
+struct CellLighting {
+  ProbeAtlas atlas;                     // last VIR atlas (radiance holds the last relit radiance)
+  ProbeLighting probes;                 // derived from atlas
+  std::vector<glm::vec4> surfelIrradiance;
+  int frames = 0;
+};
+
+class RelightPass {
+ public:
+  // Throws lfgi::Error if the device lacks 64-bit buffer atomics.
+  explicit RelightPass(Context& ctx);
+
+  // Lights every surfel (see the top of this file). previous: last frame's probe lighting, or null /
+  // empty for none (frame 0: key disc and nothing else). Throws lfgi::Error on empty surfels, a probe
+  // list that does not match probes.grid, bad options, or previous maps of the wrong size.
+  RelightResult relight(std::span<const shared::Surfel> surfels, const RelightProbes& probes,
+                        const shared::SkyParams& sky, const ProbeLighting* previous,
+                        const RelightOptions& options);
+
+  // Probe irradiance (exact cosine convolution of the atlas' radiance, sky in uncovered texels) and
+  // filtered distance moments, on the GPU. Throws lfgi::Error on an empty or inconsistent atlas.
+  ProbeLighting convolve(const ProbeAtlas& atlas, const shared::SkyParams& sky, const RelightOptions& options);
+
+ private:
+  Context& ctx_;
+  Program shadowSplat_;
+  Program surfels_;
+  Program probeIrradiance_;
+  Program probeMoments_;
+};
+
+// One frame for one cell: relight (with state.probes from the last frame) -> VirPass::run with the new
+// surfel irradiance -> convolve; updates state and returns the relight result. probes.positions are the
+// VIR probe positions (disabled probes are splatted too and simply never read).
+RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const shared::Surfel> surfels,
+                           const RelightProbes& probes, const shared::SkyParams& sky, const VirOptions& virOptions,
+                           const RelightOptions& options, CellLighting& state);
+
+}  // namespace lfgi::gpu

@@ -1,0 +1,213 @@
+#include "gpu/relight_pass.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+
+#include "core/error.h"
+
+namespace lfgi::gpu {
+namespace {
+
+constexpr float kPi = std::numbers::pi_v<float>;
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+float hash01(uint32_t x) {  // lowbias32 -> [0, 1)
+  x ^= x >> 16;
+  x *= 0x7feb352du;
+  x ^= x >> 15;
+  x *= 0x846ca68bu;
+  x ^= x >> 16;
+  return float(x >> 8) * (1.0f / 16777216.0f);
+}
+
+// Surfels on the axis-aligned face {p[axis] = offset} over [lo, hi] on the two other axes, normal
+// `sign` along axis, jittered grid of the given spacing, radius spacing / sqrt(pi) (areas sum to the face).
+void addFace(std::vector<shared::Surfel>& out, int axis, float offset, float sign, glm::vec2 lo, glm::vec2 hi,
+             float spacing, glm::vec3 albedo, glm::vec3 emission) {
+  const int a = (axis + 1) % 3, b = (axis + 2) % 3;
+  const int ca = std::max(1, int(std::lround((hi.x - lo.x) / spacing)));
+  const int cb = std::max(1, int(std::lround((hi.y - lo.y) / spacing)));
+  const float sa = (hi.x - lo.x) / float(ca), sb = (hi.y - lo.y) / float(cb);
+  const float radius = std::sqrt(sa * sb / kPi);
+  for (int j = 0; j < cb; ++j)
+    for (int i = 0; i < ca; ++i) {
+      const uint32_t k = uint32_t(out.size());
+      glm::vec3 p(0.0f), n(0.0f);
+      p[axis] = offset;
+      p[a] = lo.x + (float(i) + 0.25f + 0.5f * hash01(2 * k)) * sa;
+      p[b] = lo.y + (float(j) + 0.25f + 0.5f * hash01(2 * k + 1)) * sb;
+      n[axis] = sign;
+      out.push_back({glm::vec4(p, radius), glm::vec4(n, 0.0f), glm::vec4(albedo, 1.0f), glm::vec4(emission, 0.0f)});
+    }
+}
+
+// The six faces of the box [lo, hi], normals outward (sign 1) or inward (sign -1).
+void addBox(std::vector<shared::Surfel>& out, glm::vec3 lo, glm::vec3 hi, float sign, float spacing, glm::vec3 albedo,
+            glm::vec3 emission) {
+  for (int axis = 0; axis < 3; ++axis) {
+    const int a = (axis + 1) % 3, b = (axis + 2) % 3;
+    const glm::vec2 flo(lo[a], lo[b]), fhi(hi[a], hi[b]);
+    addFace(out, axis, lo[axis], -sign, flo, fhi, spacing, albedo, emission);
+    addFace(out, axis, hi[axis], sign, flo, fhi, spacing, albedo, emission);
+  }
+}
+
+// Ray p + t d (t > 0) against the box [lo, hi] (slab test).
+bool rayHitsBox(glm::vec3 p, glm::vec3 d, glm::vec3 lo, glm::vec3 hi) {
+  float t0 = 0.0f, t1 = 1e30f;
+  for (int a = 0; a < 3; ++a) {
+    if (std::abs(d[a]) < 1e-12f) {
+      if (p[a] < lo[a] || p[a] > hi[a]) return false;
+      continue;
+    }
+    float ta = (lo[a] - p[a]) / d[a], tb = (hi[a] - p[a]) / d[a];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  return t0 <= t1;
+}
+
+shared::SkyParams sunOnly(glm::vec3 direction, float irradiance) {
+  shared::SkyParams sky{};
+  sky.sunDirection = glm::vec4(glm::normalize(direction), std::cos(0.00465f));
+  sky.sunIrradiance = glm::vec4(glm::vec3(irradiance), 1.0f);
+  return sky;
+}
+
+RelightProbes singleProbe(glm::vec3 p) {
+  RelightProbes probes;
+  probes.grid.origin = p;
+  probes.positions = {p};
+  return probes;
+}
+
+// A 2 x 2 x 2 m box 1 m above a 10 x 10 m plane, sun from a tilted direction: every plane surfel farther
+// than a margin from the analytic shadow boundary (the box's shadow along the sun direction, slab test)
+// gets exactly the analytic visibility, and its irradiance is exactly E_sun max(0, n.L) or 0.
+TEST(RelightPass, ShadowMapGivesExactVisibilityForABoxOverAPlane) {
+  auto ctx = createContext();
+  RelightPass pass(*ctx);
+  const float spacing = 0.1f;
+  std::vector<shared::Surfel> surfels;
+  addFace(surfels, 1, 0.0f, 1.0f, {-5.0f, -5.0f}, {5.0f, 5.0f}, spacing, glm::vec3(0.5f), glm::vec3(0.0f));
+  const size_t planeCount = surfels.size();
+  const glm::vec3 lo(-1.0f, 1.0f, -1.0f), hi(1.0f, 3.0f, 1.0f);
+  addBox(surfels, lo, hi, 1.0f, spacing, glm::vec3(0.5f), glm::vec3(0.0f));
+  const glm::vec3 sun = glm::normalize(glm::vec3(0.45f, 1.0f, -0.3f));
+  const float sunE = 100.0f;
+
+  RelightOptions options;
+  options.shadowResolution = 1024;
+  options.bounce = false;
+  pass.relight(surfels, singleProbe({0, 5, 0}), sunOnly(sun, sunE), nullptr, options);  // warm-up (JIT)
+  const RelightResult r = pass.relight(surfels, singleProbe({0, 5, 0}), sunOnly(sun, sunE), nullptr, options);
+  ASSERT_EQ(r.irradiance.size(), surfels.size());
+  // Margin: a disc overhangs its face by <= 1.5 r (footprint scale), plus two texels of quantisation.
+  const float radius = surfels[0].positionRadius.w;
+  const float margin = 1.5f * radius + 2.0f * r.shadowTexelM;
+  const glm::vec3 m(margin);
+  size_t robust = 0, wrong = 0, shadowed = 0, wrongE = 0;
+  for (size_t i = 0; i < planeCount; ++i) {
+    const glm::vec3 p(surfels[i].positionRadius);
+    const bool inner = rayHitsBox(p, sun, lo + m, hi - m);
+    const bool outer = rayHitsBox(p, sun, lo - m, hi + m);
+    if (inner != outer) continue;  // within the margin of the shadow edge
+    ++robust;
+    const float vis = r.irradiance[i].w;
+    wrong += (vis == 0.0f) != inner ? 1 : 0;
+    shadowed += inner ? 1 : 0;
+    const float want = inner ? 0.0f : sunE * sun.y;
+    wrongE += std::abs(r.irradiance[i].x - want) > 1e-4f * sunE ? 1 : 0;
+  }
+  size_t topLit = 0, top = 0;
+  for (size_t i = planeCount; i < surfels.size(); ++i)
+    if (surfels[i].normal.y > 0.5f) {
+      ++top;
+      topLit += r.irradiance[i].w == 1.0f ? 1 : 0;
+    }
+  std::printf("[ measure  ] shadow map %d^2, texel %.4f m, margin %.3f m: %zu of %zu plane surfels robust, %zu "
+              "shadowed, %zu wrong; box top %zu of %zu lit; splat %.2f ms, light %.2f ms\n",
+              r.shadowResolution, r.shadowTexelM, margin, robust, planeCount, shadowed, wrong, topLit, top,
+              r.shadowMs, r.lightMs);
+  EXPECT_GT(robust, planeCount * 9 / 10);
+  EXPECT_GT(shadowed, size_t(200));  // the shadow covers ~4.6 m^2 of the plane, ~460 surfels
+  EXPECT_EQ(wrong, 0u);
+  EXPECT_EQ(wrongE, 0u);
+  EXPECT_EQ(topLit, top);
+  EXPECT_EQ(ctx->validationErrors.load(), 0u);
+}
+
+// Furnace: a closed 2 m box whose walls all emit Le and reflect albedo a, no sun, no sky. Frame k of
+// relight -> VIR -> convolution holds probe irradiance pi Le (1 - a^k) / (1 - a) (each frame adds one
+// bounce), converging to pi Le / (1 - a); the surfels' relit irradiance lags one frame behind.
+TEST(RelightPass, FurnaceMultiBounceConvergesToAnalytic) {
+  auto ctx = createContext();
+  RelightPass relight(*ctx);
+  VirPass vir(*ctx);
+  const float a = 0.5f, le = 1.0f;
+  std::vector<shared::Surfel> surfels;
+  addBox(surfels, glm::vec3(-1.0f), glm::vec3(1.0f), -1.0f, 0.08f, glm::vec3(a), glm::vec3(le));
+  RelightProbes probes;
+  probes.grid.origin = glm::vec3(-0.5f);
+  probes.grid.spacing = glm::vec3(1.0f);
+  probes.grid.dims = glm::ivec3(2);
+  for (int64_t i = 0; i < probes.grid.probeCount(); ++i)
+    probes.positions.push_back(probes.grid.probePosition(probes.grid.probeCoord(i)));
+  VirOptions virOptions;
+  virOptions.resolution = 16;
+  virOptions.maxRange = 10.0f;
+  RelightOptions options;
+  const shared::SkyParams sky{};
+  CellLighting state;
+  const int frames = 10;
+  for (int k = 1; k <= frames; ++k) {
+    relightFrame(relight, vir, surfels, probes, sky, virOptions, options, state);
+    std::vector<double> e;
+    for (const glm::vec4& v : state.probes.irradiance) e.push_back(double(v.y));
+    const double want = double(kPi * le) * (1.0 - std::pow(double(a), k)) / (1.0 - double(a));
+    const double got = median(e);
+    std::printf("[ measure  ] furnace frame %d: probe irradiance median %.5f, analytic %.5f (%.3f %%), holes %.4f\n",
+                k, got, want, 100.0 * (got / want - 1.0), state.atlas.holeFractionAfterFill);
+    EXPECT_NEAR(got / want, 1.0, 0.01) << "frame " << k;
+  }
+  std::vector<double> surfelE;
+  for (const glm::vec4& v : state.surfelIrradiance) surfelE.push_back(double(v.y));
+  const double wantSurfel = double(kPi * le) * (1.0 - std::pow(double(a), frames - 1)) / (1.0 - double(a));
+  std::printf("[ measure  ] furnace surfel E after %d frames: median %.5f, analytic %.5f\n", frames, median(surfelE),
+              wantSurfel);
+  EXPECT_NEAR(median(surfelE) / wantSurfel, 1.0, 0.01);
+  EXPECT_EQ(ctx->validationErrors.load(), 0u);
+}
+
+TEST(RelightPass, RejectsMismatchedInputs) {
+  auto ctx = createContext();
+  RelightPass pass(*ctx);
+  std::vector<shared::Surfel> surfels;
+  addFace(surfels, 1, 0.0f, 1.0f, {0.0f, 0.0f}, {1.0f, 1.0f}, 0.5f, glm::vec3(0.5f), glm::vec3(0.0f));
+  RelightProbes probes = singleProbe({0, 1, 0});
+  probes.positions.push_back({1, 1, 1});
+  EXPECT_THROW(pass.relight(surfels, probes, sunOnly({0, 1, 0}, 1.0f), nullptr, {}), Error);
+  EXPECT_THROW(pass.relight({}, singleProbe({0, 1, 0}), sunOnly({0, 1, 0}, 1.0f), nullptr, {}), Error);
+  RelightOptions bad;
+  bad.shadowResolution = 5;
+  EXPECT_THROW(pass.relight(surfels, singleProbe({0, 1, 0}), sunOnly({0, 1, 0}, 1.0f), nullptr, bad), Error);
+  ProbeLighting wrong;
+  wrong.probeCount = 2;
+  wrong.irradianceResolution = 8;
+  wrong.distanceResolution = 16;
+  wrong.irradiance.resize(64);
+  EXPECT_THROW(pass.relight(surfels, singleProbe({0, 1, 0}), sunOnly({0, 1, 0}, 1.0f), &wrong, {}), Error);
+}
+
+}  // namespace
+}  // namespace lfgi::gpu

@@ -1,0 +1,70 @@
+// Relight pass (gpu/relight_pass.h): per-frame lighting of a cell's surfels, shared by GLSL and C++.
+// RelightFrame is one storage buffer per frame (too big for push constants); RelightParams are the push
+// constants of every relight_*.comp shader.
+#ifndef LFGI_SHARED_RELIGHT_H
+#define LFGI_SHARED_RELIGHT_H
+
+#include "lfgi_shared.h"
+#include "sky.h"
+
+LFGI_SHARED_BEGIN
+
+// Shadow map frame: orthographic along the key light. A world point p has map coordinates
+// u = dot(p, axisU.xyz) - axisU.w, v = dot(p, axisV.xyz) - axisV.w (metres from the map's corner) and
+// depth = depth.x - dot(p, keyDirection.xyz) (metres from the map's plane on the light's side, > 0).
+struct RelightFrame {
+  SkyParams sky;         // the sky/sun/moon state (worlds::makeSky)
+  vec4 keyDirection;     // xyz: unit direction towards the shadowed disc (sun, or moon at night); w: 0 none
+  vec4 keyIrradiance;    // rgb: that disc's irradiance on a surface facing it (kilolux); w unused
+  vec4 shadowAxisU;      // xyz: unit map axis (perpendicular to keyDirection); w: u of the map's corner (m)
+  vec4 shadowAxisV;      // xyz: unit map axis; w: v of the map's corner (m)
+  vec4 shadowDepth;      // x: depth origin (m); y: texel size (m); z: bias constant (m); w: bias slope (texels)
+  vec4 gridOrigin;       // xyz: probe (0, 0, 0) of the grid (before relocation), core/probe_grid.h order
+  vec4 gridSpacing;      // xyz: metres between probes; w: normal bias for the Chebyshev test (m)
+  ivec4 gridDims;        // xyz: probes per axis; w: probe count
+};
+LFGI_CHECK_SIZE(RelightFrame, 384)
+LFGI_CHECK_OFFSET(RelightFrame, keyDirection, 256)
+LFGI_CHECK_OFFSET(RelightFrame, gridDims, 368)
+
+#define LFGI_RELIGHT_SUN 1u        // add the key disc's irradiance, shadowed by the shadow map
+#define LFGI_RELIGHT_BOUNCE 2u     // add last frame's probe irradiance (sky + bounces)
+#define LFGI_RELIGHT_CHEBYSHEV 4u  // weight probes by Chebyshev visibility from their distance moments
+#define LFGI_RELIGHT_SKY 8u        // probe convolution: texels no surfel covered see the sky (no disc)
+
+struct RelightParams {
+  uint surfelCount;
+  uint probeCount;
+  uint shadowRes;           // shadow map texels per side
+  uint maxFootprintRadius;  // shadow splat window half-size in texels
+  uint irradianceRes;       // M: probe irradiance maps (octahedral, no border)
+  uint distanceRes;         // N: probe radiance / distance maps (the VIR resolution)
+  uint flags;               // LFGI_RELIGHT_* bits
+  uint pad0;
+  float footprintScale;     // shadow splat disc radius multiplier (as VirParams.footprintScale)
+  float missDistance;       // distance moment of a texel that sees no surfel (the sky), m
+  float pad1;
+  float pad2;
+};
+LFGI_CHECK_SIZE(RelightParams, 48)
+LFGI_CHECK_OFFSET(RelightParams, footprintScale, 32)
+
+// Texel index t (|t - [0, n)| < n) of an octahedral map -> the interior texel it denotes across the fold:
+// the map mirrors across each edge midpoint (shared/octahedral.h octBorderSource, generalised).
+LFGI_INLINE ivec2 relightOctWrap(ivec2 t, int n) {
+  if (t.x < 0) {
+    t = ivec2(-1 - t.x, n - 1 - t.y);
+  } else if (t.x >= n) {
+    t = ivec2(2 * n - 1 - t.x, n - 1 - t.y);
+  }
+  if (t.y < 0) {
+    t = ivec2(n - 1 - t.x, -1 - t.y);
+  } else if (t.y >= n) {
+    t = ivec2(n - 1 - t.x, 2 * n - 1 - t.y);
+  }
+  return clamp(t, ivec2(0), ivec2(n - 1));
+}
+
+LFGI_SHARED_END
+
+#endif  // LFGI_SHARED_RELIGHT_H
