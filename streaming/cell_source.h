@@ -1,0 +1,86 @@
+// Where the streaming manager gets cells from. A CellSource knows the world's cell layout, hands out
+// every cell's coarse fallback up front, and loads (reads + validates + decodes) one cell's full light
+// field on request. Implementations: SyntheticCellSource (below: an analytic light field, for tests and
+// the fly-through benchmark before cells are baked), and cell-file sources (raw, SH or codec cells) that
+// plug in behind the same interface.
+//
+// Threading contract: layout(), fallback() and maxCellBytes() are called from the game thread only;
+// load() is called concurrently from the manager's IO threads (several at once, never twice for the
+// same cell at the same time) and must be thread-safe. load() throws lfgi::Error on a bad cell (the
+// manager logs it, keeps the fallback and never asks for that cell again).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <set>
+#include <utility>
+
+#include <glm/glm.hpp>
+
+#include "core/probe_field.h"
+#include "core/sh.h"
+
+namespace lfgi::streaming {
+
+struct WorldLayout {
+  glm::vec2 originXZ{0.0f};   // world-space x, z of cell (0, 0)'s min corner
+  float cellSize = 64.0f;     // metres
+  glm::ivec2 cells{1, 1};     // cells along x and z
+
+  bool contains(glm::ivec2 c) const { return c.x >= 0 && c.y >= 0 && c.x < cells.x && c.y < cells.y; }
+  // The cell owning world point (x, z) (half-open boxes; may be outside the world).
+  glm::ivec2 cellOf(glm::vec3 p) const {
+    return glm::ivec2(glm::floor((glm::vec2(p.x, p.z) - originXZ) / cellSize));
+  }
+  glm::vec2 cellMin(glm::ivec2 c) const { return originXZ + glm::vec2(c) * cellSize; }
+  // Distance in the xz plane from p to the nearest point of cell c's square (0 inside).
+  float distanceToCell(glm::vec3 p, glm::ivec2 c) const;
+  int64_t linear(glm::ivec2 c) const { return int64_t(c.y) * cells.x + c.x; }
+};
+
+class CellSource {
+ public:
+  virtual ~CellSource() = default;
+  virtual WorldLayout layout() const = 0;
+  // Always-resident coarse representation: the cell's mean incident radiance as SH L1 (its irradiance
+  // for normal n is shIrradiance(fallback, n)). A few dozen bytes per cell.
+  virtual ShL1 fallback(glm::ivec2 cell) const = 0;
+  // Upper bound of ProbeField::bytes() of any loaded cell: the size of one resident slot.
+  virtual size_t maxCellBytes() const = 0;
+  // Loads cell `cell` into `out`, reusing out's capacity (no allocation when it fits).
+  virtual void load(glm::ivec2 cell, ProbeField& out) = 0;
+};
+
+// An analytic light field: every cell has the same probe lattice (spacing, layers), and a probe's
+// irradiance map holds E(p, n) = base(p) * (1 + 0.5 n.y) (rgb tinted per channel), base smooth in p, so
+// exact values are known anywhere and neighbouring cells agree on shared lattice points. Radiance and
+// distance maps are filled with matching constants. Options inject slow loads and corrupt cells.
+struct SyntheticSourceOptions {
+  WorldLayout layout{{0.0f, 0.0f}, 64.0f, {64, 64}};
+  float probeSpacing = 8.0f;   // divides cellSize
+  int layers = 3;              // probe layers from y = 0.5 m
+  int resolution = 4;          // radiance / distance maps
+  int irradianceResolution = 4;
+  int loadDelayUs = 0;         // simulated IO + decode time per load
+  std::set<std::pair<int, int>> corruptCells;  // load() throws for these
+};
+
+class SyntheticCellSource final : public CellSource {
+ public:
+  explicit SyntheticCellSource(SyntheticSourceOptions options);
+  WorldLayout layout() const override { return options_.layout; }
+  ShL1 fallback(glm::ivec2 cell) const override;
+  size_t maxCellBytes() const override { return cellBytes_; }
+  void load(glm::ivec2 cell, ProbeField& out) override;
+
+  // The exact field the probes sample: E(p, n).
+  static glm::vec3 exactIrradiance(glm::vec3 p, glm::vec3 n);
+  uint64_t loads() const { return loads_.load(); }
+
+ private:
+  SyntheticSourceOptions options_;
+  size_t cellBytes_ = 0;
+  std::atomic<uint64_t> loads_{0};
+};
+
+}  // namespace lfgi::streaming

@@ -1,0 +1,171 @@
+// StreamingManager: keeps the light field of the cells around the camera resident (DESIGN.md §1,
+// issue 8). A game loop calls update() once per frame with the camera; the manager
+//   1. wants every cell within decodeRadius of the camera or of its predicted position
+//      (position + velocity * prefetchSeconds), ordered by priority = distance x view-direction factor;
+//   2. drops resident cells beyond keepRadius (> decodeRadius: a camera oscillating across a border does
+//      not thrash) and, when the memory budget is full, the resident cell of worst priority if the
+//      candidate is better;
+//   3. reads + validates + decodes wanted cells on an IO thread pool (CellSource::load) into a fixed pool
+//      of slots sized by the memory budget (floor(budget / source.maxCellBytes()) slots allocated up
+//      front: resident bytes never exceed the budget, and no frame allocates);
+//   4. activates loaded cells on the game thread (onActivate: GPU upload / GPU decode) within a per-frame
+//      time budget, then cross-fades them in from the fallback over fadeSeconds (no pop);
+//   5. relights resident cells whose lighting is stale (time of day moved by more than a threshold;
+//      onRelight: VIR relight), nearest first, at most maxRelightsPerFrame per frame (amortised).
+// Every cell's coarse fallback (SH L1, CellSource::fallback) is resident from construction on, so a point
+// inside the world is never without GI. A cell whose load fails is logged, keeps its fallback and is
+// never requested again.
+//
+// Seams: sample() interpolates across a cell border between the owning cell's last probe layer and the
+// neighbour's field at the border (or the neighbour's fallback if it is not resident), so neighbouring
+// resident cells give the same value at a shared point when their probe lattices match in x and z.
+//
+// Threading contract: construct, update(), sample(), stats() and every accessor on one thread (the
+// game thread). The IO threads only run CellSource::load into slots the game thread handed them and
+// does not touch until they are returned. onActivate / onRelight run on the game thread inside update().
+// With ioThreads = 0 loads run inline in update(), in priority order: the whole sequence of decisions is
+// then a pure function of the inputs (tests use this); with IO threads the decisions of what to request
+// and evict are still deterministic, only arrival frames vary.
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "streaming/cell_source.h"
+
+namespace lfgi::streaming {
+
+struct StreamingConfig {
+  float decodeRadius = 160.0f;        // m, xz distance to a cell's square
+  float keepRadius = 224.0f;          // m, > decodeRadius
+  float prefetchSeconds = 2.0f;       // predicted position = position + velocity * this
+  float viewWeight = 0.5f;            // priority = distance * (1 - viewWeight * max(0, cos(view, to cell)))
+  size_t memoryBudgetBytes = size_t(256) << 20;
+  int ioThreads = 2;                  // 0: inline loads (deterministic)
+  int maxIoInFlight = 8;              // requests queued or loading at once
+  int maxInlineLoadsPerFrame = 4;     // ioThreads = 0 only
+  double activateBudgetMs = 2.0;      // per frame, game-thread time for onActivate
+  int maxActivationsPerFrame = 8;
+  float fadeSeconds = 0.5f;
+  float relightThresholdHours = 0.25f;
+  int maxRelightsPerFrame = 1;
+  bool recordEvents = false;          // keep an event log (tests, profiler)
+  // Throws lfgi::Error naming the bad field.
+  void validate() const;
+};
+
+struct FrameInput {
+  glm::vec3 position{0.0f};
+  glm::vec3 direction{0.0f, 0.0f, -1.0f};
+  glm::vec3 velocity{0.0f};
+  float timeOfDayHours = 12.0f;
+  float dtSeconds = 1.0f / 60.0f;
+};
+
+struct FrameStats {
+  uint64_t frame = 0;
+  int resident = 0;          // active (visible) cells
+  int loading = 0;           // queued, loading or loaded-not-yet-active
+  int requested = 0, activated = 0, evicted = 0, relit = 0, failed = 0;  // this frame
+  size_t bytesResident = 0;  // slots in use x their field bytes (<= memoryBudgetBytes)
+  double ioMs = 0.0;         // IO-thread time of loads that completed this frame
+  double activateMs = 0.0, relightMs = 0.0, updateMs = 0.0;
+};
+
+enum class StreamingEventType : uint8_t { Request, Activate, Evict, Relight, Fail };
+struct StreamingEvent {
+  uint64_t frame = 0;
+  StreamingEventType type = StreamingEventType::Request;
+  glm::ivec2 cell{0};
+  friend bool operator==(const StreamingEvent&, const StreamingEvent&) = default;
+};
+
+struct IrradianceSample {
+  glm::vec3 irradiance{0.0f};
+  float fallbackWeight = 1.0f;  // 0: all from full cells, 1: all from fallbacks
+  bool missing = false;         // outside the world: no fallback either
+};
+
+class StreamingManager {
+ public:
+  // Throws lfgi::Error for a bad config or a budget smaller than one cell.
+  StreamingManager(CellSource& source, const StreamingConfig& config);
+  ~StreamingManager();
+  StreamingManager(const StreamingManager&) = delete;
+  StreamingManager& operator=(const StreamingManager&) = delete;
+
+  std::function<void(glm::ivec2 cell, const ProbeField& field)> onActivate;
+  std::function<void(glm::ivec2 cell, ProbeField& field, float timeOfDayHours)> onRelight;
+
+  FrameStats update(const FrameInput& input);
+
+  // Irradiance at world point p for unit normal n from resident cells (trilinear over probes, nearest
+  // irradiance texel; no visibility term: this is the CPU view used for statistics and tests, the GPU
+  // shading pass applies Chebyshev weights) blended with fallbacks by fade.
+  IrradianceSample sample(glm::vec3 p, glm::vec3 n) const;
+
+  bool isResident(glm::ivec2 cell) const;  // active (visible, maybe still fading in)
+  float fade(glm::ivec2 cell) const;       // 0 not resident .. 1 fully faded in
+  int slotCount() const { return int(slots_.size()); }
+  const std::vector<StreamingEvent>& events() const { return events_; }
+  const WorldLayout& layout() const { return layout_; }
+  // Blocks until every queued IO request has finished (tests, shutdown).
+  void drainIo();
+
+ private:
+  enum class SlotState : uint8_t { Free, Loading, Loaded, Active };
+  struct Slot {
+    SlotState state = SlotState::Free;
+    glm::ivec2 cell{0};
+    ProbeField field;
+    float fade = 0.0f;
+    float litTimeOfDay = 0.0f;
+    float priority = 0.0f;
+    bool cancelled = false;
+    std::string error;   // set by the IO thread on failure
+    double ioMs = 0.0;
+  };
+  struct Candidate {
+    float priority;
+    glm::ivec2 cell;
+  };
+
+  float priorityOf(glm::ivec2 cell, const FrameInput& in, glm::vec3 predicted) const;
+  void startLoad(int slot, glm::ivec2 cell, float priority, FrameStats& stats);
+  void runLoad(int slot);
+  void collectFinished(FrameStats& stats);
+  void freeSlot(int slot);
+  void record(StreamingEventType type, glm::ivec2 cell);
+  glm::vec3 sampleCell(int slot, glm::vec3 p, glm::vec3 n) const;
+  glm::vec3 cellValue(glm::ivec2 cell, glm::vec3 p, glm::vec3 n, float& fallbackWeight) const;
+  void ioWorker();
+
+  CellSource& source_;
+  StreamingConfig config_;
+  WorldLayout layout_;
+  std::vector<ShL1> fallback_;
+  std::vector<int32_t> cellSlot_;  // per cell: slot index or -1
+  std::vector<uint8_t> failed_;    // per cell
+  std::vector<Slot> slots_;
+  std::vector<Candidate> wanted_;  // reused every frame
+  std::vector<StreamingEvent> events_;
+  uint64_t frame_ = 0;
+  FrameInput last_{};
+
+  std::mutex ioMutex_;
+  std::condition_variable ioCv_, doneCv_;
+  std::deque<int> ioQueue_;
+  std::vector<int> ioDone_;
+  std::vector<int> doneScratch_;
+  int ioOutstanding_ = 0;
+  bool stopping_ = false;
+  std::vector<std::thread> ioThreads_;
+};
+
+}  // namespace lfgi::streaming
