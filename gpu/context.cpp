@@ -299,6 +299,7 @@ std::unique_ptr<Context> createContext(const ContextOptions& options) {
   e12.shaderBufferInt64Atomics = f12.shaderBufferInt64Atomics;
   e12.shaderFloat16 = f12.shaderFloat16;
   e13.synchronization2 = f13.synchronization2;
+  e13.dynamicRendering = f13.dynamicRendering;  // graphics without render passes (gpu/graphics.h)
   // glslc --target-env=vulkan1.3 emits LocalSizeId, which needs maintenance4 (mandatory in 1.3).
   if (!f13.maintenance4) fail("Vulkan device '{}' lacks maintenance4 (mandatory in Vulkan 1.3)", ctx->info.name);
   e13.maintenance4 = VK_TRUE;
@@ -307,6 +308,7 @@ std::unique_ptr<Context> createContext(const ContextOptions& options) {
   ctx->features.shaderBufferInt64Atomics = f12.shaderBufferInt64Atomics;
   ctx->features.shaderFloat16 = f12.shaderFloat16;
   ctx->features.synchronization2 = f13.synchronization2;
+  ctx->features.dynamicRendering = f13.dynamicRendering;
 
   float priority = 1.0f;
   VkDeviceQueueCreateInfo queueInfo{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};

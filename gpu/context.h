@@ -41,6 +41,7 @@ struct DeviceFeatures {
   bool shaderFloat16 = false;
   bool storageBuffer16BitAccess = false;
   bool synchronization2 = false;
+  bool dynamicRendering = false;  // mandatory in 1.3; gpu/graphics.h needs it
 };
 
 struct Context {
