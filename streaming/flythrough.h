@@ -1,0 +1,71 @@
+// Fly-through driver shared by `lfgi fly` / `lfgi profile` and bench/flythrough: a camera on a closed
+// Catmull-Rom spline over the world at a constant speed, a time-of-day sweep, the StreamingManager
+// updated every frame, and a fixed set of "visible samples" (view rays hitting the ground plane y = 0
+// within shadeDistance) sampled through the manager to measure how much of what the camera sees is
+// lit by full cells, by the fallback, or by nothing.
+//
+// Time model: frames advance simulated time by 1 / fps. With StreamingConfig::ioThreads = 0 the IO
+// bandwidth is maxInlineLoadsPerFrame cells per frame and the whole run is deterministic; with IO
+// threads, loads take real time while frames do not wait for them (a conservative model: a real
+// frame takes >= 1/fps of wall time, so loads arrive at least as early in frames as in a real game).
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/trace.h"
+#include "streaming/streaming_manager.h"
+
+namespace lfgi::streaming {
+
+struct FlythroughOptions {
+  std::string path = "loop";     // "loop" (closed spline over the world) or "line" (west -> east)
+  float speed = 50.0f;           // m/s
+  float seconds = 60.0f;         // simulated
+  float fps = 60.0f;
+  float altitude = 12.0f;        // m above y = 0
+  float pitchDeg = -12.0f;       // view pitch
+  float todStart = 6.0f, todEnd = 20.0f;  // time-of-day sweep over the flight (hours)
+  float shadeDistance = 120.0f;  // m: visible samples farther away use the far-field fallback by design
+  int sampleRaysX = 24, sampleRaysY = 12;  // view rays of the visible-sample grid (90 x 50 deg)
+  StreamingConfig streaming;
+  // Throws lfgi::Error naming the bad option.
+  void validate() const;
+};
+
+struct FlythroughFrame {
+  FrameStats stats;
+  double timeS = 0.0;
+  glm::vec3 position{0.0f};
+  float timeOfDay = 0.0f;
+  int visibleSamples = 0;
+  int fallbackSamples = 0;   // samples with fallback weight > 1 %
+  int missingSamples = 0;    // samples with no GI at all (must be 0)
+  double shadeMs = 0.0;      // CPU time sampling the visible points
+  double frameMs = 0.0;      // update + shade
+  double fallbackFraction() const { return visibleSamples ? double(fallbackSamples) / visibleSamples : 0.0; }
+};
+
+struct FlythroughSummary {
+  int frames = 0;             // frames flown (fewer than planned when interrupted)
+  bool interrupted = false;   // stopped by InterruptGuard (Ctrl-C)
+  int framesMissingGi = 0;
+  double fallbackFraction = 0.0;  // over all visible samples of the run
+  double p50FrameMs = 0.0, p95FrameMs = 0.0, p99FrameMs = 0.0;
+  double p50UpdateMs = 0.0, p95UpdateMs = 0.0, p99UpdateMs = 0.0;
+  double p99IoMs = 0.0, p99ActivateMs = 0.0, p99RelightMs = 0.0, p99ShadeMs = 0.0;
+  size_t peakBytesResident = 0;
+  long cellsRequested = 0, cellsEvicted = 0, cellsRelit = 0, cellsFailed = 0;
+};
+
+// Runs the flight; perFrame (optional) sees every frame; trace (optional) receives one span per stage
+// per frame and counters of memory and budget use.
+FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& options,
+                                const std::function<void(const FlythroughFrame&)>& perFrame = {},
+                                TraceWriter* trace = nullptr);
+
+// Camera position on the path at arc length s (metres, wraps for "loop").
+glm::vec3 flythroughPosition(const WorldLayout& layout, const FlythroughOptions& options, double s);
+
+}  // namespace lfgi::streaming
