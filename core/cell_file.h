@@ -1,0 +1,144 @@
+// CellFile: one streaming cell's light field on disk (DESIGN.md §3), an OpenVDB file that `vdb_print`
+// lists, plus a trailer that protects the reader. OpenVDB is an implementation detail of cell_file.cpp;
+// this header is plain C++ so the many users of core never compile OpenVDB's headers.
+//
+// Layout:
+//   [OpenVDB stream]  file metadata  lfgi_magic "lfgi-cell", lfgi_format_version, world seed, cell (x, z),
+//                                    input hash, probe grid, model (arch or "none"), output scale, bake
+//                                    statistics, and binary blobs (OpenVDB metadata of the unregistered
+//                                    type "lfgi_bytes", which any OpenVDB reader keeps as raw bytes):
+//                                    generator weights, latents, fallback SH
+//                     grid "probes"  a MaskGrid in probe index space: active voxel (x, y, z) = probe
+//                                    (x, y, z) exists; its transform is index -> world of the ProbeGrid
+//   [trailer, 24 B]   "LFGICELL", u64 length of the OpenVDB stream, u64 XXH3-64 of the OpenVDB stream
+//
+// Why one MaskGrid + a latent blob rather than ceil(L/4) Int32 grids of packed int8 latents: the probes'
+// topology is stored once (1 bit per voxel in the leaves), while every extra OpenVDB grid repeats it plus
+// ~9 KB of fixed internal-node masks (a 5-4-3 tree writes 2 x 4 KB + 2 x 512 B of masks even for 8
+// voxels); the latents stay packed at any bit width (4-bit latents have no natural voxel type); and the
+// decoder consumes a dense [count][L] matrix (a GEMM operand) in exactly the blob's order. Latent row k
+// belongs to the k-th active probe in ProbeGrid linear order (x fastest, then y, then z).
+//
+// Reader contract: before OpenVDB parses a byte, the file size is bounded, the trailer's magic and
+// length must match and the XXH3-64 of the stream must match the trailer, so truncated or bit-flipped
+// files never reach OpenVDB's parser (which trusts its input). After parsing, every field is checked
+// against the others (version, counts vs the grid, blob lengths vs the architecture, finite floats,
+// voxels inside the grid dims). Every failure is an lfgi::Error "<file>: <problem>". The checksum
+// guards against corruption, not against a forger who recomputes it; the semantic checks still bound
+// what such a file can do (sizes are capped before anything is allocated from them).
+//
+// Files are deterministic: the same CellFile gives the same bytes (OpenVDB's random archive UUID is
+// replaced by one derived from the content).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/generator.h"
+#include "core/probe_grid.h"
+#include "core/quantize.h"
+
+namespace lfgi {
+
+inline constexpr int kCellFileVersion = 1;
+inline constexpr int64_t kCellFileMaxProbes = int64_t(1) << 22;     // per cell (~4 M)
+inline constexpr size_t kCellFileMaxBytes = size_t(1) << 30;         // 1 GiB
+
+// SH L1 radiance (core/sh.h ShL1 order: coefficient k = l(l+1)+m, then rgb) in FP16: 12 halves per entry.
+struct CellFallback {
+  enum class Kind : uint8_t { PerCell = 0, PerProbe = 1 };
+  Kind kind = Kind::PerCell;
+  std::vector<uint16_t> shHalf;  // PerCell: 12; PerProbe: 12 * active probe count (latent order)
+};
+
+struct CellBakeStats {
+  double errorAchieved = 0.0;    // irradiance relative RMS vs ground truth (metrics.h), >= 0
+  double errorTarget = 0.0;      // what the model search aimed for, >= 0 (0: none)
+  double trainingSeconds = 0.0;  // >= 0
+  std::string model;             // the chosen model in words, e.g. "L16 C32-16 int8" or "no network: SH L1"
+};
+
+// The network part; absent in a "no network" cell (simple light fields: sky-only, uniform), whose
+// probes decode from the fallback alone.
+struct CellGenerator {
+  QuantizedWeights weights;  // includes the architecture
+  // LatentSource::Stored: one row per active probe (count = active probes, dim = arch.latentDim).
+  // LatentSource::PositionFourier: empty (count 0).
+  QuantizedLatents latents;
+};
+
+struct CellFile {
+  uint64_t worldSeed = 0;
+  int cellX = 0, cellZ = 0;         // streaming cell index
+  uint64_t inputHash = 0;           // XXH3-64 of the bake inputs (incremental rebake compares it)
+  ProbeGrid grid;
+  std::vector<uint8_t> active;      // probeCount(): 1 probe exists; empty = all exist
+  std::optional<CellGenerator> generator;
+  GeneratorOutputScale outputScale;
+  CellFallback fallback;
+  CellBakeStats stats;
+
+  int64_t activeProbeCount() const;
+  // Throws lfgi::Error("<what>: ...") unless every field is valid and consistent (what the writer checks
+  // before writing and the reader after reading).
+  void validate(const std::string& what) const;
+};
+
+// Stored bytes by part (the numbers `lfgi inspect` prints).
+struct CellFileBytes {
+  size_t weights = 0;   // quantized weights + scales
+  size_t latents = 0;   // quantized latents + scales
+  size_t fallback = 0;  // SH halves
+  size_t total = 0;     // whole file
+  size_t metadata() const { return total - weights - latents - fallback; }  // header, topology, fields
+};
+
+// Encodes / decodes the file bytes. decodeCellFile's errors start with `name` (the path, usually).
+std::vector<std::byte> encodeCellFile(const CellFile& cell);
+CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& name,
+                        CellFileBytes* bytesByPart = nullptr);
+
+// Atomic write (temp file + rename); read with every check above.
+void writeCellFile(const std::filesystem::path& path, const CellFile& cell);
+CellFile readCellFile(const std::filesystem::path& path, CellFileBytes* bytesByPart = nullptr);
+
+// XXH3-64 content hash for CellFile::inputHash: feed the bake inputs (mesh hash, probe grid, capture
+// settings, ...) in a fixed order.
+class ContentHasher {
+ public:
+  ContentHasher();
+  ~ContentHasher();
+  ContentHasher(const ContentHasher&) = delete;
+  ContentHasher& operator=(const ContentHasher&) = delete;
+  ContentHasher& add(std::span<const std::byte> bytes);
+  ContentHasher& add(const std::string& text);  // length-prefixed, so ("ab","c") != ("a","bc")
+  template <typename T>
+  ContentHasher& addValue(const T& value) {
+    return add(std::as_bytes(std::span<const T, 1>(&value, 1)));
+  }
+  uint64_t digest() const;
+
+ private:
+  void* state_;  // XXH3_state_t
+};
+
+namespace detail {
+// Test seam: encodes like encodeCellFile, then replaces integer/string file metadata fields before the
+// checksum is computed, to build files that are intact but semantically wrong (bad version, huge
+// counts). Integer fields take `intValue`; string fields, vec3i fields ("X,Y,Z") and blobs (raw bytes)
+// take `text`; an unknown field is added as int64.
+struct CellFileOverride {
+  std::string field;
+  int64_t intValue = 0;
+  std::string text;
+};
+std::vector<std::byte> encodeCellFileWithOverrides(const CellFile& cell, std::span<const CellFileOverride> overrides);
+}  // namespace detail
+
+}  // namespace lfgi

@@ -1,0 +1,354 @@
+#include "core/cell_file.h"
+
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <random>
+
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/half.h"
+
+namespace lfgi {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path tmpDir() {
+  fs::path d = fs::path(LFGI_TEST_TMP_DIR) / "cell_file";
+  fs::create_directories(d);
+  return d;
+}
+
+enum class Variant { Int8Latents8, Fp16Latents4, PositionLatents, NoNetwork };
+
+GeneratorWeights randomWeights(const GeneratorArch& arch, std::mt19937& rng) {
+  std::uniform_real_distribution<float> u(-0.5f, 0.5f);
+  auto fill = [&](size_t n) {
+    std::vector<float> v(n);
+    for (float& x : v) x = u(rng);
+    return v;
+  };
+  GeneratorWeights w;
+  w.arch = arch;
+  size_t c0 = size_t(arch.convChannels.front());
+  w.linearWeight = fill(16 * c0 * size_t(arch.inputDim()));
+  w.linearBias = fill(16 * c0);
+  for (int i = 0; i < arch.layers(); ++i) {
+    size_t ci = size_t(arch.convChannels[size_t(i)]), co = size_t(arch.convChannels[size_t(i) + 1]);
+    w.convWeight.push_back(fill(ci * co * 16));
+    w.convBias.push_back(fill(co));
+  }
+  return w;
+}
+
+// A small cell: 3x2x2 probes (some disabled), a 2-layer generator.
+CellFile makeCell(Variant v, uint32_t seed = 1) {
+  std::mt19937 rng(seed);
+  CellFile c;
+  c.worldSeed = 0xfedcba9876543210ull;
+  c.cellX = -3;
+  c.cellZ = 7;
+  c.inputHash = 0x0123456789abcdefull + seed;
+  c.grid.origin = {-192.0f, 0.5f, 448.0f};
+  c.grid.spacing = {8.0f, 4.0f, 8.0f};
+  c.grid.dims = {3, 2, 2};
+  if (v != Variant::Fp16Latents4) c.active = {1, 1, 0, 1, 1, 1, 1, 0, 1, 1, 1, 1};
+  int64_t n = c.activeProbeCount();
+  if (v != Variant::NoNetwork) {
+    GeneratorArch a;
+    a.latentDim = 8;
+    a.convChannels = {8, 6, kGeneratorChannels};
+    if (v == Variant::PositionLatents) {
+      a.latentSource = LatentSource::PositionFourier;
+      a.fourierOctaves = 2;
+      a.latentDim = 12;
+    }
+    CellGenerator g;
+    g.weights = quantizeWeights(randomWeights(a, rng),
+                                v == Variant::Fp16Latents4 ? WeightPrecision::Float16 : WeightPrecision::Int8);
+    if (a.latentSource == LatentSource::Stored) {
+      std::vector<float> lat(size_t(n * a.latentDim));
+      for (float& x : lat) x = std::normal_distribution<float>(0.0f, 1.0f)(rng);
+      g.latents = quantizeLatents(lat, a.latentDim, v == Variant::Fp16Latents4 ? 4 : 8);
+    }
+    c.generator = std::move(g);
+  }
+  c.outputScale = {3.5f, 96.0f};
+  c.fallback.kind = v == Variant::Int8Latents8 || v == Variant::NoNetwork ? CellFallback::Kind::PerProbe
+                                                                         : CellFallback::Kind::PerCell;
+  size_t entries = c.fallback.kind == CellFallback::Kind::PerCell ? 1 : size_t(n);
+  for (size_t i = 0; i < entries * 12; ++i) c.fallback.shHalf.push_back(floatToHalfClamped(0.25f * float(i % 7) - 0.5f));
+  c.stats.errorAchieved = 0.0423;
+  c.stats.errorTarget = 0.05;
+  c.stats.trainingSeconds = 12.75;
+  c.stats.model = v == Variant::NoNetwork ? "no network: SH L1" : "L8 C8-6 test";
+  return c;
+}
+
+void expectSameTensor(const QuantizedTensor& a, const QuantizedTensor& b) {
+  EXPECT_EQ(a.encoding, b.encoding);
+  EXPECT_EQ(a.outer, b.outer);
+  EXPECT_EQ(a.channels, b.channels);
+  EXPECT_EQ(a.inner, b.inner);
+  EXPECT_EQ(a.f16, b.f16);
+  EXPECT_EQ(a.codes, b.codes);
+  // float arrays compared bit for bit
+  ASSERT_EQ(a.f32.size(), b.f32.size());
+  EXPECT_EQ(0, std::memcmp(a.f32.data(), b.f32.data(), a.f32.size() * 4));
+  ASSERT_EQ(a.scales.size(), b.scales.size());
+  EXPECT_EQ(0, std::memcmp(a.scales.data(), b.scales.data(), a.scales.size() * 4));
+}
+
+void expectSameCell(const CellFile& a, const CellFile& b) {
+  EXPECT_EQ(a.worldSeed, b.worldSeed);
+  EXPECT_EQ(a.cellX, b.cellX);
+  EXPECT_EQ(a.cellZ, b.cellZ);
+  EXPECT_EQ(a.inputHash, b.inputHash);
+  EXPECT_EQ(a.grid.origin, b.grid.origin);
+  EXPECT_EQ(a.grid.spacing, b.grid.spacing);
+  EXPECT_EQ(a.grid.dims, b.grid.dims);
+  EXPECT_EQ(a.active, b.active);
+  ASSERT_EQ(a.generator.has_value(), b.generator.has_value());
+  if (a.generator) {
+    const CellGenerator &ga = *a.generator, &gb = *b.generator;
+    EXPECT_EQ(ga.weights.arch.latentDim, gb.weights.arch.latentDim);
+    EXPECT_EQ(ga.weights.arch.condDim, gb.weights.arch.condDim);
+    EXPECT_EQ(ga.weights.arch.convChannels, gb.weights.arch.convChannels);
+    EXPECT_EQ(ga.weights.arch.latentSource, gb.weights.arch.latentSource);
+    EXPECT_EQ(ga.weights.arch.fourierOctaves, gb.weights.arch.fourierOctaves);
+    EXPECT_EQ(ga.weights.precision, gb.weights.precision);
+    ASSERT_EQ(ga.weights.tensors.size(), gb.weights.tensors.size());
+    for (size_t k = 0; k < ga.weights.tensors.size(); ++k) expectSameTensor(ga.weights.tensors[k], gb.weights.tensors[k]);
+    EXPECT_EQ(ga.latents.dim, gb.latents.dim);
+    EXPECT_EQ(ga.latents.bits, gb.latents.bits);
+    EXPECT_EQ(ga.latents.count, gb.latents.count);
+    EXPECT_EQ(ga.latents.codes, gb.latents.codes);
+    ASSERT_EQ(ga.latents.scales.size(), gb.latents.scales.size());
+    EXPECT_EQ(0, std::memcmp(ga.latents.scales.data(), gb.latents.scales.data(), ga.latents.scales.size() * 4));
+  }
+  EXPECT_EQ(std::bit_cast<uint32_t>(a.outputScale.exposure), std::bit_cast<uint32_t>(b.outputScale.exposure));
+  EXPECT_EQ(std::bit_cast<uint32_t>(a.outputScale.range), std::bit_cast<uint32_t>(b.outputScale.range));
+  EXPECT_EQ(a.fallback.kind, b.fallback.kind);
+  EXPECT_EQ(a.fallback.shHalf, b.fallback.shHalf);
+  EXPECT_EQ(a.stats.errorAchieved, b.stats.errorAchieved);
+  EXPECT_EQ(a.stats.errorTarget, b.stats.errorTarget);
+  EXPECT_EQ(a.stats.trainingSeconds, b.stats.trainingSeconds);
+  EXPECT_EQ(a.stats.model, b.stats.model);
+}
+
+std::string errorOf(std::span<const std::byte> bytes, const std::string& name = "x.vdb") {
+  try {
+    decodeCellFile(bytes, name);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(CellFile, RoundTripIsBitExactForEveryVariant) {
+  for (Variant v : {Variant::Int8Latents8, Variant::Fp16Latents4, Variant::PositionLatents, Variant::NoNetwork}) {
+    SCOPED_TRACE(int(v));
+    CellFile c = makeCell(v);
+    std::vector<std::byte> bytes = encodeCellFile(c);
+    CellFileBytes parts;
+    CellFile back = decodeCellFile(bytes, "mem", &parts);
+    expectSameCell(c, back);
+    // Deterministic: the same cell (and its decoded copy) encode to the same bytes.
+    EXPECT_EQ(bytes, encodeCellFile(c));
+    EXPECT_EQ(bytes, encodeCellFile(back));
+    EXPECT_EQ(parts.total, bytes.size());
+    EXPECT_EQ(parts.weights, c.generator ? c.generator->weights.bytes() : 0u);
+    EXPECT_EQ(parts.latents, c.generator ? c.generator->latents.bytes() : 0u);
+    EXPECT_EQ(parts.fallback, c.fallback.shHalf.size() * 2);
+    std::printf("variant %d: %zu bytes = weights %zu + latents %zu + fallback %zu + metadata/topology %zu\n", int(v),
+                parts.total, parts.weights, parts.latents, parts.fallback, parts.metadata());
+  }
+  // All-active masks read back as the empty "all exist" form.
+  CellFile c = makeCell(Variant::NoNetwork);
+  c.active.assign(12, 1);
+  c.fallback.shHalf.resize(12 * 12);
+  EXPECT_TRUE(decodeCellFile(encodeCellFile(c), "mem").active.empty());
+}
+
+TEST(CellFile, DequantizedModelDecodesFromTheFile) {
+  CellFile c = makeCell(Variant::Int8Latents8);
+  CellFile back = decodeCellFile(encodeCellFile(c), "mem");
+  GeneratorWeights w = dequantizeWeights(back.generator->weights);
+  std::vector<float> lat = dequantizeLatents(back.generator->latents);
+  const GeneratorArch& a = w.arch;
+  size_t n = size_t(back.generator->latents.count);
+  std::vector<float> out(n * size_t(a.outChannels() * a.outputResolution() * a.outputResolution()));
+  auto cond = conditioningVector(9.0f, 0.2f);
+  generatorForward(w, lat, cond, n, out);
+  for (float x : out) ASSERT_TRUE(std::isfinite(x));
+}
+
+TEST(CellFile, WriteIsAtomicAndReadChecksTheFile) {
+  fs::path p = tmpDir() / "cell_-3_7.vdb";
+  fs::remove(p);
+  CellFile c = makeCell(Variant::Int8Latents8);
+  writeCellFile(p, c);
+  CellFileBytes parts;
+  expectSameCell(c, readCellFile(p, &parts));
+  EXPECT_EQ(parts.total, fs::file_size(p));
+
+  // An invalid cell is refused before anything is written; the old file stays, no temp file is left.
+  CellFile bad = c;
+  bad.outputScale.exposure = std::nanf("");
+  try {
+    writeCellFile(p, bad);
+    FAIL() << "NaN exposure written";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("exposure nan must be finite"), std::string::npos) << e.what();
+  }
+  expectSameCell(c, readCellFile(p));
+  for (const auto& entry : fs::directory_iterator(p.parent_path()))
+    EXPECT_EQ(entry.path().string().find(".tmp."), std::string::npos) << entry.path();
+  try {
+    readCellFile(tmpDir() / "missing.vdb");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.vdb"), std::string::npos) << e.what();
+  }
+}
+
+TEST(CellFile, VdbPrintListsTheFile) {
+  if (std::system("command -v vdb_print >/dev/null 2>&1") != 0) GTEST_SKIP() << "vdb_print not installed";
+  fs::path p = tmpDir() / "listed.vdb";
+  writeCellFile(p, makeCell(Variant::Int8Latents8));
+  std::string cmd = "vdb_print -l -m '" + p.string() + "' 2>&1";
+  FILE* f = popen(cmd.c_str(), "r");
+  ASSERT_NE(f, nullptr);
+  std::string out;
+  char buf[4096];
+  while (size_t k = std::fread(buf, 1, sizeof buf, f)) out.append(buf, k);
+  int rc = pclose(f);
+  std::printf("%s", out.c_str());
+  EXPECT_EQ(rc, 0);
+  EXPECT_NE(out.find("lfgi_magic: lfgi-cell"), std::string::npos);
+  EXPECT_NE(out.find("Name: probes"), std::string::npos);
+  EXPECT_NE(out.find("Number of active voxels:       10"), std::string::npos);  // 12 probes, 2 disabled
+  EXPECT_NE(out.find("voxel dimensions: [8, 4, 8]"), std::string::npos);
+}
+
+TEST(CellFile, EveryTruncationIsRejectedCleanly) {
+  std::vector<std::byte> bytes = encodeCellFile(makeCell(Variant::Fp16Latents4));
+  size_t rejected = 0;
+  for (size_t len = 0; len < bytes.size(); ++len) {
+    std::string e = errorOf(std::span(bytes).first(len), "cut.vdb");
+    ASSERT_EQ(e.rfind("cut.vdb: ", 0), 0u) << "length " << len << ": '" << e << "'";
+    ++rejected;
+  }
+  std::printf("%zu of %zu truncations rejected; e.g. '%s'\n", rejected, bytes.size(),
+              errorOf(std::span(bytes).first(bytes.size() / 2), "cut.vdb").c_str());
+  // Extra bytes after the trailer are refused too.
+  std::vector<std::byte> longer = bytes;
+  longer.push_back(std::byte{0});
+  EXPECT_NE(errorOf(longer), "");
+}
+
+TEST(CellFile, RandomBitFlipsAreRejectedCleanly) {
+  std::vector<std::byte> bytes = encodeCellFile(makeCell(Variant::Int8Latents8));
+  std::mt19937 rng(2024);
+  const int trials = 3000;
+  for (int t = 0; t < trials; ++t) {
+    std::vector<std::byte> b = bytes;
+    int flips = 1 + t % 4;
+    for (int k = 0; k < flips; ++k) {
+      size_t pos = std::uniform_int_distribution<size_t>(0, b.size() - 1)(rng);
+      b[pos] ^= std::byte(1u << std::uniform_int_distribution<int>(0, 7)(rng));
+    }
+    if (b == bytes) continue;  // two flips of the same bit
+    std::string e = errorOf(b, "flip.vdb");
+    ASSERT_EQ(e.rfind("flip.vdb: ", 0), 0u) << "trial " << t << ": '" << e << "'";
+  }
+  // Each bit of the trailer (magic, length, checksum) on its own.
+  for (size_t pos = bytes.size() - 24; pos < bytes.size(); ++pos)
+    for (int bit = 0; bit < 8; ++bit) {
+      std::vector<std::byte> b = bytes;
+      b[pos] ^= std::byte(1u << bit);
+      ASSERT_NE(errorOf(b), "") << pos << "." << bit;
+    }
+}
+
+struct BadFileCase {
+  std::vector<detail::CellFileOverride> overrides;
+  std::string expect;
+};
+
+TEST(CellFile, IntactButWrongFilesNameTheProblem) {
+  CellFile c = makeCell(Variant::Int8Latents8);
+  const std::vector<BadFileCase> cases = {
+      {{{"lfgi_format_version", 99, ""}}, "cell file format version 99, this build reads version 1"},
+      {{{"lfgi_magic", 0, "not-a-cell"}}, "lfgi_magic is 'not-a-cell'"},
+      {{{"latent_count", int64_t(1) << 40, ""}}, "field 'latent_count' = 1099511627776 outside [0, 4194304]"},
+      {{{"latent_count", 9, ""}}, "latent_count = 9, but the file has 10 probes"},
+      {{{"probe_count", 11, ""}}, "probe_count = 11, but grid 'probes' has 10 active voxels"},
+      {{{"probe_dims", 0, "100000,100000,100000"}}, "probe grid: ProbeGrid: 1000000000000000 probes"},
+      {{{"probe_dims", 0, "1000,1000,1000"}}, "probe_dims 1000x1000x1000 = 1000000000 probes, more than the cell limit"},
+      {{{"probe_dims", 0, "2,2,2"}}, "outside [0, 8]"},
+      {{{"probe_dims", 0, "0,2,2"}}, "probe grid:"},
+      {{{"generator_latent_dim", 100000, ""}}, "generator_latent_dim' = 100000 outside [1, 256]"},
+      {{{"generator_conv_channels", 0, "8,x,11"}}, "not a comma-separated list"},
+      {{{"generator_conv_channels", 0, "8,7,11"}}, "generator_weights ends after"},
+      {{{"generator_weights", 0, "abc"}}, "generator_weights ends after 3 bytes"},
+      {{{"latents", 0, std::string(40, '\0')}}, "latents ends after 40 bytes"},
+      {{{"generator_weight_precision", 0, "int3"}}, "generator_weight_precision 'int3' is unknown"},
+      {{{"latent_bits", 3, ""}}, "latent_bits' = 3 outside"},
+      {{{"fallback_sh", 0, "xy"}}, "fallback_sh holds 2 bytes, 240 expected"},
+      {{{"model", 0, "gan9000"}}, "model 'gan9000' is unknown"},
+      {{{"input_hash", 0, "xyz"}}, "input_hash: 'xyz' is not 16 hex digits"},
+      {{{"exposure", 5, ""}}, "field 'exposure' has type int64, expected float"},
+  };
+  for (const BadFileCase& bc : cases) {
+    std::vector<std::byte> bytes = detail::encodeCellFileWithOverrides(c, bc.overrides);
+    std::string e = errorOf(bytes, "bad.vdb");
+    EXPECT_EQ(e.rfind("bad.vdb: ", 0), 0u) << e;
+    EXPECT_NE(e.find(bc.expect), std::string::npos) << "field " << bc.overrides[0].field << ": '" << e << "'";
+  }
+  // A removed field.
+  {
+    std::vector<detail::CellFileOverride> o = {{"fallback_kind", 0, "sh_l3"}};
+    EXPECT_NE(errorOf(detail::encodeCellFileWithOverrides(c, o)).find("fallback_kind 'sh_l3' is unknown"), std::string::npos);
+  }
+  // Not OpenVDB at all, and an OpenVDB file without our trailer.
+  std::string text = "hello, this is not a cell file at all, just some text";
+  EXPECT_NE(errorOf(std::as_bytes(std::span(text))).find("not a cell file (no OpenVDB magic"), std::string::npos);
+  std::vector<std::byte> bytes = encodeCellFile(c);
+  bytes.resize(bytes.size() - 24);
+  EXPECT_NE(errorOf(bytes).find("trailer is missing"), std::string::npos) << errorOf(bytes);
+  EXPECT_NE(errorOf({}).find("too short"), std::string::npos);
+}
+
+TEST(CellFile, WriterRejectsInconsistentCells) {
+  CellFile c = makeCell(Variant::Int8Latents8);
+  c.generator->latents.count -= 1;
+  c.generator->latents.codes.resize(c.generator->latents.codes.size() - 8);
+  EXPECT_THROW(encodeCellFile(c), Error);
+  c = makeCell(Variant::Int8Latents8);
+  c.fallback.shHalf.pop_back();
+  EXPECT_THROW(encodeCellFile(c), Error);
+  c = makeCell(Variant::NoNetwork);
+  c.fallback.shHalf[3] = 0x7c00;  // +Inf
+  EXPECT_THROW(encodeCellFile(c), Error);
+  c = makeCell(Variant::NoNetwork);
+  c.stats.trainingSeconds = -1.0;
+  EXPECT_THROW(encodeCellFile(c), Error);
+}
+
+TEST(CellFile, ContentHasherIsDeterministicAndOrderSensitive) {
+  auto h = [](const std::string& a, const std::string& b) { return ContentHasher().add(a).add(b).digest(); };
+  EXPECT_EQ(h("mesh", "grid"), h("mesh", "grid"));
+  EXPECT_NE(h("mesh", "grid"), h("grid", "mesh"));
+  EXPECT_NE(h("ab", "c"), h("a", "bc"));
+  int64_t x = 5;
+  EXPECT_NE(ContentHasher().addValue(x).digest(), ContentHasher().addValue(x + 1).digest());
+}
+
+}  // namespace
+}  // namespace lfgi
