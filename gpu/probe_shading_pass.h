@@ -1,0 +1,101 @@
+// Probe shading pass (shaders/probe_shade.comp): shades a G-buffer (gpu/gbuffer_pass.h) from the light
+// fields of one or more cells (core/probe_field.h). Per pixel: the 8 probes of its grid cell, weighted by
+// trilinear x Chebyshev visibility from the distance moments (McGuire et al. 2017) x backface weight,
+// with DDGI's normal/view bias (Majercik et al. 2019); indirect diffuse from the bilinear octahedral
+// irradiance maps, indirect specular from GGX-prefiltered radiance at the mirror direction; direct light =
+// emission + sun/moon with a shadow ray through the same BVH; escaped rays show sky + discs.
+//
+// Several cells at once: every ProbeField keeps its own grid; a pixel is shaded by the cell that owns its
+// point (half-open boxes, core/probe_grid.h; outside every box, the nearest cell), and a corner of its
+// 8-probe cube that falls outside that cell's grid is taken from the cell whose lattice holds the same
+// world point (the neighbour's first probe layer), else clamped into the owning grid. So a border needs
+// the neighbour's field resident; without it shading falls back to clamping (continuous, less accurate).
+//
+// Limits: every field must have the same radiance/distance resolution n and irradiance resolution m; no AO
+// term yet; the specular lookup ignores parallax (probe-centred mirror direction).
+#pragma once
+
+#include <glm/glm.hpp>
+
+#include <span>
+#include <vector>
+
+#include "core/probe_field.h"
+#include "gpu/buffer.h"
+#include "gpu/gbuffer_pass.h"
+#include "gpu/program.h"
+#include "shared/shading.h"
+
+namespace lfgi::gpu {
+
+struct ShadingCellInput {
+  const ProbeField* field = nullptr;
+  // Optional GGX-prefiltered radiance (bake::prefilterRadianceGgx): per probe `levels` interior n x n x 3
+  // maps, probe-major, level k prefiltered for roughness k / (levels - 1). Empty: the raw radiance serves
+  // every level.
+  std::span<const float> specular;
+};
+
+// The probes of all cells packed into the GPU layout: bordered octahedral maps, one global probe index.
+struct ShadingProbeSet {
+  int irradianceResolution = 0;  // m
+  int resolution = 0;            // n
+  int specularLevels = 1;        // L
+  float minSpacing = 1.0f;       // smallest probe spacing of any cell (m): scales the default biases
+  std::vector<shared::ShadeCell> cells;
+  std::vector<glm::vec4> probes;      // xyz position (with offset), w: 1 active / 0 disabled
+  std::vector<glm::vec4> irradiance;  // probes * (m+2)^2
+  std::vector<glm::vec2> moments;     // probes * (n+2)^2
+  std::vector<glm::vec4> specular;    // probes * L * (n+2)^2
+};
+
+// Validates every field (ProbeField::validate) and packs them. Throws lfgi::Error naming the cell index
+// for a null field, different resolutions, or a specular span of the wrong size; levels in [1, 16].
+ShadingProbeSet packShadingProbes(std::span<const ShadingCellInput> cells, int specularLevels);
+
+struct ShadingOptions {
+  bool chebyshev = true;      // visibility from distance moments
+  bool backface = true;       // DDGI wrap-shading weight towards the probe
+  bool sunShadows = true;     // shadow rays for sun and moon
+  float normalBias = -1.0f;   // m; < 0: 0.045 x min spacing (DDGI: 0.2 x 0.75 x 0.3)
+  float viewBias = -1.0f;     // m; < 0: 0.18 x min spacing (DDGI: 0.8 x 0.75 x 0.3)
+  float chebyshevFloor = 0.0f;
+  float maxDistance = 1.0e4f;
+  bool direct = true, diffuse = true, specular = true;  // layers to compute (others are 0)
+};
+
+struct ShadeOutput {
+  int width = 0, height = 0;
+  Buffer direct, diffuse, specular, total;  // vec4 per pixel; diffuse.w = sum of probe weights
+};
+ShadeOutput createShadeOutput(Context& ctx, int width, int height);
+
+struct ShadeOutputHost {
+  int width = 0, height = 0;
+  std::vector<glm::vec4> direct, diffuse, specular, total;
+};
+ShadeOutputHost readShadeOutput(Context& ctx, const ShadeOutput& out);
+
+class ProbeShadingPass {
+ public:
+  explicit ProbeShadingPass(Context& ctx);
+  // Uploads the probes (replaces earlier ones).
+  void setProbes(const ShadingProbeSet& probes);
+  // Uploads the per-view parameters.
+  void setView(const shared::SkyParams& sky, const shared::GpuCamera& camera, int width, int height,
+               const GpuSceneBuffers& scene, const ShadingOptions& options);
+  // Records the pass. Throws if setProbes/setView were not called or sizes disagree.
+  void record(VkCommandBuffer cmd, const GpuSceneBuffers& scene, const GBuffer& g, ShadeOutput& out) const;
+
+ private:
+  Context& ctx_;
+  Program program_;
+  Buffer params_, cells_, probes_, irradiance_, moments_, specular_;
+  float minSpacing_ = 1.0f;
+  uint32_t cellCount_ = 0;
+  glm::uvec4 maps_{0};
+  int width_ = 0, height_ = 0;
+  bool haveProbes_ = false;
+};
+
+}  // namespace lfgi::gpu

@@ -1,0 +1,262 @@
+#version 450
+// Shading a G-buffer from light-field probes. Per pixel: the 8 probes around the point (taken from
+// whichever cell owns each lattice point, so shading crosses cell borders), weighted by trilinear x
+// Chebyshev visibility from the probes' distance moments x backface weight, as in McGuire et al. 2017
+// ("Real-Time Global Illumination using Precomputed Light Field Probes") and Majercik et al. 2019
+// ("Dynamic Diffuse Global Illumination with Ray-Traced Irradiance Fields", JCGT 8(2), listing 4:
+// normal/view bias, wrap-shading backface weight, the 0.2 crush of tiny weights).
+// Indirect diffuse = diffuse BRDF x bilinear octahedral irradiance; indirect specular = GGX-prefiltered
+// radiance at the mirror direction (roughness levels interpolated) x split-sum environment BRDF (Karis
+// 2014 analytic fit); direct = emission + sun/moon with a shadow ray through the same BVH; escaped rays
+// show the sky and the discs.
+#extension GL_GOOGLE_include_directive : require
+#include "shared/octahedral.h"
+#include "shared/shading.h"
+
+layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+
+layout(std430, set = 0, binding = 0) readonly buffer Params { ShadeParams params; };
+layout(std430, set = 0, binding = 1) readonly buffer Cells { ShadeCell cells[]; };
+layout(std430, set = 0, binding = 2) readonly buffer Probes { vec4 probes[]; };
+layout(std430, set = 0, binding = 3) readonly buffer Irradiance { vec4 irradiance[]; };
+layout(std430, set = 0, binding = 4) readonly buffer Distance { vec2 moments[]; };
+layout(std430, set = 0, binding = 5) readonly buffer Specular { vec4 specular[]; };
+layout(std430, set = 0, binding = 6) readonly buffer Nodes { GpuBvhNode nodes[]; };
+layout(std430, set = 0, binding = 7) readonly buffer Tris { GpuTriangle tris[]; };
+layout(std430, set = 0, binding = 8) readonly buffer GPosition { vec4 gPosition[]; };
+layout(std430, set = 0, binding = 9) readonly buffer GNormal { vec4 gNormal[]; };
+layout(std430, set = 0, binding = 10) readonly buffer GAlbedo { vec4 gAlbedo[]; };
+layout(std430, set = 0, binding = 11) readonly buffer GEmission { vec4 gEmission[]; };
+layout(std430, set = 0, binding = 12) writeonly buffer ODirect { vec4 outDirect[]; };
+layout(std430, set = 0, binding = 13) writeonly buffer ODiffuse { vec4 outDiffuse[]; };
+layout(std430, set = 0, binding = 14) writeonly buffer OSpecular { vec4 outSpecular[]; };
+layout(std430, set = 0, binding = 15) writeonly buffer OTotal { vec4 outTotal[]; };
+
+#include "probe_shade_trace.glsl"
+
+const float kPi = 3.14159265358979;
+
+// Bilinear tap positions of direction d in a bordered octahedral map of interior resolution r.
+void octBilinear(vec3 d, uint r, out uvec2 t0, out vec2 f) {
+  vec2 b = (octEncode(d) * 0.5 + vec2(0.5)) * float(r) + vec2(0.5);  // bordered texel space, centres at +0.5
+  vec2 x0 = clamp(floor(b - vec2(0.5)), vec2(0.0), vec2(float(r)));
+  f = clamp(b - vec2(0.5) - x0, vec2(0.0), vec2(1.0));
+  t0 = uvec2(x0);
+}
+
+vec3 sampleIrradiance(uint probe, vec3 d) {
+  uint r = params.maps.x, rb = r + 2u;
+  uvec2 t;
+  vec2 f;
+  octBilinear(d, r, t, f);
+  uint base = probe * rb * rb + t.y * rb + t.x;
+  vec3 a = mix(irradiance[base].rgb, irradiance[base + 1u].rgb, f.x);
+  vec3 b = mix(irradiance[base + rb].rgb, irradiance[base + rb + 1u].rgb, f.x);
+  return mix(a, b, f.y);
+}
+
+vec2 sampleMoments(uint probe, vec3 d) {
+  uint r = params.maps.y, rb = r + 2u;
+  uvec2 t;
+  vec2 f;
+  octBilinear(d, r, t, f);
+  uint base = probe * rb * rb + t.y * rb + t.x;
+  vec2 a = mix(moments[base], moments[base + 1u], f.x);
+  vec2 b = mix(moments[base + rb], moments[base + rb + 1u], f.x);
+  return mix(a, b, f.y);
+}
+
+vec3 sampleSpecularLevel(uint probe, uint level, vec3 d) {
+  uint r = params.maps.y, rb = r + 2u;
+  uvec2 t;
+  vec2 f;
+  octBilinear(d, r, t, f);
+  uint base = (probe * params.maps.z + level) * rb * rb + t.y * rb + t.x;
+  vec3 a = mix(specular[base].rgb, specular[base + 1u].rgb, f.x);
+  vec3 b = mix(specular[base + rb].rgb, specular[base + rb + 1u].rgb, f.x);
+  return mix(a, b, f.y);
+}
+
+// Levels hold roughness k / (L - 1), k = 0..L-1; linear between the two nearest.
+vec3 sampleSpecular(uint probe, vec3 d, float roughness) {
+  uint levels = params.maps.z;
+  if (levels <= 1u) return sampleSpecularLevel(probe, 0u, d);
+  float x = clamp(roughness, 0.0, 1.0) * float(levels - 1u);
+  uint l0 = min(uint(floor(x)), levels - 2u);
+  return mix(sampleSpecularLevel(probe, l0, d), sampleSpecularLevel(probe, l0 + 1u, d), x - float(l0));
+}
+
+bool cellOwns(ShadeCell c, vec3 p) {
+  vec3 hi = c.origin.xyz + vec3(c.dims.xyz) * c.spacing.xyz;
+  return all(greaterThanEqual(p, c.origin.xyz)) && all(lessThan(p, hi));
+}
+
+// The cell owning p (half-open boxes), else the one whose box is nearest.
+int cellFor(vec3 p) {
+  int best = 0;
+  float bestD = 1e30;
+  for (uint i = 0u; i < params.size.z; ++i) {
+    ShadeCell c = cells[i];
+    if (cellOwns(c, p)) return int(i);
+    vec3 hi = c.origin.xyz + vec3(c.dims.xyz) * c.spacing.xyz;
+    vec3 q = clamp(p, c.origin.xyz, hi);
+    float dd = dot(q - p, q - p);
+    if (dd < bestD) {
+      bestD = dd;
+      best = int(i);
+    }
+  }
+  return best;
+}
+
+// Global probe index of lattice point `coord` of cell ci: its own probe when inside its grid, else the
+// probe of another cell whose lattice holds the same world point (a neighbour's first layer), else the
+// nearest probe of cell ci (clamping, as ProbeGrid::trilinear).
+uint latticeProbe(int ci, ivec3 coord) {
+  ShadeCell c = cells[ci];
+  if (all(greaterThanEqual(coord, ivec3(0))) && all(lessThan(coord, c.dims.xyz))) {
+    return uint(c.dims.w) + uint((coord.z * c.dims.y + coord.y) * c.dims.x + coord.x);
+  }
+  vec3 q = c.origin.xyz + vec3(coord) * c.spacing.xyz;
+  for (uint i = 0u; i < params.size.z; ++i) {
+    if (int(i) == ci) continue;
+    ShadeCell o = cells[i];
+    vec3 l = (q - o.origin.xyz) / o.spacing.xyz;
+    ivec3 k = ivec3(round(l));
+    if (all(greaterThanEqual(k, ivec3(0))) && all(lessThan(k, o.dims.xyz)) &&
+        all(lessThan(abs(l - vec3(k)), vec3(1e-3)))) {
+      return uint(o.dims.w) + uint((k.z * o.dims.y + k.y) * o.dims.x + k.x);
+    }
+  }
+  ivec3 k = clamp(coord, ivec3(0), c.dims.xyz - ivec3(1));
+  return uint(c.dims.w) + uint((k.z * c.dims.y + k.y) * c.dims.x + k.x);
+}
+
+// Karis 2014, "Physically Based Shading on Mobile": analytic fit of the split-sum environment BRDF.
+vec3 envBrdfApprox(vec3 f0, float roughness, float nv) {
+  vec4 r = roughness * vec4(-1.0, -0.0275, -0.572, 0.022) + vec4(1.0, 0.0425, 1.04, -0.04);
+  float a004 = min(r.x * r.x, exp2(-9.28 * nv)) * r.x + r.y;
+  vec2 ab = vec2(-1.04, 1.04) * a004 + r.zw;
+  return f0 * ab.x + ab.y;
+}
+
+bool isLambertian(float roughness, float metallic) {
+  return metallic <= 0.0 && roughness >= 1.0;
+}
+
+vec3 diffuseBrdf(vec3 albedo, float roughness, float metallic) {
+  return isLambertian(roughness, metallic) ? albedo / kPi : (1.0 - metallic) * (1.0 - 0.04) * albedo / kPi;
+}
+
+// bake/brdf.h: GGX D x height-correlated Smith V x Schlick F, alpha = max(roughness^2, 1e-3).
+vec3 specularBrdf(vec3 albedo, float roughness, float metallic, vec3 n, vec3 v, vec3 l) {
+  if (isLambertian(roughness, metallic)) return vec3(0.0);
+  float nl = dot(n, l), nv = dot(n, v);
+  if (nl <= 0.0 || nv <= 0.0) return vec3(0.0);
+  vec3 h = normalize(v + l);
+  float alpha = max(roughness * roughness, 1e-3);
+  float a2 = alpha * alpha;
+  float nh = max(dot(n, h), 0.0);
+  float dd = nh * nh * (a2 - 1.0) + 1.0;
+  float D = a2 / (kPi * dd * dd);
+  float V = 0.5 / (nl * sqrt(nv * nv * (1.0 - a2) + a2) + nv * sqrt(nl * nl * (1.0 - a2) + a2));
+  vec3 f0 = mix(vec3(0.04), albedo, metallic);
+  vec3 F = f0 + (vec3(1.0) - f0) * pow(1.0 - max(dot(v, h), 0.0), 5.0);
+  return D * V * F;
+}
+
+vec3 discLight(vec4 dir, vec4 irr, vec3 p, vec3 n, vec3 v, vec3 albedo, float rough, float metal) {
+  float nl = dot(n, dir.xyz);
+  if (nl <= 0.0 || max(irr.r, max(irr.g, irr.b)) <= 0.0) return vec3(0.0);
+  if ((params.maps.w & 4u) != 0u) {
+    float scale = max(max(abs(p.x), abs(p.y)), abs(p.z));
+    vec3 o = p + n * (5e-4 + 4e-6 * scale);
+    if (traceOccluded(o, dir.xyz, 0.0, params.bias.w)) return vec3(0.0);
+  }
+  vec3 f = diffuseBrdf(albedo, rough, metal) + specularBrdf(albedo, rough, metal, n, v, dir.xyz);
+  return f * irr.rgb * nl;
+}
+
+void main() {
+  uvec2 id = gl_GlobalInvocationID.xy;
+  uvec2 size = params.size.xy;
+  if (id.x >= size.x || id.y >= size.y) return;
+  uint pixel = id.y * size.x + id.x;
+  vec4 gp = gPosition[pixel];
+  vec4 gn = gNormal[pixel];
+  vec4 ga = gAlbedo[pixel];
+  vec4 ge = gEmission[pixel];
+  vec3 direct = vec3(0.0), diffuse = vec3(0.0), spec = vec3(0.0);
+  float weightSum = 0.0;
+  if (gp.w < 0.0) {
+    vec3 d = normalize(gp.xyz);
+    direct = skyRadiance(params.sky, d) + sunDiscRadiance(params.sky, d) + moonDiscRadiance(params.sky, d);
+  } else if (ge.w == 0.0) {
+    vec3 p = gp.xyz;
+    vec3 n = normalize(gn.xyz);
+    vec3 v = normalize(params.camera.position.xyz - p);
+    float rough = gn.w, metal = ga.w;
+    vec3 albedo = ga.rgb;
+    direct = ge.rgb;
+    direct += discLight(params.sky.sunDirection, params.sky.sunIrradiance, p, n, v, albedo, rough, metal);
+    direct += discLight(params.sky.moonDirection, params.sky.moonIrradiance, p, n, v, albedo, rough, metal);
+
+    // Majercik et al. 2019: look up from a point pushed along the normal and towards the viewer, so
+    // the surface's own texels in the distance map do not shadow it.
+    vec3 biased = p + n * params.bias.x + v * params.bias.y;
+    int ci = cellFor(p);
+    ShadeCell c = cells[ci];
+    vec3 local = (p - c.origin.xyz) / c.spacing.xyz;
+    ivec3 base = clamp(ivec3(floor(local)), ivec3(0), c.dims.xyz - ivec3(1));
+    vec3 alpha = clamp(local - vec3(base), vec3(0.0), vec3(1.0));
+    vec3 r = reflect(-v, n);
+    bool wantSpec = !isLambertian(rough, metal) && params.weights.z != 0.0;
+    vec3 irrSum = vec3(0.0), specSum = vec3(0.0);
+    for (uint k = 0u; k < 8u; ++k) {
+      ivec3 off = ivec3(int(k & 1u), int((k >> 1u) & 1u), int((k >> 2u) & 1u));
+      uint probe = latticeProbe(ci, base + off);
+      vec4 pr = probes[probe];
+      if (pr.w == 0.0) continue;  // disabled probe (inside solid)
+      vec3 tri = mix(vec3(1.0) - alpha, alpha, vec3(off));
+      float trilinear = tri.x * tri.y * tri.z;
+      float w = 1.0;
+      if ((params.maps.w & 2u) != 0u) {
+        vec3 toProbe = normalize(pr.xyz - p);
+        float wrap = (dot(toProbe, n) + 1.0) * 0.5;
+        w *= wrap * wrap + 0.2;
+      }
+      if ((params.maps.w & 1u) != 0u) {
+        vec3 fromProbe = biased - pr.xyz;
+        float dist = length(fromProbe);
+        vec2 m = sampleMoments(probe, fromProbe / max(dist, 1e-6));
+        float cheb = 1.0;
+        if (dist > m.x) {
+          float variance = abs(m.y - m.x * m.x);
+          float diff = dist - m.x;
+          cheb = variance / (variance + diff * diff);
+          cheb = cheb * cheb * cheb;
+        }
+        w *= max(cheb, params.bias.z);
+      }
+      w = max(w, 1e-6);
+      if (w < 0.2) w *= w * w * (1.0 / (0.2 * 0.2));
+      w *= trilinear;
+      irrSum += w * sampleIrradiance(probe, n);
+      if (wantSpec) specSum += w * sampleSpecular(probe, r, rough);
+      weightSum += w;
+    }
+    if (weightSum > 0.0) {
+      diffuse = diffuseBrdf(albedo, rough, metal) * irrSum / weightSum;
+      if (wantSpec) {
+        vec3 f0 = mix(vec3(0.04), albedo, metal);
+        spec = envBrdfApprox(f0, rough, max(dot(n, v), 1e-4)) * specSum / weightSum;
+      }
+    }
+  }
+  direct *= params.weights.x;
+  diffuse *= params.weights.y;
+  outDirect[pixel] = vec4(direct, 1.0);
+  outDiffuse[pixel] = vec4(diffuse, weightSum);
+  outSpecular[pixel] = vec4(spec, 0.0);
+  outTotal[pixel] = vec4(direct + diffuse + spec, 1.0);
+}

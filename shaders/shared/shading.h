@@ -1,0 +1,84 @@
+// Structs of the G-buffer ray cast (gbuffer_raycast.comp) and the probe shading pass (probe_shade.comp),
+// shared by GLSL and C++. All std430 with vec4-aligned members.
+#ifndef LFGI_SHARED_SHADING_H
+#define LFGI_SHARED_SHADING_H
+
+#include "lfgi_shared.h"
+#include "sky.h"
+
+LFGI_SHARED_BEGIN
+
+// One node of the flattened GPU BVH (depth-first order: an inner node's left child is the next node).
+struct GpuBvhNode {
+  vec4 lo;  // xyz: box min; w: uintBitsToFloat(inner: index of the right child; leaf: first triangle)
+  vec4 hi;  // xyz: box max; w: uintBitsToFloat(triangle count; 0 for an inner node)
+};
+LFGI_CHECK_SIZE(GpuBvhNode, 32)
+
+// One triangle in BVH leaf order (Moller-Trumbore form).
+struct GpuTriangle {
+  vec4 v0;  // xyz: vertex 0; w: uintBitsToFloat(material index)
+  vec4 e1;  // xyz: v1 - v0; w: uintBitsToFloat(original triangle index)
+  vec4 e2;  // xyz: v2 - v0
+};
+LFGI_CHECK_SIZE(GpuTriangle, 48)
+
+struct GpuMaterial {
+  vec4 albedo;    // rgb: linear albedo (texture mean folded in by the CPU side); w: roughness
+  vec4 emission;  // rgb: emitted radiance (sky unit); w: metallic
+  vec4 flags;     // x: 1 if double-sided
+  vec4 pad;
+};
+LFGI_CHECK_SIZE(GpuMaterial, 64)
+
+// Pinhole camera exactly as bake/reference_render.h (up = +Y, verticalFovDeg over the height).
+struct GpuCamera {
+  vec4 position;  // xyz; w: tan(fov / 2)
+  vec4 forward;   // xyz unit; w: width / height
+  vec4 right;     // xyz unit
+  vec4 up;        // xyz unit
+};
+LFGI_CHECK_SIZE(GpuCamera, 64)
+
+// G-buffer layout: four vec4 per pixel, one array each (pixel y * width + x, y = 0 the top row).
+//   positionDepth: xyz world position of the first hit; w: hit distance (< 0: the ray escaped)
+//   normalRoughness: xyz unit normal facing the viewer (back faces of single-sided materials: as hit, see
+//                    flags.y); w: roughness
+//   albedoMetallic: rgb albedo; w: metallic
+//   emissionFlags: rgb emission; w: 1 = hit a back face of a single-sided material (inside solid: black)
+struct GBufferParams {
+  GpuCamera camera;
+  uvec4 size;  // x: width, y: height, z: BVH node count, w: triangle count
+  vec4 ray;    // x: maximum distance
+  vec4 pad0;
+  vec4 pad1;
+};
+LFGI_CHECK_SIZE(GBufferParams, 128)
+
+// One cell's probe grid in the shading pass. Probe k of the cell is global probe firstProbe + k; its maps
+// start at (firstProbe + k) * texels of the map kind (bordered octahedral maps, see ShadeParams).
+struct ShadeCell {
+  vec4 origin;   // xyz: ProbeGrid::origin
+  vec4 spacing;  // xyz: ProbeGrid::spacing
+  ivec4 dims;    // xyz: ProbeGrid::dims; w: firstProbe
+};
+LFGI_CHECK_SIZE(ShadeCell, 48)
+
+struct ShadeParams {
+  SkyParams sky;
+  GpuCamera camera;
+  uvec4 size;     // x: width, y: height, z: cell count, w: BVH node count
+  uvec4 maps;     // x: irradiance res m, y: distance/radiance res n, z: specular levels L (>= 1), w: flags
+                  //    (bit 0: Chebyshev visibility, bit 1: backface weight, bit 2: sun shadow rays)
+  vec4 bias;      // x: normal bias (m), y: view bias (m), z: Chebyshev floor, w: max ray distance
+  vec4 weights;   // x: 1 to shade direct light; y: 1 indirect diffuse; z: 1 indirect specular; w: unused
+};
+LFGI_CHECK_SIZE(ShadeParams, 256 + 64 + 64)
+
+LFGI_INLINE uint shadeBorderedRes(uint n) {
+  return n + 2u;
+}
+
+LFGI_SHARED_END
+
+#endif  // LFGI_SHARED_SHADING_H
