@@ -107,6 +107,20 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
   long visible = 0, fallback = 0;
   Progress progress("fly-through", size_t(frames), "frames");
   const float pitch = glm::radians(o.pitchDeg);
+  // Preload around the start (a game's loading screen): not counted, so the numbers describe flying.
+  if (o.preload) {
+    glm::vec2 p0 = pointAt(path, 0.0);
+    FrameInput in;
+    in.position = {p0.x, o.altitude, p0.y};
+    in.timeOfDayHours = o.todStart;
+    in.dtSeconds = 1e3f;  // completes every cross-fade
+    for (int i = 0; i < 10000; ++i) {
+      FrameStats st = manager.update(in);
+      if (st.loading == 0 && st.requested == 0 && st.activated == 0) break;
+      if (st.loading > 0) manager.drainIo();
+    }
+    manager.update(in);
+  }
   for (int f = 0; f < frames; ++f) {
     if (InterruptGuard::interrupted()) {
       sum.interrupted = true;
@@ -116,6 +130,7 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
     glm::vec2 p2 = pointAt(path, s), ahead = pointAt(path, s + 1.0);
     glm::vec2 fwd2 = glm::length(ahead - p2) > 1e-4f ? glm::normalize(ahead - p2) : glm::vec2(1.0f, 0.0f);
     FlythroughFrame fr;
+    fr.index = f;
     fr.timeS = t;
     fr.position = {p2.x, o.altitude, p2.y};
     fr.timeOfDay = o.todStart + (o.todEnd - o.todStart) * float(f) / float(std::max(1, frames - 1));

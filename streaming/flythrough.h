@@ -29,6 +29,7 @@ struct FlythroughOptions {
   float todStart = 6.0f, todEnd = 20.0f;  // time-of-day sweep over the flight (hours)
   float shadeDistance = 120.0f;  // m: visible samples farther away use the far-field fallback by design
   int sampleRaysX = 24, sampleRaysY = 12;  // view rays of the visible-sample grid (90 x 50 deg)
+  bool preload = true;           // load everything around the start before the first frame (uncounted)
   StreamingConfig streaming;
   // Throws lfgi::Error naming the bad option.
   void validate() const;
@@ -36,6 +37,7 @@ struct FlythroughOptions {
 
 struct FlythroughFrame {
   FrameStats stats;
+  int index = 0;             // flight frame, 0-based (stats.frame also counts preload updates)
   double timeS = 0.0;
   glm::vec3 position{0.0f};
   float timeOfDay = 0.0f;

@@ -1,0 +1,182 @@
+// `lfgi fly` and `lfgi profile`: the streaming manager over a whole world along a camera path.
+// Cells come from SyntheticCellSource (an analytic light field on the world's cell layout) until baked
+// codec cell files exist; the layout is the world directory's (--world) or the 4096 m default.
+#include <sys/resource.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "app/commands.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/progress.h"
+#include "core/trace.h"
+#include "streaming/flythrough.h"
+#include "worlds/world_cells.h"
+
+namespace lfgi::app {
+
+namespace {
+
+double peakRssMb() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_maxrss) / 1024.0;  // ru_maxrss is in KiB on Linux
+}
+
+std::string framesCsv(const std::vector<streaming::FlythroughFrame>& frames) {
+  std::string s =
+      "frame,time_s,x_m,z_m,time_of_day_h,resident_cells,loading_cells,requested,activated,evicted,relit,failed,"
+      "bytes_resident,io_ms,activate_ms,relight_ms,update_ms,shade_ms,frame_ms,visible_samples,fallback_fraction,"
+      "missing_samples\n";
+  for (const auto& f : frames)
+    s += fmt::format("{},{:.4f},{:.2f},{:.2f},{:.3f},{},{},{},{},{},{},{},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{},{:.5f},{}\n",
+                     f.index, f.timeS, f.position.x, f.position.z, f.timeOfDay, f.stats.resident, f.stats.loading,
+                     f.stats.requested, f.stats.activated, f.stats.evicted, f.stats.relit, f.stats.failed,
+                     f.stats.bytesResident, f.stats.ioMs, f.stats.activateMs, f.stats.relightMs, f.stats.updateMs,
+                     f.shadeMs, f.frameMs, f.visibleSamples, f.fallbackFraction(), f.missingSamples);
+  return s;
+}
+
+// Charts of the profile: memory and cells per frame, stage time per frame against the budget.
+constexpr const char* kProfileGnuplot = R"(set datafile separator ','
+set terminal pngcairo size 1100,800 font ',10' noenhanced
+set output dir.'/profile.png'
+set multiplot layout 3,1 title 'lfgi streaming profile: '.title
+set xlabel 'frame'
+set ylabel 'MB'
+set y2label 'cells'
+set ytics nomirror
+set y2tics
+set key top left
+plot dir.'/frames.csv' every ::1 using 1:($13/1e6) with lines lw 2 title 'resident MB', \
+     budget_mb with lines dt 2 lw 2 title 'memory budget MB', \
+     '' every ::1 using 1:6 axes x1y2 with lines title 'resident cells', \
+     '' every ::1 using 1:7 axes x1y2 with lines title 'loading cells'
+set ylabel 'ms'
+unset y2label
+unset y2tics
+plot dir.'/frames.csv' every ::1 using 1:14 with lines title 'IO (loads finished)', \
+     '' every ::1 using 1:15 with lines title 'activate', \
+     '' every ::1 using 1:16 with lines title 'relight', \
+     '' every ::1 using 1:18 with lines title 'shade samples', \
+     '' every ::1 using 1:19 with lines lw 2 title 'frame (update + shade)', \
+     activate_budget_ms with lines dt 2 title 'activate budget'
+set ylabel 'fallback fraction of visible samples'
+set yrange [0:1]
+plot dir.'/frames.csv' every ::1 using 1:21 with lines lw 2 title 'fallback fraction', 0.01 with lines dt 2 title '1 %'
+unset multiplot
+)";
+
+}  // namespace
+
+int runFly(const FlyOptions& opt) {
+  streaming::SyntheticSourceOptions src;
+  src.layout = {{0.0f, 0.0f}, 64.0f, {64, 64}};
+  if (!opt.world.empty()) {
+    worlds::WorldParams params = worlds::readWorldManifest(opt.world);
+    int cells = int(std::lround(params.sizeM / params.cellM));
+    src.layout = {{0.0f, 0.0f}, float(params.cellM), {cells, cells}};
+  }
+  src.probeSpacing = std::min(8.0f, src.layout.cellSize);
+  src.resolution = opt.resolution;
+  src.irradianceResolution = std::max(2, opt.resolution / 2);
+  src.loadDelayUs = opt.loadDelayUs;
+  streaming::SyntheticCellSource source(src);
+
+  streaming::FlythroughOptions fo;
+  fo.path = opt.path;
+  fo.speed = opt.speed;
+  fo.seconds = opt.seconds;
+  fo.fps = opt.fps;
+  fo.todStart = opt.todStart;
+  fo.todEnd = opt.todEnd;
+  fo.streaming.ioThreads = opt.ioThreads;
+  fo.streaming.maxInlineLoadsPerFrame = opt.loadsPerFrame;
+  fo.streaming.memoryBudgetBytes = size_t(opt.budgetMb * 1024.0 * 1024.0);
+  fo.streaming.decodeRadius = opt.decodeRadius;
+  fo.streaming.keepRadius = opt.decodeRadius * 1.4f;
+  fo.validate();
+
+  const std::filesystem::path out = opt.outDir.empty() ? (opt.profile ? "out/profile" : "out/fly") : opt.outDir;
+  std::filesystem::create_directories(out);
+  std::vector<streaming::FlythroughFrame> frames;
+  frames.reserve(size_t(opt.seconds * opt.fps) + 1);
+  TraceWriter trace;
+  InterruptGuard guard;
+  spdlog::info("fly-through: {} x {} cells of {} m, {} m/s, {} s at {} fps, budget {} MB, {} IO threads", src.layout.cells.x,
+               src.layout.cells.y, src.layout.cellSize, opt.speed, opt.seconds, opt.fps, opt.budgetMb, opt.ioThreads);
+  streaming::FlythroughSummary s =
+      streaming::runFlythrough(source, fo, [&](const streaming::FlythroughFrame& f) { frames.push_back(f); },
+                               opt.profile ? &trace : nullptr);
+
+  const double km2 = double(src.layout.cells.x) * src.layout.cells.y * src.layout.cellSize * src.layout.cellSize / 1e6;
+  nlohmann::ordered_json j;
+  j["source"] = "synthetic analytic cells (raw FP32 probe fields) on the world's cell layout";
+  j["world_km2"] = km2;
+  j["speed_mps"] = opt.speed;
+  j["frames"] = s.frames;
+  j["interrupted"] = s.interrupted;
+  j["frames_missing_gi"] = s.framesMissingGi;
+  j["fallback_fraction"] = s.fallbackFraction;
+  j["p50_frame_ms"] = s.p50FrameMs;
+  j["p95_frame_ms"] = s.p95FrameMs;
+  j["p99_frame_ms"] = s.p99FrameMs;
+  j["p99_update_ms"] = s.p99UpdateMs;
+  j["p99_io_ms"] = s.p99IoMs;
+  j["p99_activate_ms"] = s.p99ActivateMs;
+  j["p99_relight_ms"] = s.p99RelightMs;
+  j["p99_shade_ms"] = s.p99ShadeMs;
+  j["peak_bytes_resident"] = s.peakBytesResident;
+  j["memory_budget_bytes"] = fo.streaming.memoryBudgetBytes;
+  j["cells_requested"] = s.cellsRequested;
+  j["cells_evicted"] = s.cellsEvicted;
+  j["cells_relit"] = s.cellsRelit;
+  j["cells_failed"] = s.cellsFailed;
+  j["peak_rss_mb"] = peakRssMb();
+  writeFileAtomic(out / "frames.csv", framesCsv(frames));
+  writeFileAtomic(out / "summary.json", j.dump(2) + "\n");
+  std::printf("fly-through: %d frames, %d with missing GI, fallback %.2f %% of visible samples, p99 frame %.3f ms, peak resident %.1f MB, %ld cells loaded\n",
+              s.frames, s.framesMissingGi, 100.0 * s.fallbackFraction, s.p99FrameMs, double(s.peakBytesResident) / 1e6,
+              s.cellsRequested);
+  if (opt.profile) {
+    trace.save(out / "trace.json");
+    std::string cmd = fmt::format("gnuplot -e \"dir='{}'; title='{} m/s, {} s'; budget_mb={}; activate_budget_ms={}\" - 2>&1",
+                                  out.string(), opt.speed, opt.seconds, opt.budgetMb,
+                                  fo.streaming.activateBudgetMs);
+    bool charts = false;
+    if (FILE* gp = popen(cmd.c_str(), "w")) {
+      std::fputs(kProfileGnuplot, gp);
+      charts = pclose(gp) == 0;
+    }
+    if (!charts) spdlog::warn("gnuplot failed or is missing: no profile.png (install gnuplot-nox)");
+    std::string html = fmt::format(
+        "<!doctype html><meta charset=utf-8><title>lfgi streaming profile</title>\n"
+        "<h1>Streaming profile: {} m/s for {} s over {:.1f} km&sup2;</h1>\n"
+        "<p>Open <code>trace.json</code> in <a href='https://ui.perfetto.dev'>Perfetto</a> for every stage of every frame.</p>\n"
+        "<table border=1 cellpadding=4>\n"
+        "<tr><td>frames</td><td>{}</td></tr><tr><td>frames with a visible point lacking GI</td><td>{}</td></tr>\n"
+        "<tr><td>fallback fraction of visible samples</td><td>{:.3f} %</td></tr>\n"
+        "<tr><td>frame ms p50 / p95 / p99</td><td>{:.3f} / {:.3f} / {:.3f}</td></tr>\n"
+        "<tr><td>p99 ms: IO / activate / relight / shade</td><td>{:.3f} / {:.3f} / {:.3f} / {:.3f}</td></tr>\n"
+        "<tr><td>peak resident / budget</td><td>{:.1f} MB / {:.1f} MB</td></tr>\n"
+        "<tr><td>cells loaded / evicted / relit / failed</td><td>{} / {} / {} / {}</td></tr>\n"
+        "<tr><td>peak RSS</td><td>{:.1f} MB</td></tr></table>\n"
+        "<p>Cells: {}</p>\n<img src='profile.png' width=1100>\n",
+        opt.speed, opt.seconds, km2, s.frames, s.framesMissingGi, 100.0 * s.fallbackFraction, s.p50FrameMs,
+        s.p95FrameMs, s.p99FrameMs, s.p99IoMs, s.p99ActivateMs, s.p99RelightMs, s.p99ShadeMs,
+        double(s.peakBytesResident) / 1e6, double(fo.streaming.memoryBudgetBytes) / 1e6, s.cellsRequested,
+        s.cellsEvicted, s.cellsRelit, s.cellsFailed, peakRssMb(), j["source"].get<std::string>());
+    writeFileAtomic(out / "summary.html", html);
+    std::printf("profile: %s (trace.json for Perfetto, profile.png, summary.html)\n", out.string().c_str());
+  }
+  std::printf("wrote %s\n", (out / "summary.json").string().c_str());
+  return s.interrupted ? 130 : 0;
+}
+
+}  // namespace lfgi::app
