@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "bench/bench_output.h"
+#include "bench/gemm_ceiling.h"
 #include "core/error.h"
 #include "gpu/buffer.h"
 #include "gpu/context.h"
@@ -28,22 +29,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-template <typename Record>
-double bestGpuMs(gpu::Context& ctx, int reps, Record record) {
-  gpu::GpuTimer timer(ctx, 2);
-  double best = 1e30;
-  for (int r = 0; r < reps; ++r) {
-    gpu::submitAndWait(ctx, [&](VkCommandBuffer cmd) {
-      timer.reset(cmd);
-      timer.stamp(cmd, 0);
-      record(cmd);
-      timer.stamp(cmd, 1);
-    });
-    best = std::min(best, timer.elapsedMs(0, 1));
-  }
-  return best;
-}
-
 double fmaGflops(gpu::Context& ctx, bool quick) {
   gpu::Program p(ctx, "fma_peak");
   const uint32_t threads = 1u << 16, iterations = quick ? 2048 : 8192;
@@ -51,34 +36,6 @@ double fmaGflops(gpu::Context& ctx, bool quick) {
   shared::FmaParams params{iterations, threads, 0, 0};
   double ms = bestGpuMs(ctx, 3, [&](VkCommandBuffer cmd) { gpu::dispatch(ctx, cmd, p, {&out}, params, {threads, 1, 1}); });
   return double(threads) * iterations * 64.0 / (ms * 1e-3) * 1e-9;
-}
-
-struct GemmResult {
-  double gflops = 0.0, maxRelError = 0.0;
-};
-
-GemmResult gemm(gpu::Context& ctx, gpu::Program& p, int size) {
-  const int m = size, n = size, k = size;
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  std::vector<float> a(size_t(m) * k), b(size_t(k) * n), c(size_t(m) * n), ref(size_t(m) * n);
-  for (float& v : a) v = u(rng);
-  for (float& v : b) v = u(rng);
-  gpu::Buffer ba = gpu::createStorageBuffer(ctx, a.size() * 4), bb = gpu::createStorageBuffer(ctx, b.size() * 4),
-              bc = gpu::createStorageBuffer(ctx, c.size() * 4);
-  gpu::upload<float>(ctx, ba, a);
-  gpu::upload<float>(ctx, bb, b);
-  shared::GemmParams params{uint32_t(m), uint32_t(n), uint32_t(k), 0};
-  const uint32_t threads = uint32_t(m / 4) * uint32_t(n / 4);
-  double ms = bestGpuMs(ctx, 3, [&](VkCommandBuffer cmd) { gpu::dispatch(ctx, cmd, p, {&ba, &bb, &bc}, params, {threads, 1, 1}); });
-  gpu::readback<float>(ctx, bc, c);
-  cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, m, n, k, 1.0f, a.data(), k, b.data(), n, 0.0f, ref.data(), n);
-  GemmResult r;
-  double scale = 0.0;
-  for (float v : ref) scale = std::max(scale, double(std::abs(v)));
-  for (size_t i = 0; i < c.size(); ++i) r.maxRelError = std::max(r.maxRelError, std::abs(double(c[i]) - ref[i]) / scale);
-  r.gflops = 2.0 * m * n * k / (ms * 1e-3) * 1e-9;
-  return r;
 }
 
 double atomicsPerSecond(gpu::Context& ctx, bool quick) {
@@ -101,18 +58,6 @@ double copyGbPerSecond(gpu::Context& ctx, bool quick) {
     vkCmdCopyBuffer(cmd, src.handle(), dst.handle(), 1, &region);
   });
   return 2.0 * double(bytes) / (ms * 1e-3) * 1e-9;  // read + write, as STREAM counts copy
-}
-
-double cpuSgemmGflops(int size) {
-  std::vector<float> a(size_t(size) * size, 0.5f), b(a.size(), 0.25f), c(a.size());
-  double best = 1e30;
-  for (int r = 0; r < 3; ++r) {
-    auto t0 = Clock::now();
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, size, size, size, 1.0f, a.data(), size, b.data(), size,
-                0.0f, c.data(), size);
-    best = std::min(best, std::chrono::duration<double>(Clock::now() - t0).count());
-  }
-  return 2.0 * size * double(size) * size / best * 1e-9;
 }
 
 double cpuTriadGbPerSecond(bool quick) {
@@ -159,7 +104,7 @@ int main(int argc, char** argv) {
     std::vector<std::vector<std::string>> gemmRows;
     double bestGemm = 0.0;
     for (int size : quick ? std::vector<int>{128, 256, 512} : std::vector<int>{128, 256, 512, 1024}) {
-      bench::GemmResult g = bench::gemm(*ctx, gemmProgram, size);
+      bench::GemmResult g = bench::gpuGemm(*ctx, gemmProgram, size);
       spdlog::info("gemm {}^3: {:.2f} GFLOP/s, max rel error {:.2e}", size, g.gflops, g.maxRelError);
       gemmRows.push_back({"gemm_rowstrip", std::to_string(size), bench::num(g.gflops), "gflops", bench::num(g.maxRelError)});
       if (g.maxRelError > 1e-4) fail("GPU GEMM {}^3 disagrees with OpenBLAS (max rel error {:.2e})", size, g.maxRelError);
