@@ -46,7 +46,8 @@ RelightPass::RelightPass(Context& ctx)
       shadowSplat_(requireInt64Atomics(ctx, "relight_shadow_splat")),
       surfels_(ctx, "relight_surfels"),
       probeIrradiance_(ctx, "relight_probe_irradiance"),
-      probeMoments_(ctx, "relight_probe_moments") {}
+      probeMoments_(ctx, "relight_probe_moments"),
+      prefilter_(ctx, "relight_prefilter_ggx") {}
 
 RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, const RelightProbes& probes,
                                    const shared::SkyParams& sky, const ProbeLighting* previous,
@@ -227,6 +228,37 @@ ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyPa
   out.gpuMs = timer.elapsedMs(0, 1);
   readback<glm::vec4>(ctx_, irrBuf, out.irradiance);
   readback<glm::vec2>(ctx_, momBuf, out.moments);
+  return out;
+}
+
+std::vector<glm::vec4> RelightPass::prefilterGgx(std::span<const glm::vec4> radiance, int n, int probeCount,
+                                                 float roughness, int outN, double* gpuMs) {
+  if (n < 1 || n > 256 || outN < 1 || outN > 256)
+    fail("relight: GGX prefilter resolution {} -> {} outside [1, 256]", n, outN);
+  if (!(roughness >= 0.0f && roughness <= 1.0f)) fail("relight: GGX roughness {} outside [0, 1]", roughness);
+  const size_t n2 = size_t(n) * size_t(n), m2 = size_t(outN) * size_t(outN);
+  if (probeCount < 1 || radiance.size() != n2 * size_t(probeCount))
+    fail("relight: GGX prefilter got {} radiance texels for {} probes of {} x {}", radiance.size(), probeCount, n, n);
+  const std::vector<double> omega = octTexelSolidAngles(n);
+  const std::vector<float> omegaF(omega.begin(), omega.end());
+  Buffer radBuf = storage(ctx_, radiance.size_bytes());
+  Buffer omegaBuf = storage(ctx_, omegaF.size() * sizeof(float));
+  Buffer outBuf = storage(ctx_, m2 * size_t(probeCount) * sizeof(glm::vec4));
+  upload<glm::vec4>(ctx_, radBuf, radiance);
+  upload<float>(ctx_, omegaBuf, omegaF);
+  const shared::RelightPrefilterParams params{uint32_t(n), uint32_t(outN), uint32_t(probeCount), roughness};
+  GpuTimer timer(ctx_, 2);
+  submitAndWait(ctx_, [&](VkCommandBuffer cmd) {
+    timer.reset(cmd);
+    timer.stamp(cmd, 0);
+    dispatch(ctx_, cmd, prefilter_, {&radBuf, &omegaBuf, &outBuf}, params,
+             {uint32_t(outN), uint32_t(outN), uint32_t(probeCount)});
+    memoryBarrier(cmd);
+    timer.stamp(cmd, 1);
+  });
+  if (gpuMs) *gpuMs = timer.elapsedMs(0, 1);
+  std::vector<glm::vec4> out(m2 * size_t(probeCount));
+  readback<glm::vec4>(ctx_, outBuf, out);
   return out;
 }
 

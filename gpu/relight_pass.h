@@ -102,12 +102,20 @@ class RelightPass {
   // filtered distance moments, on the GPU. Throws lfgi::Error on an empty or inconsistent atlas.
   ProbeLighting convolve(const ProbeAtlas& atlas, const shared::SkyParams& sky, const RelightOptions& options);
 
+  // GGX-prefiltered radiance (split sum, N = V = R) of probeCount N x N radiance maps (rgb used) into
+  // outN x outN maps: the GPU version of bake::prefilterRadianceGgx (same normalised kernel, exact texel
+  // solid angles; shaders/relight_prefilter_ggx.comp). Throws lfgi::Error for sizes outside [1, 256],
+  // roughness outside [0, 1] or a radiance count != probeCount N^2. gpuMs, if given, gets the device time.
+  std::vector<glm::vec4> prefilterGgx(std::span<const glm::vec4> radiance, int n, int probeCount, float roughness,
+                                      int outN, double* gpuMs = nullptr);
+
  private:
   Context& ctx_;
   Program shadowSplat_;
   Program surfels_;
   Program probeIrradiance_;
   Program probeMoments_;
+  Program prefilter_;
 };
 
 // One frame for one cell: relight (with state.probes from the last frame) -> VirPass::run with the new

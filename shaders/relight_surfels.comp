@@ -4,7 +4,8 @@
 //     + last frame's probe irradiance at (p, n): trilinear over the 8 surrounding probes of the grid with
 //       DDGI weights (Majercik et al. 2019, "Dynamic Diffuse Global Illumination with Ray-Traced
 //       Irradiance Fields": smooth backface term, Chebyshev visibility from the probes' distance moments
-//       as in McGuire et al. 2017, weight crushing below 0.2). The probe maps hold the sky (seen through
+//       as in McGuire et al. 2017, weight crushing below 0.2; faded to 0 where nearly every probe is
+//       occluded, see probeLighting). The probe maps hold the sky (seen through
 //       the probe's own occlusion) and every bounce up to the last frame, so multi-bounce converges over
 //       frames and the sky is occluded as the probes see it.
 // Shadow test: single tap of the texel containing the surfel centre; lit iff
@@ -73,6 +74,7 @@ vec3 probeLighting(vec3 p, vec3 n) {
   float normalBias = frame.gridSpacing.w;
   vec3 sum = vec3(0.0);
   float wsum = 0.0;
+  float wsumOpen = 0.0;  // the same weights without the Chebyshev factor
   for (int i = 0; i < 8; ++i) {
     ivec3 off = ivec3(i & 1, (i >> 1) & 1, (i >> 2) & 1);
     ivec3 c = min(base + off, dims - ivec3(1));
@@ -89,6 +91,7 @@ vec3 probeLighting(vec3 p, vec3 n) {
       float back = (dot(toProbe / dist, n) + 1.0) * 0.5;
       w = back * back + 0.2;
     }
+    wsumOpen += w * trilinear;
     if ((params.flags & LFGI_RELIGHT_CHEBYSHEV) != 0u) {
       vec3 q = p + n * normalBias - pp.xyz;
       float r = length(q);
@@ -108,7 +111,12 @@ vec3 probeLighting(vec3 p, vec3 n) {
     sum += w * sampleIrradiance(idx, n);
     wsum += w;
   }
-  return wsum > 0.0 ? sum / wsum : vec3(0.0);
+  // DDGI renormalises by the weight sum, so a point that every probe sees as occluded (the underside of
+  // a floor, the inside of a solid) still gets the full irradiance: a leak. Fade the result out once the
+  // visible weight falls below kVisibleFloor of what it would be with every probe visible.
+  const float kVisibleFloor = 0.2;
+  if (wsum <= 0.0) return vec3(0.0);
+  return sum / wsum * min(1.0, wsum / (kVisibleFloor * wsumOpen));
 }
 
 void main() {

@@ -49,6 +49,15 @@ struct RelightParams {
 LFGI_CHECK_SIZE(RelightParams, 48)
 LFGI_CHECK_OFFSET(RelightParams, footprintScale, 32)
 
+// Push constants of relight_prefilter_ggx.comp.
+struct RelightPrefilterParams {
+  uint radianceRes;  // N of the input radiance maps (vec4 per texel, rgb used)
+  uint outRes;       // M of the prefiltered maps
+  uint probeCount;
+  float roughness;   // perceptual roughness in [0, 1]; GGX alpha = max(roughness^2, 1e-3)
+};
+LFGI_CHECK_SIZE(RelightPrefilterParams, 16)
+
 // Texel index t (|t - [0, n)| < n) of an octahedral map -> the interior texel it denotes across the fold:
 // the map mirrors across each edge midpoint (shared/octahedral.h octBorderSource, generalised).
 LFGI_INLINE ivec2 relightOctWrap(ivec2 t, int n) {
