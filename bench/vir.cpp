@@ -1,0 +1,355 @@
+// Benchmark `vir`: View-Independent Rasterization (gpu/vir_pass.h, surfels splatted into all probes at
+// once) against the cubemap-rasterization baseline (gpu/cubemap_raster.h, 6 rasterized faces per probe
+// resampled to octahedral) on the same device, the same cell and the same output resolution, in one run.
+//
+// Scene: one cell of the default synthetic world (worlds/world_cells.h): VIR gets the cell's surfels,
+// the baseline the cell's triangles (material albedo/emission; textures ignored, the synthetic world
+// has none). Probes: the cell's active probes; longer lists cycle through them (the per-probe work is
+// the same kind). Sweep: octahedral N in {8, 16, 32, 64} x probe counts {64 ... 4096}; a configuration
+// whose time, projected from the previous count at the same N, exceeds the budget is skipped and listed
+// in summary.json ("skipped"): that happens on lavapipe, where the baseline rasterizes on the CPU.
+//
+// Accuracy, per method and N, on the first K probes: per texel against Embree's closest hit along the
+// texel-centre ray (bake/embree_scene.h, one ray per texel): distance median relative error, normal
+// median angle (front-face hits), hole fraction (texels whose ray hits geometry but the method has no
+// value). This reference is deterministic (no Monte-Carlo noise), and it is exactly what both methods
+// point-sample; bake/probe_capture.h texel means would add the intra-texel depth spread (and its
+// sampling noise) to both methods' error alike, so they are not used for this comparison.
+//
+// Atomics: the splat's 64-bit atomicMin count is replayed on the CPU (the same footprint test as
+// vir_splat.comp) for the accuracy probes and scaled to the probe count; achieved atomics/s = count /
+// VIR's whole device time (a lower bound for the splat's own rate), against the ceiling measured in this run by shaders/atomic_min64.comp with the parameters
+// of bench/ceilings.cpp.
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <optional>
+
+#include "bake/embree_scene.h"
+#include "bench/bench_output.h"
+#include "core/error.h"
+#include "core/progress.h"
+#include "gpu/cubemap_raster.h"
+#include "gpu/program.h"
+#include "gpu/timing.h"
+#include "gpu/vir_pass.h"
+#include "shared/ceilings.h"
+#include "shared/octahedral.h"
+#include "worlds/world_cells.h"
+
+namespace lfgi::bench {
+namespace {
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const size_t k = std::min(v.size() - 1, size_t(q * double(v.size())));
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
+  return v[k];
+}
+
+gpu::CubemapScene toCubemapScene(const worlds::TriangleMesh& mesh) {
+  gpu::CubemapScene scene;
+  for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+    const worlds::Material& m = mesh.materials[mesh.triangleMaterial[t]];
+    scene.addTriangle(mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), m.albedo, m.emission);
+  }
+  return scene;
+}
+
+// CPU replay of vir_splat.comp's loop: the number of atomicMin calls for one probe.
+glm::ivec2 octWrap(glm::ivec2 t, int n) {
+  if (t.x < 0) t = {-1 - t.x, n - 1 - t.y};
+  else if (t.x >= n) t = {2 * n - 1 - t.x, n - 1 - t.y};
+  if (t.y < 0) t = {n - 1 - t.x, -1 - t.y};
+  else if (t.y >= n) t = {n - 1 - t.x, 2 * n - 1 - t.y};
+  return glm::clamp(t, glm::ivec2(0), glm::ivec2(n - 1));
+}
+
+uint64_t splatAtomics(std::span<const shared::Surfel> surfels, glm::vec3 o, const gpu::VirOptions& opt) {
+  uint64_t count = 0;
+  const int n = opt.resolution;
+  for (const shared::Surfel& s : surfels) {
+    const glm::vec3 p(s.positionRadius), nrm(s.normal);
+    const glm::vec3 toS = p - o;
+    const float d = glm::length(toS);
+    if (d > opt.maxRange || d < 1e-6f) continue;
+    const float facing = -glm::dot(nrm, toS);
+    if (facing <= 0.0f) continue;
+    const float r = s.positionRadius.w * opt.footprintScale;
+    const int k = std::min(opt.maxFootprintRadius, int(std::ceil(std::atan2(r, d) * float(n) * 0.5f)));
+    const glm::ivec2 c(shared::octDirectionTexel(toS / d, uint32_t(n)));
+    for (int dy = -k; dy <= k; ++dy)
+      for (int dx = -k; dx <= k; ++dx) {
+        const glm::ivec2 t = octWrap(c + glm::ivec2(dx, dy), n);
+        const glm::vec3 td = shared::octTexelDirection(glm::uvec2(t), uint32_t(n));
+        const float denom = -glm::dot(nrm, td);
+        if (denom <= 1e-6f) continue;
+        const glm::vec3 h = o + (facing / denom) * td - p;
+        if (glm::dot(h, h) <= r * r) ++count;
+      }
+  }
+  return count;
+}
+
+// The device's 64-bit atomicMin rate: shaders/atomic_min64.comp with bench/ceilings.cpp's parameters.
+double atomicCeilingPerSecond(gpu::Context& ctx) {
+  gpu::Program p(ctx, "atomic_min64");
+  const uint32_t slots = 1u << 20, threads = 1u << 16, updates = 16;
+  gpu::Buffer buf = gpu::createStorageBuffer(ctx, size_t(slots) * 8);
+  gpu::fillBuffer(ctx, buf, 0xffffffffu);
+  shared::AtomicParams params{slots, updates, threads, 7};
+  gpu::GpuTimer timer(ctx, 2);
+  double best = 1e30;
+  for (int r = 0; r < 3; ++r) {
+    gpu::submitAndWait(ctx, [&](VkCommandBuffer cmd) {
+      timer.reset(cmd);
+      timer.stamp(cmd, 0);
+      gpu::dispatch(ctx, cmd, p, {&buf}, params, {threads, 1, 1});
+      timer.stamp(cmd, 1);
+    });
+    best = std::min(best, timer.elapsedMs(0, 1));
+  }
+  return double(threads) * updates / (best * 1e-3);
+}
+
+struct Accuracy {
+  double distMedianRel = 0.0, distP90Rel = 0.0, fracOff5pct = 0.0, normalMedianDeg = 0.0, normalP90Deg = 0.0;
+  double holeFractionOfHits = 0.0;
+  size_t compared = 0;
+};
+
+// Per texel of the first `probes` maps vs the Embree closest hit along the texel-centre ray.
+Accuracy accuracy(const gpu::ProbeAtlas& atlas, const std::vector<std::vector<std::optional<bake::RayHit>>>& ref,
+                  size_t probes) {
+  const size_t n2 = size_t(atlas.resolution) * size_t(atlas.resolution);
+  std::vector<double> rel, angle;
+  size_t hits = 0, holes = 0;
+  for (size_t p = 0; p < probes; ++p)
+    for (size_t t = 0; t < n2; ++t) {
+      const auto& hit = ref[p][t];
+      if (!hit) continue;
+      ++hits;
+      const size_t i = p * n2 + t;
+      if (atlas.normal[i].w == 0.0f) {
+        ++holes;
+        continue;
+      }
+      rel.push_back(std::abs(double(atlas.distance[i].x) - hit->t) / double(hit->t));
+      if (!hit->backface) {
+        const float c = std::clamp(glm::dot(glm::vec3(atlas.normal[i]), hit->normal), -1.0f, 1.0f);
+        angle.push_back(double(std::acos(c)) * 180.0 / std::numbers::pi);
+      }
+    }
+  Accuracy a;
+  a.distMedianRel = quantile(rel, 0.5);
+  a.distP90Rel = quantile(rel, 0.9);
+  a.normalMedianDeg = quantile(angle, 0.5);
+  a.normalP90Deg = quantile(angle, 0.9);
+  a.fracOff5pct = rel.empty() ? 0.0 : double(std::count_if(rel.begin(), rel.end(), [](double e) { return e > 0.05; })) /
+                                          double(rel.size());
+  a.holeFractionOfHits = hits ? double(holes) / double(hits) : 0.0;
+  a.compared = rel.size();
+  return a;
+}
+
+}  // namespace
+}  // namespace lfgi::bench
+
+int main(int argc, char** argv) {
+  using namespace lfgi;
+  CLI::App app{"lfgi benchmark: VIR vs cubemap rasterization (probe generation)"};
+  std::string out = "out/bench/vir";
+  std::string cellArg = "2,1";
+  bool quick = false;
+  double budgetS = 0.0;
+  size_t accuracyProbes = 0;
+  app.add_option("--out", out, "Output directory");
+  app.add_flag("--quick", quick, "Probe counts up to 1024 and a 12 s budget per configuration (lavapipe: minutes)");
+  app.add_option("--cell", cellArg, "Cell X,Z of the default world (2,1: the arcade block)");
+  app.add_option("--budget-s", budgetS, "Skip a configuration projected to take longer (default 12 quick, 90 full)");
+  app.add_option("--accuracy-probes", accuracyProbes, "Probes compared with Embree (default 8 quick, 16 full)");
+  CLI11_PARSE(app, argc, argv);
+  try {
+    if (budgetS <= 0.0) budgetS = quick ? 12.0 : 90.0;
+    if (accuracyProbes == 0) accuracyProbes = quick ? 8 : 16;
+    int cx = 0, cz = 0;
+    if (std::sscanf(cellArg.c_str(), "%d,%d", &cx, &cz) != 2) fail("--cell '{}': expected X,Z", cellArg);
+    bench::BenchOutput o(out, quick);
+    auto ctx = gpu::createContext();
+    o.setDevice(ctx->info.name);
+    const bool cpuDevice = ctx->info.type == "cpu";
+
+    const worlds::SyntheticWorld world(worlds::WorldParams::smallDefault(1));
+    if (!world.contains({cx, cz})) fail("--cell {},{} outside the default world", cx, cz);
+    const worlds::BuiltCell built = worlds::buildCell(world, {cx, cz});
+    const gpu::CubemapScene scene = bench::toCubemapScene(built.mesh);
+    std::vector<glm::vec3> active;
+    for (int64_t i = 0; i < built.probes.grid.probeCount(); ++i)
+      if (!(built.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid)) active.push_back(built.probes.position(i));
+    if (active.empty()) fail("cell {},{} has no active probes", cx, cz);
+    const std::vector<int> resolutions = {8, 16, 32, 64};
+    const std::vector<size_t> counts =
+        quick ? std::vector<size_t>{64, 256, 1024} : std::vector<size_t>{64, 256, 1024, 4096};
+    std::vector<glm::vec3> probes(counts.back());
+    for (size_t i = 0; i < probes.size(); ++i) probes[i] = active[i % active.size()];
+    accuracyProbes = std::min({accuracyProbes, active.size(), counts.front()});
+    spdlog::info("vir bench on {} ({}): cell {},{}: {} surfels, {} triangles, {} active probes; budget {} s/config",
+                 ctx->info.name, quick ? "quick" : "full", cx, cz, built.surfels.size(), scene.triangleCount(),
+                 active.size(), budgetS);
+
+    const double ceiling = bench::atomicCeilingPerSecond(*ctx);
+    spdlog::info("atomicMin64 ceiling: {:.1f} M/s", ceiling * 1e-6);
+
+    bake::EmbreeScene embree(built.mesh, "vir benchmark cell");
+    gpu::VirPass vir(*ctx);
+    gpu::CubemapRaster cubemap(*ctx);
+    gpu::VirOptions vo;
+    vo.maxRange = 1000.0f;  // the whole cell, as the baseline renders it
+    gpu::CubemapRasterOptions co;
+    {  // warm-up: lavapipe compiles each pipeline at its first use
+      vo.resolution = co.resolution = 8;
+      vir.run(built.surfels, std::span(probes).first(1), vo);
+      cubemap.run(scene, std::span(probes).first(1), co);
+    }
+
+    o.setColumns({"method", "resolution", "probes", "surfels", "triangles", "gpu_ms", "ms_per_probe", "probes_per_s",
+                  "surfel_probes_per_s", "splat_or_raster_ms", "resolve_or_resample_ms", "wall_ms", "atomics_per_s",
+                  "dist_median_rel_error", "dist_p90_rel_error", "dist_frac_off_5pct", "normal_median_deg",
+                  "normal_p90_deg", "hole_fraction"});
+    nlohmann::ordered_json skipped = nlohmann::ordered_json::array();
+    struct Measured {
+      double probesPerS = 0.0, msPerProbe = 0.0;
+      size_t probes = 0;
+      bench::Accuracy acc;
+      double atomicsPerS = 0.0;
+    };
+    std::map<std::pair<std::string, int>, Measured> best;  // (method, N) -> largest probe count measured
+    InterruptGuard guard;
+    Progress progress("vir bench configurations", resolutions.size() * counts.size() * 2, "configs");
+    size_t done = 0;
+    for (int n : resolutions) {
+      vo.resolution = co.resolution = n;
+      // Reference rays for the accuracy probes at this N.
+      std::vector<std::vector<std::optional<bake::RayHit>>> ref(accuracyProbes);
+      for (size_t p = 0; p < accuracyProbes; ++p)
+        for (uint32_t j = 0; j < uint32_t(n); ++j)
+          for (uint32_t i = 0; i < uint32_t(n); ++i)
+            ref[p].push_back(embree.intersect(probes[p], shared::octTexelDirection(glm::uvec2(i, j), uint32_t(n))));
+      uint64_t atomicsSubset = 0;
+      for (size_t p = 0; p < accuracyProbes; ++p) atomicsSubset += bench::splatAtomics(built.surfels, probes[p], vo);
+      const double atomicsPerProbe = double(atomicsSubset) / double(accuracyProbes);
+
+      for (const char* method : {"vir", "cubemap"}) {
+        double lastMsPerProbe = 0.0;
+        std::optional<bench::Accuracy> acc;
+        for (size_t count : counts) {
+          if (InterruptGuard::interrupted()) fail("interrupted");
+          progress.update(++done);
+          const double projectedS = lastMsPerProbe * double(count) * 1e-3;
+          const double texelBytes = double(count) * n * n * 64.0;
+          if (projectedS > budgetS || texelBytes > 2.0e9) {
+            spdlog::info("skip {} N={} probes={}: projected {:.0f} s (budget {} s), {:.1f} GB of maps", method, n,
+                         count, projectedS, budgetS, texelBytes * 1e-9);
+            skipped.push_back({{"method", method}, {"resolution", n}, {"probes", count}, {"projected_s", projectedS}});
+            continue;
+          }
+          const std::span<const glm::vec3> ps = std::span(probes).first(count);
+          gpu::ProbeAtlas atlas;
+          double splat = 0.0, resolve = 0.0;
+          const auto t0 = std::chrono::steady_clock::now();
+          if (std::string(method) == "vir") {
+            atlas = vir.run(built.surfels, ps, vo);
+            splat = atlas.splatMs;
+            resolve = atlas.resolveMs + atlas.fillMs;
+          } else {
+            gpu::CubemapCapture c = cubemap.run(scene, ps, co);
+            splat = c.rasterMs;
+            resolve = c.copyMs + c.resampleMs;
+            atlas = std::move(c.atlas);
+          }
+          const double wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+          if (!acc) acc = bench::accuracy(atlas, ref, accuracyProbes);
+          Measured m;
+          m.probes = count;
+          m.msPerProbe = lastMsPerProbe = atlas.gpuMs / double(count);
+          m.probesPerS = double(count) / (atlas.gpuMs * 1e-3);
+          m.acc = *acc;
+          // Over VIR's whole device time, not the splat's stamps: on lavapipe the splat's work shows up in
+          // later timestamp intervals (its own interval reads ~0), so only the total is trustworthy there.
+          m.atomicsPerS = std::string(method) == "vir" ? atomicsPerProbe * double(count) / (atlas.gpuMs * 1e-3) : 0.0;
+          best[{method, n}] = m;
+          spdlog::info("{} N={} probes={}: {:.1f} ms device, {:.1f} ms wall ({:.3f} ms/probe, {:.0f} probes/s); dist "
+                       "median {:.2e} p90 {:.4f} off>5% {:.4f}, normal median {:.2f} p90 {:.2f} deg, holes {:.4f}{}",
+                       method, n, count, atlas.gpuMs, wallMs, m.msPerProbe, m.probesPerS, acc->distMedianRel,
+                       acc->distP90Rel, acc->fracOff5pct, acc->normalMedianDeg, acc->normalP90Deg,
+                       acc->holeFractionOfHits,
+                       m.atomicsPerS > 0 ? fmt::format(", {:.1f} M atomics/s", m.atomicsPerS * 1e-6) : "");
+          o.addRow({method, std::to_string(n), std::to_string(count), std::to_string(built.surfels.size()),
+                    std::to_string(scene.triangleCount()), bench::num(atlas.gpuMs), bench::num(m.msPerProbe),
+                    bench::num(m.probesPerS), bench::num(m.probesPerS * double(built.surfels.size())),
+                    bench::num(splat), bench::num(resolve), bench::num(wallMs), bench::num(m.atomicsPerS),
+                    bench::num(acc->distMedianRel), bench::num(acc->distP90Rel), bench::num(acc->fracOff5pct),
+                    bench::num(acc->normalMedianDeg), bench::num(acc->normalP90Deg),
+                    bench::num(acc->holeFractionOfHits)});
+        }
+      }
+    }
+    progress.finish();
+
+    // Headline: N = 16 (the default resolution); each method at its largest measured probe count.
+    auto& s = o.summary();
+    const auto v16 = best.find({"vir", 16}), c16 = best.find({"cubemap", 16});
+    if (v16 == best.end() || c16 == best.end()) fail("N = 16 was not measured for both methods");
+    s["vir_over_cubemap_probes_per_s"] = v16->second.probesPerS / c16->second.probesPerS;
+    s["vir_probes_per_s"] = v16->second.probesPerS;
+    s["cubemap_probes_per_s"] = c16->second.probesPerS;
+    s["hole_fraction"] = v16->second.acc.holeFractionOfHits;
+    s["distance_median_rel_error"] = v16->second.acc.distMedianRel;
+    s["normal_median_deg"] = v16->second.acc.normalMedianDeg;
+    s["atomics_fraction_of_ceiling"] = ceiling > 0.0 ? v16->second.atomicsPerS / ceiling : 0.0;
+    s["headline_resolution"] = 16;
+    s["vir_probes"] = v16->second.probes;
+    s["cubemap_probes"] = c16->second.probes;
+    s["cubemap_distance_median_rel_error"] = c16->second.acc.distMedianRel;
+    s["cubemap_normal_median_deg"] = c16->second.acc.normalMedianDeg;
+    s["cubemap_hole_fraction"] = c16->second.acc.holeFractionOfHits;
+    s["distance_p90_rel_error"] = v16->second.acc.distP90Rel;
+    s["cubemap_distance_p90_rel_error"] = c16->second.acc.distP90Rel;
+    s["distance_frac_off_5pct"] = v16->second.acc.fracOff5pct;
+    s["cubemap_distance_frac_off_5pct"] = c16->second.acc.fracOff5pct;
+    s["vir_atomics_per_s"] = v16->second.atomicsPerS;
+    s["atomics64_ceiling_per_s"] = ceiling;
+    nlohmann::ordered_json byRes = nlohmann::ordered_json::object();
+    for (int n : resolutions) {
+      const auto v = best.find({"vir", n}), c = best.find({"cubemap", n});
+      if (v != best.end() && c != best.end())
+        byRes[std::to_string(n)] = {{"ratio", v->second.probesPerS / c->second.probesPerS},
+                                    {"vir_probes_per_s", v->second.probesPerS},
+                                    {"cubemap_probes_per_s", c->second.probesPerS},
+                                    {"vir_probes", v->second.probes},
+                                    {"cubemap_probes", c->second.probes}};
+    }
+    s["ratio_by_resolution"] = byRes;
+    s["cell"] = {cx, cz};
+    s["surfels"] = built.surfels.size();
+    s["triangles"] = scene.triangleCount();
+    s["accuracy_probes"] = accuracyProbes;
+    s["accuracy_reference"] = "Embree closest hit along each texel-centre ray (deterministic)";
+    s["budget_s_per_config"] = budgetS;
+    s["cpu_device"] = cpuDevice;
+    s["skipped"] = skipped;
+    o.save();
+    spdlog::info("VIR / cubemap at N=16: {:.1f}x ({:.0f} vs {:.0f} probes/s); {} configurations skipped",
+                 s["vir_over_cubemap_probes_per_s"].get<double>(), v16->second.probesPerS, c16->second.probesPerS,
+                 skipped.size());
+  } catch (const Error& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  }
+  return 0;
+}
