@@ -1,0 +1,256 @@
+#include "bake/shading_inputs.h"
+
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <numbers>
+#include <optional>
+
+#include "bake/brdf.h"
+#include "bake/parallel_work.h"
+#include "bake/path_trace.h"
+#include "core/error.h"
+
+namespace lfgi::bake {
+namespace {
+
+constexpr float kInvPi = float(1.0 / std::numbers::pi);
+
+float maxComponent(glm::vec3 c) {
+  return std::max(c.x, std::max(c.y, c.z));
+}
+
+// As path_trace.cpp, where these helpers are internal (ShadingReference tests check the direct layer
+// against renderReference).
+glm::vec3 hitAlbedo(const worlds::TriangleMesh& mesh, const worlds::Material& m, const RayHit& hit) {
+  glm::vec3 a = m.albedo;
+  if (m.albedoTexture >= 0 && !mesh.uvs.empty()) {
+    const size_t t = hit.triangle;
+    const glm::vec2 uv = (1.0f - hit.barycentric.x - hit.barycentric.y) * mesh.uvs[mesh.indices[t * 3]] +
+                         hit.barycentric.x * mesh.uvs[mesh.indices[t * 3 + 1]] +
+                         hit.barycentric.y * mesh.uvs[mesh.indices[t * 3 + 2]];
+    a *= mesh.textures[size_t(m.albedoTexture)].sampleLinear(uv);
+  }
+  return a;
+}
+
+glm::vec3 hitPoint(const worlds::TriangleMesh& mesh, const RayHit& hit) {
+  const size_t t = hit.triangle;
+  return (1.0f - hit.barycentric.x - hit.barycentric.y) * mesh.positions[mesh.indices[t * 3]] +
+         hit.barycentric.x * mesh.positions[mesh.indices[t * 3 + 1]] +
+         hit.barycentric.y * mesh.positions[mesh.indices[t * 3 + 2]];
+}
+
+// Waechter & Binder 2019 (Ray Tracing Gems ch. 6), the same constants as path_trace.cpp.
+glm::vec3 offsetRayOrigin(glm::vec3 p, glm::vec3 n) {
+  glm::vec3 out;
+  for (int k = 0; k < 3; ++k) {
+    const int32_t ulps = int32_t(256.0f * n[k]);
+    const int32_t bits = std::bit_cast<int32_t>(p[k]);
+    const float moved = std::bit_cast<float>(bits + (p[k] < 0.0f ? -ulps : ulps));
+    out[k] = std::abs(p[k]) < 1.0f / 32.0f ? p[k] + n[k] / 65536.0f : moved;
+  }
+  return out;
+}
+
+// Emission + disc NEE at the first hit (or sky + discs on a miss): the part of tracePath's total that
+// shading computes without probes.
+glm::vec3 directAtFirstHit(const EmbreeScene& scene, const worlds::SkyModel& sky, const detail::Discs& discs,
+                           const detail::PathOptions& o, glm::vec3 origin, glm::vec3 dir, uint64_t& rays) {
+  const worlds::TriangleMesh& mesh = scene.mesh();
+  const std::optional<RayHit> hit = scene.intersect(origin, dir, 0.0f, o.maxDistance);
+  ++rays;
+  if (!hit) return worlds::skyRadiance(sky, dir) + worlds::discRadiance(sky, dir);
+  const worlds::Material& m = mesh.materials[mesh.triangleMaterial[hit->triangle]];
+  if (hit->backface && !m.doubleSided) return glm::vec3(0.0f);
+  glm::vec3 L = m.emission;
+  if (o.maxBounces <= 0) return L;
+  const glm::vec3 n = hit->backface ? -hit->normal : hit->normal;
+  const glm::vec3 albedo = hitAlbedo(mesh, m, *hit);
+  const SurfaceBrdf brdf{albedo, m.roughness, m.metallic};
+  const glm::vec3 po = offsetRayOrigin(hitPoint(mesh, *hit), n);
+  for (int d = 0; d < discs.count; ++d) {
+    const worlds::DiscLight& l = *discs.light[d];
+    if (glm::dot(n, l.direction) <= 0.0f) continue;
+    const glm::vec3 f = brdf.isLambertian() ? albedo * kInvPi : evalBrdf(brdf, n, -dir, l.direction);
+    if (!(maxComponent(f) > 0.0f)) continue;
+    ++rays;
+    if (!scene.occluded(po, l.direction, 0.0f, o.maxDistance)) L += f * l.irradiance(n);
+  }
+  return L;
+}
+
+}  // namespace
+
+std::vector<shared::GpuMaterial> gpuMaterials(const worlds::TriangleMesh& mesh) {
+  std::vector<shared::GpuMaterial> out;
+  out.reserve(mesh.materials.size());
+  for (const worlds::Material& m : mesh.materials) {
+    glm::vec3 albedo = m.albedo;
+    if (m.albedoTexture >= 0 && size_t(m.albedoTexture) < mesh.textures.size()) {
+      const worlds::Texture& t = mesh.textures[size_t(m.albedoTexture)];
+      glm::dvec3 sum(0.0);
+      const int step = std::max(1, std::max(t.width, t.height) / 64);
+      size_t count = 0;
+      for (int y = 0; y < t.height; y += step)
+        for (int x = 0; x < t.width; x += step, ++count)
+          sum += glm::dvec3(t.sampleLinear(glm::vec2((float(x) + 0.5f) / float(t.width),
+                                                     (float(y) + 0.5f) / float(t.height))));
+      if (count > 0) albedo *= glm::vec3(sum / double(count));
+    }
+    shared::GpuMaterial g{};
+    g.albedo = glm::vec4(albedo, m.roughness);
+    g.emission = glm::vec4(m.emission, m.metallic);
+    g.flags = glm::vec4(m.doubleSided ? 1.0f : 0.0f, 0.0f, 0.0f, 0.0f);
+    out.push_back(g);
+  }
+  return out;
+}
+
+ProbeField probeFieldFromCapture(const ProbeGrid& grid, const CaptureResult& r, std::span<const int64_t> gridIndex) {
+  grid.validate();
+  if (gridIndex.size() != r.probes.size())
+    fail("probe field from capture: {} grid indices for {} captured probes", gridIndex.size(), r.probes.size());
+  ProbeField f;
+  f.grid = grid;
+  const int64_t count = grid.probeCount();
+  int n = 0, m = 0;
+  for (size_t k = 0; k < r.probes.size(); ++k) {
+    if (k < r.done.size() && !r.done[k]) continue;
+    if (n == 0) {
+      n = r.probes[k].resolution;
+      m = r.probes[k].irradianceResolution;
+    } else if (r.probes[k].resolution != n || r.probes[k].irradianceResolution != m) {
+      fail("probe field from capture: probe {} has resolutions {}/{}, others {}/{}", k, r.probes[k].resolution,
+           r.probes[k].irradianceResolution, n, m);
+    }
+  }
+  if (n == 0) fail("probe field from capture: no captured probe");
+  f.resolution = n;
+  f.irradianceResolution = m;
+  const size_t n2 = size_t(n) * size_t(n), m2 = size_t(m) * size_t(m);
+  f.offsets.assign(size_t(count), glm::vec3(0.0f));
+  f.active.assign(size_t(count), 0);
+  f.radiance.assign(size_t(count) * n2 * 3, 0.0f);
+  f.distance.assign(size_t(count) * n2 * 2, 0.0f);
+  f.irradiance.assign(size_t(count) * m2 * 3, 0.0f);
+  f.normal.assign(size_t(count) * n2 * 3, 0.0f);
+  f.albedo.assign(size_t(count) * n2 * 3, 0.0f);
+  for (size_t k = 0; k < r.probes.size(); ++k) {
+    if (k < r.done.size() && !r.done[k]) continue;
+    const int64_t i = gridIndex[k];
+    if (i < 0 || i >= count) fail("probe field from capture: grid index {} outside [0, {})", i, count);
+    const ProbeCapture& c = r.probes[k];
+    f.active[size_t(i)] = 1;
+    f.offsets[size_t(i)] = c.position - grid.probePosition(grid.probeCoord(i));
+    std::copy(c.radiance.begin(), c.radiance.end(), f.radiance.begin() + std::ptrdiff_t(size_t(i) * n2 * 3));
+    std::copy(c.distance.begin(), c.distance.end(), f.distance.begin() + std::ptrdiff_t(size_t(i) * n2 * 2));
+    std::copy(c.irradiance.begin(), c.irradiance.end(), f.irradiance.begin() + std::ptrdiff_t(size_t(i) * m2 * 3));
+    std::copy(c.normal.begin(), c.normal.end(), f.normal.begin() + std::ptrdiff_t(size_t(i) * n2 * 3));
+    std::copy(c.albedo.begin(), c.albedo.end(), f.albedo.begin() + std::ptrdiff_t(size_t(i) * n2 * 3));
+  }
+  f.validate();
+  return f;
+}
+
+std::vector<float> prefilterSpecularLevels(const ProbeField& field, int levels) {
+  if (levels < 1 || levels > 16) fail("prefilterSpecularLevels: {} levels outside [1, 16]", levels);
+  const int n = field.resolution;
+  const size_t n2 = size_t(n) * size_t(n);
+  const int64_t count = field.probeCount();
+  std::vector<float> out(size_t(count) * size_t(levels) * n2 * 3, 0.0f);
+  detail::runParallelInterruptible(size_t(count), "prefilter", "probes", false, [&](size_t i) {
+    if (!field.isActive(int64_t(i))) return;
+    std::span<const float> rad(field.radiance.data() + i * n2 * 3, n2 * 3);
+    for (int l = 0; l < levels; ++l) {
+      const float roughness = levels == 1 ? 0.0f : float(l) / float(levels - 1);
+      const std::vector<float> p = prefilterRadianceGgx(rad, n, roughness, n);
+      std::copy(p.begin(), p.end(), out.begin() + std::ptrdiff_t((i * size_t(levels) + size_t(l)) * n2 * 3));
+    }
+  });
+  return out;
+}
+
+RenderResult renderShadingReference(const EmbreeScene& scene, const worlds::SkyModel& sky,
+                                    const PinholeCamera& camera, const RenderOptions& o, bool showProgress) {
+  validateRenderOptions(o);
+  validateCamera(camera);
+  const auto start = std::chrono::steady_clock::now();
+  RenderResult result;
+  result.image = Image(o.width, o.height,
+                       {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect.R", "indirect.G", "indirect.B"});
+  const int tilesX = (o.width + o.tileSize - 1) / o.tileSize;
+  const int tilesY = (o.height + o.tileSize - 1) / o.tileSize;
+  result.tiles = size_t(tilesX) * size_t(tilesY);
+  detail::PathOptions po;
+  po.maxBounces = o.maxBounces;
+  po.rouletteAfter = o.rouletteAfter;
+  po.maxDistance = o.maxDistance;
+  po.discsOnPrimaryMiss = true;
+  const detail::Discs discs = detail::activeDiscs(sky);
+  // The same key as renderReference, so the totals agree sample for sample.
+  const uint64_t key = detail::mix64(o.seed ^ 0x6c666769'63616d65ULL);
+  std::atomic<uint64_t> rays{0};
+  const detail::ParallelWorkResult run =
+      detail::runParallelInterruptible(result.tiles, "reference", "tiles", showProgress, [&](size_t t) {
+        uint64_t localRays = 0;
+        const int x0 = int(t % size_t(tilesX)) * o.tileSize, y0 = int(t / size_t(tilesX)) * o.tileSize;
+        const int x1 = std::min(x0 + o.tileSize, o.width), y1 = std::min(y0 + o.tileSize, o.height);
+        for (int y = y0; y < y1; ++y) {
+          for (int x = x0; x < x1; ++x) {
+            const int pixel = y * o.width + x;
+            glm::dvec3 total(0.0), direct(0.0);
+            for (int s = 0; s < o.samplesPerPixel; ++s) {
+              detail::PathRng rng(key, pixel, s);
+              const float jx = rng.nextFloat();
+              const float jy = rng.nextFloat();
+              const glm::vec3 dir = cameraRayDirection(camera, o.width, o.height, float(x) + jx, float(y) + jy);
+              detail::FirstHit first;
+              total += glm::dvec3(detail::tracePath(scene, sky, discs, po, camera.position, dir, rng, first, localRays));
+              direct += glm::dvec3(directAtFirstHit(scene, sky, discs, po, camera.position, dir, localRays));
+            }
+            std::span<float> px = result.image.pixel(x, y);
+            for (int ch = 0; ch < 3; ++ch) {
+              const float tot = float(total[ch] / o.samplesPerPixel);
+              const float dir = float(direct[ch] / o.samplesPerPixel);
+              px[size_t(ch)] = tot;
+              px[size_t(3 + ch)] = dir;
+              px[size_t(6 + ch)] = tot - dir;
+            }
+          }
+        }
+        rays.fetch_add(localRays, std::memory_order_relaxed);
+      });
+  result.tilesDone = run.done;
+  result.interrupted = run.interrupted;
+  result.rays = rays.load();
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace lfgi::bake
+
+namespace lfgi::bake {
+
+ProbeField captureGridField(const EmbreeScene& scene, const worlds::SkyModel& sky, const ProbeGrid& grid,
+                            std::span<const glm::vec3> offsets, std::span<const uint8_t> active,
+                            const CaptureOptions& options, bool showProgress) {
+  grid.validate();
+  const int64_t count = grid.probeCount();
+  if ((!offsets.empty() && offsets.size() != size_t(count)) || (!active.empty() && active.size() != size_t(count)))
+    fail("captureGridField: {} offsets / {} active flags for {} probes", offsets.size(), active.size(), count);
+  std::vector<glm::vec3> positions;
+  std::vector<int64_t> index;
+  for (int64_t i = 0; i < count; ++i) {
+    if (!active.empty() && !active[size_t(i)]) continue;
+    positions.push_back(grid.probePosition(grid.probeCoord(i)) + (offsets.empty() ? glm::vec3(0.0f) : offsets[size_t(i)]));
+    index.push_back(i);
+  }
+  const CaptureResult r = captureProbes(scene, sky, positions, options, showProgress);
+  if (r.interrupted) fail("capture interrupted");
+  return probeFieldFromCapture(grid, r, index);
+}
+
+}  // namespace lfgi::bake
