@@ -87,4 +87,17 @@ struct ReferenceCommandOptions {
 };
 int runReference(const ReferenceCommandOptions& options);
 
+// `lfgi vir` (app/vir_command.cpp): relight + View-Independent Rasterization of one world cell -> probe
+// atlases (EXR), a contact sheet (PNG) and vir.json. Returns 130 when interrupted.
+struct VirCommandOptions {
+  std::string world;
+  std::string cell;  // "X,Z"
+  float timeOfDay = 17.5f;
+  float overcast = 0.0f;
+  std::string outDir;
+  int resolution = 16;
+  int bounces = 3;  // relight frames = bounces + 1
+};
+int runVir(const VirCommandOptions& options);
+
 }  // namespace lfgi::app

@@ -90,6 +90,16 @@ int main(int argc, char** argv) {
   reference->add_option("--out", refOpt.out, "Output .exr (a .png is written beside it)")->required();
   reference->add_option("--threads", refOpt.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 256));
 
+  lfgi::app::VirCommandOptions virOpt;
+  CLI::App* virCmd = app.add_subcommand("vir", "Relight one world cell and splat it into its probes (VIR): EXR atlases + contact sheet");
+  virCmd->add_option("--world", virOpt.world, "World directory")->required();
+  virCmd->add_option("--cell", virOpt.cell, "Cell as X,Z")->required();
+  virCmd->add_option("--time", virOpt.timeOfDay, "Time of day, hours")->check(CLI::Range(0.0, 24.0))->capture_default_str();
+  virCmd->add_option("--overcast", virOpt.overcast, "Weather, 0 clear .. 1 overcast")->check(CLI::Range(0.0, 1.0))->capture_default_str();
+  virCmd->add_option("--out", virOpt.outDir, "Output directory")->required();
+  virCmd->add_option("--resolution", virOpt.resolution, "Octahedral map resolution")->check(CLI::Range(4, 128))->capture_default_str();
+  virCmd->add_option("--bounces", virOpt.bounces, "Indirect bounces (relight frames - 1)")->check(CLI::Range(0, 64))->capture_default_str();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -112,6 +122,7 @@ int main(int argc, char** argv) {
     if (*exportCell) return lfgi::app::runWorldExportCell(exportOpt);
     if (*capture) return lfgi::app::runCapture(capOpt);
     if (*reference) return lfgi::app::runReference(refOpt);
+    if (*virCmd) return lfgi::app::runVir(virOpt);
     std::fputs(app.help().c_str(), stdout);
     return 0;
   } catch (const lfgi::Error& e) {

@@ -1,0 +1,178 @@
+// `lfgi vir`: View-Independent Rasterization of one world cell with relighting (gpu/relight_pass.h):
+// builds the cell (worlds::buildCell, deterministic: the same surfels and probes as `lfgi world generate`
+// stores), relights its surfels for the time of day / weather over bounces + 1 frames (frame 1: sun and
+// emission; every later frame adds one bounce and the probe-seen sky), splats them into every probe of
+// the cell's grid, and writes into --out:
+//   radiance.exr, distance.exr, normal.exr, albedo.exr   N x N tiles (the VIR channels, shared/vir.h)
+//   irradiance.exr                                       M x M tiles (probe irradiance without the discs)
+//   contact_sheet.png                                    radiance tiles, 4x enlarged, auto-exposed
+//   vir.json                                             layout, probes, sky, statistics
+// Tiles: probe i (core/probe_grid.h linear index, disabled probes included and flagged in vir.json) sits
+// at column i % cols, row i / cols, cols = ceil(sqrt(probes)). Only the cell's own surfels are splatted
+// and cast shadows (neighbour cells are not loaded).
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include "app/cli_args.h"
+#include "app/commands.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/image.h"
+#include "core/progress.h"
+#include "gpu/relight_pass.h"
+#include "shared/octahedral.h"
+#include "worlds/sky.h"
+#include "worlds/world_cells.h"
+
+namespace lfgi::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Probe tiles of `channels` floats per texel (from get(texel) -> array) laid out cols x rows.
+template <typename Get>
+Image tileAtlas(int probes, int res, std::vector<std::string> channels, Get get) {
+  const int cols = int(std::ceil(std::sqrt(double(probes))));
+  const int rows = (probes + cols - 1) / cols;
+  Image img(cols * res, rows * res, std::move(channels));
+  const int c = img.channelCount();
+  for (int p = 0; p < probes; ++p)
+    for (int j = 0; j < res; ++j)
+      for (int i = 0; i < res; ++i) {
+        const size_t t = (size_t(p) * size_t(res) + size_t(j)) * size_t(res) + size_t(i);
+        const glm::vec4 v = get(t);
+        for (int ch = 0; ch < c; ++ch) img.at((p % cols) * res + i, (p / cols) * res + j, ch) = v[ch];
+      }
+  return img;
+}
+
+}  // namespace
+
+int runVir(const VirCommandOptions& opt) {
+  const auto start = std::chrono::steady_clock::now();
+  if (opt.world.empty()) fail("--world: give the world directory (made by `lfgi world generate`)");
+  if (opt.outDir.empty()) fail("--out: give an output directory");
+  const worlds::SyntheticWorld world(worlds::readWorldManifest(opt.world));
+  const worlds::CellCoord c = parseCellArg(opt.cell, "--cell");
+  if (!world.contains(c)) fail("--cell {}: outside the world ({} x {} cells)", opt.cell, world.cellsX(), world.cellsZ());
+  worlds::SkyState state;
+  state.timeOfDayHours = opt.timeOfDay;
+  state.overcast = opt.overcast;
+  const worlds::SkyModel sky = worlds::makeSky(state);
+
+  std::fprintf(stderr, "vir: building cell %d,%d of %s\n", c.x, c.z, opt.world.c_str());
+  const worlds::BuiltCell cell = worlds::buildCell(world, c);
+  if (cell.surfels.empty()) fail("--cell {}: the cell has no surfels", opt.cell);
+  gpu::RelightProbes probes;
+  probes.grid = cell.probes.grid;
+  const int64_t probeCount = probes.grid.probeCount();
+  for (int64_t i = 0; i < probeCount; ++i) {
+    probes.positions.push_back(cell.probes.position(i));
+    probes.active.push_back((cell.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid) ? 0 : 1);
+  }
+  std::fprintf(stderr, "vir: %zu surfels, %lld probes (%d x %d x %d, %.1f m), N=%d, %d frames\n", cell.surfels.size(),
+               (long long)probeCount, probes.grid.dims.x, probes.grid.dims.y, probes.grid.dims.z,
+               double(probes.grid.spacing.x), opt.resolution, opt.bounces + 1);
+
+  auto ctx = gpu::createContext();
+  gpu::RelightPass relight(*ctx);
+  gpu::VirPass vir(*ctx);
+  gpu::VirOptions virOptions;
+  virOptions.resolution = opt.resolution;
+  virOptions.maxRange = 2.0f * float(world.cellSizeM());
+  gpu::RelightOptions relightOptions;
+  gpu::CellLighting lighting;
+  gpu::RelightResult last;
+  const int frames = opt.bounces + 1;
+  InterruptGuard guard;
+  Progress progress("relight + VIR", size_t(frames), "frames");
+  for (int f = 0; f < frames; ++f) {
+    if (InterruptGuard::interrupted()) {
+      std::fprintf(stderr, "vir: interrupted after %d of %d frames; nothing written\n", f, frames);
+      return 130;
+    }
+    last = gpu::relightFrame(relight, vir, cell.surfels, probes, sky.params, virOptions, relightOptions, lighting);
+    progress.update(size_t(f + 1));
+  }
+  progress.finish();
+
+  const gpu::ProbeAtlas& atlas = lighting.atlas;
+  const int n = atlas.resolution, m = lighting.probes.irradianceResolution, pc = int(probeCount);
+  fs::create_directories(opt.outDir);
+  const fs::path out(opt.outDir);
+  writeExr(out / "radiance.exr", tileAtlas(pc, n, {"R", "G", "B"}, [&](size_t t) { return atlas.radiance[t]; }));
+  writeExr(out / "distance.exr",
+           tileAtlas(pc, n, {"r", "r2"}, [&](size_t t) { return glm::vec4(atlas.distance[t], 0.0f, 0.0f); }));
+  writeExr(out / "normal.exr", tileAtlas(pc, n, {"X", "Y", "Z", "coverage"}, [&](size_t t) { return atlas.normal[t]; }));
+  writeExr(out / "albedo.exr", tileAtlas(pc, n, {"R", "G", "B"}, [&](size_t t) { return atlas.albedo[t]; }));
+  writeExr(out / "irradiance.exr",
+           tileAtlas(pc, m, {"R", "G", "B"}, [&](size_t t) { return lighting.probes.irradiance[t]; }));
+
+  // Contact sheet: radiance tiles enlarged 4x with a 1-pixel gap; sky texels (coverage 0) show the sky;
+  // exposure puts the median luminance of the active probes' texels at 0.18.
+  const int scale = 4, tile = n * scale + 1;
+  const int cols = int(std::ceil(std::sqrt(double(pc)))), rows = (pc + cols - 1) / cols;
+  Image sheet(cols * tile + 1, rows * tile + 1, {"R", "G", "B"});
+  std::vector<float> lums;
+  for (int p = 0; p < pc; ++p)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const size_t t = (size_t(p) * size_t(n) + size_t(j)) * size_t(n) + size_t(i);
+        glm::vec3 v(atlas.radiance[t]);
+        if (atlas.normal[t].w == 0.0f)
+          v = worlds::skyRadiance(sky, shared::octTexelDirection(glm::uvec2(uint32_t(i), uint32_t(j)), uint32_t(n)));
+        if (!probes.active[size_t(p)]) v = glm::vec3(0.0f);
+        else lums.push_back(0.2126f * v.x + 0.7152f * v.y + 0.0722f * v.z);
+        for (int y = 0; y < scale; ++y)
+          for (int x = 0; x < scale; ++x)
+            for (int ch = 0; ch < 3; ++ch)
+              sheet.at((p % cols) * tile + 1 + i * scale + x, (p / cols) * tile + 1 + j * scale + y, ch) = v[ch];
+      }
+  float exposureEv = 0.0f;
+  if (!lums.empty()) {
+    std::nth_element(lums.begin(), lums.begin() + std::ptrdiff_t(lums.size() / 2), lums.end());
+    const float med = lums[lums.size() / 2];
+    if (med > 0.0f && std::isfinite(med)) exposureEv = std::log2(0.18f / med);
+  }
+  writePng(out / "contact_sheet.png", sheet, exposureEv);
+
+  nlohmann::ordered_json j;
+  j["world"] = opt.world;
+  j["cell"] = {c.x, c.z};
+  j["time_of_day"] = opt.timeOfDay;
+  j["overcast"] = opt.overcast;
+  j["sun_direction"] = {sky.sun.direction.x, sky.sun.direction.y, sky.sun.direction.z};
+  j["resolution"] = n;
+  j["irradiance_resolution"] = m;
+  j["frames"] = frames;
+  j["surfels"] = cell.surfels.size();
+  j["probes"] = probeCount;
+  j["probe_grid"] = {{"origin", {probes.grid.origin.x, probes.grid.origin.y, probes.grid.origin.z}},
+                     {"spacing", {probes.grid.spacing.x, probes.grid.spacing.y, probes.grid.spacing.z}},
+                     {"dims", {probes.grid.dims.x, probes.grid.dims.y, probes.grid.dims.z}}};
+  j["tile_columns"] = cols;
+  nlohmann::json active = nlohmann::json::array();
+  for (uint8_t a : probes.active) active.push_back(int(a));
+  j["probe_active"] = active;
+  j["hole_fraction_before_fill"] = atlas.holeFractionBeforeFill;
+  j["hole_fraction_after_fill"] = atlas.holeFractionAfterFill;
+  j["shadow_resolution"] = last.shadowResolution;
+  j["shadow_texel_m"] = last.shadowTexelM;
+  j["last_frame_ms"] = {{"shadow", last.shadowMs}, {"light", last.lightMs}, {"vir", atlas.gpuMs},
+                        {"convolve", lighting.probes.gpuMs}};
+  j["contact_sheet_exposure_ev"] = exposureEv;
+  writeFileAtomic(out / "vir.json", j.dump(2) + "\n");
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf("vir: cell %d,%d: %zu surfels, %lld probes, N=%d, %d frames, holes %.4f -> %.4f; wrote %s (%.1f s)\n",
+              c.x, c.z, cell.surfels.size(), (long long)probeCount, n, frames, atlas.holeFractionBeforeFill,
+              atlas.holeFractionAfterFill, (out / "contact_sheet.png").string().c_str(), seconds);
+  return 0;
+}
+
+}  // namespace lfgi::app
