@@ -63,13 +63,13 @@ ProbeField cornellField(glm::ivec3 dims, int resolution) {
   return captureGridField(*k.scene, k.sky, grid, {}, {}, co);
 }
 
-// Pixels that see the inside of the box, not the light itself.
-std::vector<uint8_t> surfaceMask(const Image& shaded) {
+// Pixels shaded from probes; with noEmitters also not the light itself (direct < 1 without a sun).
+std::vector<uint8_t> surfaceMask(const Image& shaded, bool noEmitters = true) {
   std::vector<uint8_t> m(size_t(shaded.width) * size_t(shaded.height), 0);
   const int w = shaded.channelIndex("weight"), d = shaded.channelIndex("direct.G");
   for (int y = 0; y < shaded.height; ++y)
     for (int x = 0; x < shaded.width; ++x)
-      m[size_t(y) * size_t(shaded.width) + size_t(x)] = shaded.at(x, y, w) > 0.0f && shaded.at(x, y, d) < 1.0f;
+      m[size_t(y) * size_t(shaded.width) + size_t(x)] = shaded.at(x, y, w) > 0.0f && (!noEmitters || shaded.at(x, y, d) < 1.0f);
   return m;
 }
 
@@ -159,17 +159,18 @@ TEST(ShadingAccuracy, CornellColourBleeding) {
   EXPECT_GT(rgRed / rgGreen, 1.15f);  // measured 1.23
 }
 
-// End to end where probe interpolation is exact: an open plane under a CIE overcast sky (no sun). Every
-// probe above an infinite plane sees the same upper hemisphere of sky, so irradiance on the ground equals
-// the probes' (up to the plane's finite size and capture noise): shading must match the reference.
-TEST(ShadingAccuracy, OvercastPlaneMatchesReference) {
+// End to end where probe interpolation is exact: an open plane under the sky. Every probe above an
+// infinite plane sees the same upper hemisphere of sky, so irradiance on the ground equals the probes' (up
+// to the plane's finite size and capture noise): shading must match the reference. Under a clear noon sky
+// the captured sun must be taken out of the probes (subtractDiscLight), else it counts twice.
+void planeUnderSky(float overcast) {
   worlds::TriangleMesh mesh;
   worlds::Material m;
   m.albedo = glm::vec3(0.6f, 0.5f, 0.4f);
   const uint32_t mat = mesh.addMaterial(m);
   mesh.addQuad(glm::vec3(-500, 0, 500), glm::vec3(500, 0, 500), glm::vec3(500, 0, -500), glm::vec3(-500, 0, -500), mat);
   const EmbreeScene scene(mesh);
-  const worlds::SkyModel sky = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 1.0f});
+  const worlds::SkyModel sky = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, overcast});
   PinholeCamera cam;
   cam.position = glm::vec3(0.5f, 1.7f, 0.5f);
   cam.target = glm::vec3(0.5f, 0.0f, -4.0f);
@@ -188,13 +189,21 @@ TEST(ShadingAccuracy, OvercastPlaneMatchesReference) {
   ro.samplesPerPixel = 1024;
   ro.maxBounces = 4;
   const RenderResult ref = renderShadingReference(scene, sky, cam, ro);
-  const std::vector<uint8_t> mask = surfaceMask(v.image);
+  const std::vector<uint8_t> mask = surfaceMask(v.image, false);
   const double e = layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
   const double t = layerRelativeRms(v.image, "", ref.image, "");
-  std::printf("overcast plane: indirect relative RMS %.4f, total (sky pixels included) %.4f\n", e, t);
+  std::printf("plane, overcast %.0f: indirect relative RMS %.4f, total (sky pixels included) %.4f\n", double(overcast), e, t);
   EXPECT_LT(e, 0.05);
   EXPECT_LT(t, 0.05);
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
+}
+
+TEST(ShadingAccuracy, PlaneUnderOvercastSkyMatchesReference) {
+  planeUnderSky(1.0f);
+}
+
+TEST(ShadingAccuracy, PlaneUnderSunAndSkyMatchesReference) {
+  planeUnderSky(0.0f);
 }
 
 // The reference's direct layer is exactly what the shading pass computes without probes: for a plane

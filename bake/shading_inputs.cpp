@@ -12,6 +12,7 @@
 #include "bake/parallel_work.h"
 #include "bake/path_trace.h"
 #include "core/error.h"
+#include "core/octahedral.h"
 
 namespace lfgi::bake {
 namespace {
@@ -250,7 +251,35 @@ ProbeField captureGridField(const EmbreeScene& scene, const worlds::SkyModel& sk
   }
   const CaptureResult r = captureProbes(scene, sky, positions, options, showProgress);
   if (r.interrupted) fail("capture interrupted");
-  return probeFieldFromCapture(grid, r, index);
+  ProbeField f = probeFieldFromCapture(grid, r, index);
+  subtractDiscLight(f, scene, sky, options.maxDistance);
+  return f;
+}
+
+void subtractDiscLight(ProbeField& f, const EmbreeScene& scene, const worlds::SkyModel& sky, float maxDistance) {
+  const detail::Discs discs = detail::activeDiscs(sky);
+  if (discs.count == 0) return;
+  const int n = f.resolution, m = f.irradianceResolution;
+  const size_t n2 = size_t(n) * size_t(n), m2 = size_t(m) * size_t(m);
+  const std::vector<double> omega = octTexelSolidAngles(n);
+  for (int64_t i = 0; i < f.probeCount(); ++i) {
+    if (!f.isActive(i)) continue;
+    for (int d = 0; d < discs.count; ++d) {
+      const worlds::DiscLight& l = *discs.light[d];
+      if (scene.occluded(f.probePosition(i), l.direction, 0.0f, maxDistance)) continue;
+      const glm::ivec2 tx = octDirectionTexel(l.direction, n);
+      const size_t t = size_t(tx.y) * size_t(n) + size_t(tx.x);
+      const glm::vec3 add = l.irradianceNormal() / float(omega[t]);
+      float* rad = f.radiance.data() + (size_t(i) * n2 + t) * 3;
+      for (int ch = 0; ch < 3; ++ch) rad[ch] = std::max(0.0f, rad[ch] - add[ch]);
+      for (int j = 0; j < m; ++j)
+        for (int k = 0; k < m; ++k) {
+          const glm::vec3 e = l.irradiance(octTexelDirection(k, j, m));
+          float* irr = f.irradiance.data() + (size_t(i) * m2 + size_t(j) * size_t(m) + size_t(k)) * 3;
+          for (int ch = 0; ch < 3; ++ch) irr[ch] = std::max(0.0f, irr[ch] - e[ch]);
+        }
+    }
+  }
 }
 
 }  // namespace lfgi::bake

@@ -47,9 +47,18 @@ RenderResult renderShadingReference(const EmbreeScene& scene, const worlds::SkyM
 
 namespace lfgi::bake {
 
+// Removes the sun and moon from a captured field, exactly undoing what the capture added for each disc
+// the probe sees (scene.occluded from the probe position, as the capture tests it): energy / Omega_texel
+// in the radiance texel holding the disc direction, and DiscLight::irradiance(n) in every irradiance
+// texel (clamped at 0 against float rounding). The shading pass adds the discs itself with shadow rays,
+// so fields given to it must not hold them (else the sun counts twice).
+void subtractDiscLight(ProbeField& field, const EmbreeScene& scene, const worlds::SkyModel& sky,
+                       float maxDistance = 1.0e4f);
+
 // Captures every probe of `grid` (position = lattice point + offsets[i] when offsets is non-empty; probes
-// with active[i] == 0 skipped when active is non-empty) and returns the field. Progress and interrupts
-// as captureProbes; an interrupted capture throws lfgi::Error("capture interrupted").
+// with active[i] == 0 skipped when active is non-empty) and returns the field for shading: without the
+// discs (subtractDiscLight). Progress and interrupts as captureProbes; an interrupted capture throws
+// lfgi::Error("capture interrupted").
 ProbeField captureGridField(const EmbreeScene& scene, const worlds::SkyModel& sky, const ProbeGrid& grid,
                             std::span<const glm::vec3> offsets, std::span<const uint8_t> active,
                             const CaptureOptions& options, bool showProgress = false);
