@@ -570,7 +570,7 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
   if (fb.size() != entries * kShHalves * 2)
     fail("{}: fallback_sh holds {} bytes, {} expected ({} x 12 halves)", name, fb.size(), entries * kShHalves * 2, entries);
   c.fallback.shHalf.resize(entries * kShHalves);
-  std::memcpy(c.fallback.shHalf.data(), fb.data(), fb.size());
+  if (!fb.empty()) std::memcpy(c.fallback.shHalf.data(), fb.data(), fb.size());
   parts.fallback = fb.size();
 
   c.stats.errorAchieved = r.getFiniteDouble("error_achieved");
