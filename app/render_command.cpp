@@ -1,0 +1,244 @@
+// `lfgi render`: one view shaded from light-field probes (bake/shading_view.h: G-buffer ray cast +
+// probe shading on the Vulkan device), written as a layered EXR + tone-mapped PNG; with --compare also
+// the path-traced reference split the same way (bake::renderShadingReference), an error heat map, and
+// the relative RMS of the total and of the indirect light.
+//
+// Probe sources: --probes capture (Embree capture at render time: scene presets over the preset's or
+// --grid probe grid; world cells over the cell's own placed probes, only those within --probe-radius of
+// the camera, for the cell --cell and its 8 neighbours so borders shade from both sides).
+// --probes vir is not wired yet (gpu/vir_pass + relight belong to another module; they will produce
+// ProbeFields for ShadingRenderer::setProbes in the same way).
+//
+// Output (--out X.exr): X.exr (R/G/B, direct, indirect_diffuse, indirect_specular, indirect, weight),
+// X.png; with --compare: X_reference.exr (R/G/B, direct, indirect), X_reference.png,
+// X_indirect.png and X_reference_indirect.png (same exposure), X_error.png (indirect heat map).
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <optional>
+
+#include "app/cli_args.h"
+#include "app/commands.h"
+#include "bake/embree_scene.h"
+#include "bake/shading_inputs.h"
+#include "bake/shading_view.h"
+#include "core/error.h"
+#include "core/image.h"
+#include "core/progress.h"
+#include "gpu/context.h"
+#include "worlds/gltf_io.h"
+#include "worlds/world_cells.h"
+
+namespace lfgi::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<float> numbers(const std::string& flag, const std::string& text, size_t count, const char* what) {
+  std::vector<float> v;
+  size_t start = 0;
+  while (start <= text.size()) {
+    const size_t end = std::min(text.find(',', start), text.size());
+    const std::string item = text.substr(start, end - start);
+    char* stop = nullptr;
+    const float x = std::strtof(item.c_str(), &stop);
+    if (item.empty() || stop != item.c_str() + item.size() || !std::isfinite(x))
+      fail("{} '{}': expected {} ({} comma-separated numbers); '{}' is not a finite number", flag, text, what, count,
+           item);
+    v.push_back(x);
+    start = end + 1;
+  }
+  if (v.size() != count) fail("{} '{}': expected {} ({} numbers), got {}", flag, text, what, count, v.size());
+  return v;
+}
+
+float medianLuminance(const Image& img, const std::string& layer) {
+  const int r = img.channelIndex(layer + "R"), g = img.channelIndex(layer + "G"), b = img.channelIndex(layer + "B");
+  std::vector<float> lum;
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x)
+      lum.push_back(0.2126f * img.at(x, y, r) + 0.7152f * img.at(x, y, g) + 0.0722f * img.at(x, y, b));
+  std::nth_element(lum.begin(), lum.begin() + long(lum.size() / 2), lum.end());
+  return std::max(lum[lum.size() / 2], 1e-12f);
+}
+
+fs::path withSuffix(const fs::path& exr, const std::string& suffix, const std::string& ext) {
+  fs::path p = exr;
+  p.replace_filename(exr.stem().string() + suffix + ext);
+  return p;
+}
+
+}  // namespace
+
+int runRender(const RenderCommandOptions& opt) {
+  if (opt.world.empty() == opt.scene.empty()) fail("give exactly one of --world DIR (with --cell) or --scene NAME_OR_FILE");
+  if (opt.probes == "vir" || opt.probes == "codec")
+    fail("--probes {}: not available yet in lfgi render (use --probes capture)", opt.probes);
+  if (opt.probes != "capture") fail("--probes '{}': expected capture, vir or codec", opt.probes);
+  if (fs::path(opt.out).extension() != ".exr") fail("--out {}: expected a .exr file name", opt.out);
+  const std::vector<float> cam = numbers("--camera", opt.camera, 6, "px,py,pz,tx,ty,tz");
+  bake::PinholeCamera camera;
+  camera.position = glm::vec3(cam[0], cam[1], cam[2]);
+  camera.target = glm::vec3(cam[3], cam[4], cam[5]);
+  camera.verticalFovDeg = opt.fov;
+  try {
+    bake::validateCamera(camera);
+  } catch (const Error& e) {
+    fail("--camera {} / --fov {}: {}", opt.camera, opt.fov, e.what());
+  }
+  int width = 0, height = 0;
+  {
+    char x = 0, extra = 0;
+    if (std::sscanf(opt.size.c_str(), "%d%c%d%c", &width, &x, &height, &extra) != 3 || x != 'x' || width < 1 ||
+        height < 1 || width > 8192 || height > 8192)
+      fail("--size '{}': expected WIDTHxHEIGHT, each in [1, 8192]", opt.size);
+  }
+  worlds::SkyState ss;
+  ss.timeOfDayHours = opt.timeOfDay;
+  ss.overcast = opt.overcast;
+  const worlds::SkyModel sky = worlds::makeSky(ss);
+  bake::CaptureOptions co;
+  co.resolution = opt.resolution;
+  co.samplesPerTexel = opt.spp;
+  co.maxBounces = opt.bounces;
+  co.seed = opt.seed;
+  bake::validateCaptureOptions(co);
+  std::optional<tbb::global_control> limit;
+  if (opt.threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(opt.threads));
+  InterruptGuard guard;
+
+  worlds::TriangleMesh mesh;
+  std::vector<ProbeField> fields;
+  std::string what;
+  if (!opt.scene.empty()) {
+    worlds::ScenePreset preset;
+    const fs::path p(opt.scene);
+    std::string ext = p.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    if (ext == ".gltf" || ext == ".glb" || fs::is_regular_file(p)) {
+      if (!fs::is_regular_file(p)) fail("--scene {}: no such file", opt.scene);
+      preset.name = p.stem().string();
+      preset.scale = opt.scale;
+      preset.probeDims = glm::ivec3(4);
+      worlds::GltfImportOptions io;
+      io.scale = opt.scale;
+      mesh = worlds::importGltf(p, io);
+    } else {
+      try {
+        preset = worlds::findScenePreset(opt.scene);
+      } catch (const Error& e) {
+        fail("--scene {}: {}", opt.scene, e.what());
+      }
+      mesh = worlds::loadScenePreset(preset, opt.scenesDir);
+    }
+    if (!opt.grid.empty()) {
+      const std::vector<float> d = numbers("--grid", opt.grid, 3, "NX,NY,NZ");
+      for (int k = 0; k < 3; ++k) {
+        if (d[size_t(k)] < 1.0f || d[size_t(k)] > 64.0f || d[size_t(k)] != std::floor(d[size_t(k)]))
+          fail("--grid '{}': each count must be a whole number in [1, 64]", opt.grid);
+        preset.probeDims[k] = int(d[size_t(k)]);
+      }
+    }
+    const ProbeGrid grid = worlds::presetProbeGrid(preset, mesh.bounds());
+    const bake::EmbreeScene scene(mesh, preset.name);
+    spdlog::info("{}: {} triangles, capturing {}x{}x{} probes ({}x{} maps, {} spp)", preset.name, mesh.triangleCount(),
+                 grid.dims.x, grid.dims.y, grid.dims.z, co.resolution, co.resolution, co.samplesPerTexel);
+    fields.push_back(bake::captureGridField(scene, sky, grid, {}, {}, co, true));
+    what = preset.name;
+  } else {
+    if (opt.cell.empty()) fail("--world {}: give the cell with --cell X,Z", opt.world);
+    const worlds::SyntheticWorld world(worlds::readWorldManifest(opt.world));
+    const worlds::CellCoord c = parseCellArg(opt.cell, "--cell");
+    if (!world.contains(c)) fail("--cell {}: outside the world ({} x {} cells)", opt.cell, world.cellsX(), world.cellsZ());
+    std::vector<worlds::CellCoord> cells;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dx = -1; dx <= 1; ++dx)
+        if (world.contains({c.x + dx, c.z + dz})) cells.push_back({c.x + dx, c.z + dz});
+    std::vector<worlds::BuiltCell> built;
+    for (const worlds::CellCoord cc : cells) {
+      built.push_back(worlds::buildCell(world, cc));
+      mesh.append(built.back().mesh);
+    }
+    // Embree sees the 3 x 3 cells, so probes near the border capture what is next door.
+    const bake::EmbreeScene scene(mesh, "world cells");
+    for (worlds::BuiltCell& b : built) {
+      std::vector<uint8_t> active(b.probes.flags.size(), 0);
+      size_t n = 0;
+      for (size_t i = 0; i < active.size(); ++i) {
+        if (b.probes.flags[i] & worlds::kProbeDisabledSolid) continue;
+        if (glm::length(b.probes.position(int64_t(i)) - camera.position) > opt.probeRadius) continue;
+        active[i] = 1;
+        ++n;
+      }
+      if (n == 0) continue;
+      spdlog::info("cell {},{}: capturing {} of {} probes within {} m of the camera", b.layout.cell.x, b.layout.cell.z,
+                   n, active.size(), opt.probeRadius);
+      fields.push_back(bake::captureGridField(scene, sky, b.probes.grid, b.probes.offsets, active, co, true));
+    }
+    if (fields.empty()) fail("--probe-radius {}: no probe of cell {} or its neighbours lies that close to the camera", opt.probeRadius, opt.cell);
+    what = fmt::format("world {} cells around {}", opt.world, opt.cell);
+  }
+
+  auto ctx = gpu::createContext();
+  bake::ShadingRenderer renderer(*ctx, mesh);
+  std::vector<const ProbeField*> ptrs;
+  for (const ProbeField& f : fields) ptrs.push_back(&f);
+  renderer.setProbes(ptrs, opt.specularLevels);
+  gpu::ShadingOptions so;
+  so.chebyshev = !opt.noChebyshev;
+  const bake::ShadedView view = renderer.render(sky, camera, width, height, so);
+  const fs::path exr(opt.out);
+  if (!exr.parent_path().empty()) fs::create_directories(exr.parent_path());
+  writeExr(exr, view.image);
+  const float exposure = std::log2(0.18f / medianLuminance(view.image, ""));
+  writePng(withSuffix(exr, "", ".png"), view.image, exposure);
+  spdlog::info("render {}x{} of {} on {}: G-buffer {:.2f} ms, shading {:.2f} ms -> {}", width, height, what,
+               ctx->info.name, view.gbufferMs, view.shadeMs, exr.string());
+  if (!opt.compare) return 0;
+
+  bake::RenderOptions ro;
+  ro.width = width;
+  ro.height = height;
+  ro.samplesPerPixel = opt.referenceSpp;
+  ro.maxBounces = opt.bounces;
+  ro.seed = opt.seed;
+  const bake::EmbreeScene scene(mesh, what);
+  const bake::RenderResult ref = bake::renderShadingReference(scene, sky, camera, ro, true);
+  if (ref.interrupted) {
+    std::fprintf(stderr, "lfgi: interrupted; reference not written\n");
+    return 130;
+  }
+  writeExr(withSuffix(exr, "_reference", ".exr"), ref.image);
+  writePng(withSuffix(exr, "_reference", ".png"), ref.image, exposure);
+  const float indirectExposure = std::log2(0.18f / medianLuminance(ref.image, "indirect."));
+  writePng(withSuffix(exr, "_indirect", ".png"), view.image, indirectExposure, ToneMap::kAcesFitted, "indirect.");
+  writePng(withSuffix(exr, "_reference_indirect", ".png"), ref.image, indirectExposure, ToneMap::kAcesFitted, "indirect.");
+  writePng(withSuffix(exr, "_error", ".png"), bake::errorHeatMap(view.image, "indirect.", ref.image, "indirect."), 1.0f);
+  // Error over pixels that probes shade (surfaces), so sky pixels (exact in both) do not dilute it.
+  std::vector<uint8_t> mask(size_t(width) * size_t(height), 0);
+  const int wc = view.image.channelIndex("weight");
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) mask[size_t(y) * size_t(width) + size_t(x)] = view.image.at(x, y, wc) > 0.0f;
+  size_t shaded = 0;
+  for (uint8_t m : mask) shaded += m;
+  if (shaded == 0) {
+    std::printf("no pixel is shaded from probes (none captured near what the camera sees; raise --probe-radius)\n");
+    return 0;
+  }
+  const double total = bake::layerRelativeRms(view.image, "", ref.image, "", &mask);
+  const double indirect = bake::layerRelativeRms(view.image, "indirect.", ref.image, "indirect.", &mask);
+  std::printf("relative RMS vs path-traced reference (%d spp, %zu pixels shaded from probes): total %.4f, indirect %.4f\n",
+              opt.referenceSpp, shaded, total, indirect);
+  spdlog::info("reference {:.2f} s -> {}, error map {}", ref.seconds, withSuffix(exr, "_reference", ".exr").string(),
+               withSuffix(exr, "_error", ".png").string());
+  return 0;
+}
+
+}  // namespace lfgi::app
