@@ -126,38 +126,6 @@ int main(int argc, char** argv) {
   renderCmd->add_option("--out", renderOpt.out, "Output .exr (PNGs are written beside it)")->required();
   renderCmd->add_option("--threads", renderOpt.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 256));
 
-  lfgi::app::FlyOptions flyOpt, profileOpt;
-  profileOpt.profile = true;
-  auto addFlyOptions = [](CLI::App* c, lfgi::app::FlyOptions& o) {
-    c->add_option("--world", o.world, "World directory (cell layout); default: 4096 m with 64 m cells");
-    c->add_option("--path", o.path, "Camera path: loop or line")->capture_default_str();
-    c->add_option("--speed", o.speed, "Camera speed, m/s")->check(CLI::Range(0.0, 10000.0))->capture_default_str();
-    c->add_option("--seconds", o.seconds, "Simulated flight time")->check(CLI::Range(0.01, 3600.0))->capture_default_str();
-    c->add_option("--fps", o.fps, "Frames per simulated second")->check(CLI::Range(1.0, 1000.0))->capture_default_str();
-    c->add_option("--budget-mb", o.budgetMb, "Resident light-field memory budget, MB")->check(CLI::Range(0.01, 1e6))->capture_default_str();
-    c->add_option("--decode-radius", o.decodeRadius, "Cells nearer than this are loaded, m")->check(CLI::Range(1.0, 1e5))->capture_default_str();
-    c->add_option("--io-threads", o.ioThreads, "IO threads (0: inline, --loads-per-frame per frame)")->check(CLI::Range(0, 64))->capture_default_str();
-    c->add_option("--loads-per-frame", o.loadsPerFrame, "IO bandwidth with --io-threads 0, cells per frame")->check(CLI::Range(1, 1024))->capture_default_str();
-    c->add_option("--load-delay-us", o.loadDelayUs, "Simulated read + decode time per cell")->check(CLI::Range(0, 10000000))->capture_default_str();
-    c->add_option("--resolution", o.resolution, "Probe octahedral resolution of the synthetic cells")->check(CLI::Range(2, 64))->capture_default_str();
-    c->add_option("--out", o.outDir, "Output directory (default out/fly or out/profile)");
-  };
-  CLI::App* flyCmd = app.add_subcommand("fly", "Fly a camera over the world through the streaming manager: frames.csv + summary.json");
-  addFlyOptions(flyCmd, flyOpt);
-  CLI::App* profileCmd = app.add_subcommand("profile", "Streaming budget profiler: fly-through + Chrome trace (Perfetto), charts, summary.html");
-  addFlyOptions(profileCmd, profileOpt);
-
-  lfgi::app::InspectOptions inspectOpt;
-  CLI::App* inspect = app.add_subcommand("inspect", "Show a cell file: model, bytes by part, error reached, probes, training time");
-  inspect->add_option("cellfile", inspectOpt.file, "Cell file (.vdb)")->required();
-  inspect->add_flag("--json", inspectOpt.json, "Print JSON");
-  lfgi::app::DebugWriteCellOptions debugCellOpt;
-  CLI::App* debugCell = app.add_subcommand("debug-write-cell", "Write a small synthetic cell file (tests)")->group("");
-  debugCell->add_option("--out", debugCellOpt.out, "Output cell file")->required();
-  debugCell->add_flag("--no-network", debugCellOpt.noNetwork, "Fallback only");
-  debugCell->add_flag("--fp16", debugCellOpt.fp16, "FP16 weights instead of int8");
-  debugCell->add_option("--latent-bits", debugCellOpt.latentBits, "8 or 4")->check(CLI::IsMember({4, 8}));
-
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
