@@ -1,0 +1,170 @@
+// Benchmark `shading`: image error of shading from light-field probes (bake/shading_view.h) against the
+// path-traced reference, vs probe spacing and octahedral resolution, and the device time of the shading
+// pass (error against cost). Scenes: the Cornell box (ceiling light only, midnight overcast sky) swept
+// over probe grids and map resolutions; Sponza at noon at one coarse grid; the leak-test house of the
+// default world (sealed / lit indirect ratio).
+//
+// Columns: scene, grid (NX x NY x NZ), spacing_m (smallest axis), resolution (radiance/distance maps;
+// irradiance maps are half of it, >= 4), probes, capture_s, shade_ms (probe shading pass, device
+// timestamps, at the timing size), shade_ms_per_mpixel, gbuffer_ms, indirect_rel_rms, total_rel_rms.
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+
+#include "bake/embree_scene.h"
+#include "bake/shading_inputs.h"
+#include "bake/shading_view.h"
+#include "bench/bench_output.h"
+#include "core/error.h"
+#include "worlds/gltf_io.h"
+
+namespace {
+
+using namespace lfgi;
+
+struct Row {
+  double indirect = 0.0, total = 0.0, shadeMsPerMpix = 0.0;
+};
+
+// Pixels shaded from probes, leaving out those where either image sees an emitter (direct > emitterLevel):
+// at an emitter's edge the reference's jittered samples mix in its radiance, which the total would then
+// compare against a pixel-centre G-buffer.
+std::vector<uint8_t> surfaceMask(const Image& shaded, const Image& ref, float emitterLevel) {
+  std::vector<uint8_t> m(size_t(shaded.width) * size_t(shaded.height), 0);
+  const int w = shaded.channelIndex("weight"), d = shaded.channelIndex("direct.G"), rd = ref.channelIndex("direct.G");
+  for (int y = 0; y < shaded.height; ++y)
+    for (int x = 0; x < shaded.width; ++x)
+      m[size_t(y) * size_t(shaded.width) + size_t(x)] =
+          shaded.at(x, y, w) > 0.0f && shaded.at(x, y, d) < emitterLevel && ref.at(x, y, rd) < emitterLevel;
+  return m;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"lfgi benchmark: shading from light-field probes vs path-traced reference"};
+  std::string out = "out/bench/shading";
+  bool quick = false;
+  std::string scenesDir = "../shared/scenes";
+  app.add_option("--out", out, "Output directory");
+  app.add_option("--scenes-dir", scenesDir, "Folder of the scene presets");
+  app.add_flag("--quick", quick, "Smaller images and sweeps");
+  CLI11_PARSE(app, argc, argv);
+  try {
+    bench::BenchOutput o(out, quick);
+    auto ctx = gpu::createContext();
+    o.setDevice(ctx->info.name);
+    o.setColumns({"scene", "grid", "spacing_m", "resolution", "probes", "capture_s", "shade_ms", "shade_ms_per_mpixel",
+                  "gbuffer_ms", "indirect_rel_rms", "total_rel_rms"});
+    const int refSize = quick ? 32 : 64;
+    const int refSpp = quick ? 2048 : 4096;  // the Cornell light is small: the reference needs many samples
+    const int timeSize = quick ? 256 : 512;
+
+    // One scene: reference once, then each (grid, resolution) configuration.
+    auto sweep = [&](const std::string& name, const worlds::TriangleMesh& mesh, const worlds::SkyModel& sky,
+                     const bake::PinholeCamera& cam, int refW, int refH, int spp,
+                     const std::vector<std::pair<glm::ivec3, int>>& configs, int captureSpp, float emitterLevel) {
+      const bake::EmbreeScene scene(mesh, name);
+      bake::RenderOptions ro;
+      ro.width = refW;
+      ro.height = refH;
+      ro.samplesPerPixel = spp;
+      const auto t0 = std::chrono::steady_clock::now();
+      const bake::RenderResult ref = bake::renderShadingReference(scene, sky, cam, ro);
+      spdlog::info("{}: reference {}x{} at {} spp in {:.1f} s", name, refW, refH, spp,
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+      bake::ShadingRenderer renderer(*ctx, mesh);
+      std::vector<Row> rows;
+      for (const auto& [dims, res] : configs) {
+        worlds::ScenePreset preset;
+        preset.probeDims = dims;
+        const ProbeGrid grid = worlds::presetProbeGrid(preset, mesh.bounds());
+        bake::CaptureOptions co;
+        co.resolution = res;
+        co.irradianceResolution = std::max(4, res / 2);
+        co.samplesPerTexel = captureSpp;
+        const auto c0 = std::chrono::steady_clock::now();
+        const ProbeField f = bake::captureGridField(scene, sky, grid, {}, {}, co);
+        const double captureS = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
+        const ProbeField* fields[] = {&f};
+        renderer.setProbes(fields);
+        const bake::ShadedView v = renderer.render(sky, cam, refW, refH);
+        const std::vector<uint8_t> mask = surfaceMask(v.image, ref.image, emitterLevel);
+        Row row;
+        row.indirect = bake::layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
+        row.total = bake::layerRelativeRms(v.image, "", ref.image, "", &mask);
+        // Timing at a larger size (best of 3 runs, device timestamps).
+        const int tw = timeSize, th = timeSize * refH / refW;
+        double shadeMs = 1e30, gbufMs = 1e30;
+        for (int k = 0; k < 3; ++k) {
+          const bake::ShadedView t = renderer.render(sky, cam, tw, th);
+          shadeMs = std::min(shadeMs, t.shadeMs);
+          gbufMs = std::min(gbufMs, t.gbufferMs);
+        }
+        row.shadeMsPerMpix = shadeMs / (double(tw) * double(th) * 1e-6);
+        const float spacing = std::min({grid.spacing.x, grid.spacing.y, grid.spacing.z});
+        o.addRow({name, fmt::format("{}x{}x{}", dims.x, dims.y, dims.z), bench::num(spacing), std::to_string(res),
+                  std::to_string(grid.probeCount()), bench::num(captureS), bench::num(shadeMs),
+                  bench::num(row.shadeMsPerMpix), bench::num(gbufMs), bench::num(row.indirect), bench::num(row.total)});
+        spdlog::info("{} grid {}x{}x{} res {}: indirect rel RMS {:.4f}, total {:.4f}, shade {:.2f} ms ({:.1f} ms/Mpixel)",
+                     name, dims.x, dims.y, dims.z, res, row.indirect, row.total, shadeMs, row.shadeMsPerMpix);
+        rows.push_back(row);
+      }
+      return rows;
+    };
+
+    // Cornell box.
+    const worlds::ScenePreset& cornellPreset = worlds::findScenePreset("cornell");
+    const worlds::TriangleMesh cornell = worlds::loadScenePreset(cornellPreset, scenesDir);
+    const worlds::SkyModel night = worlds::makeSky(worlds::SkyState{0.0f, 45.0f, 172, 3.0f, 1.0f});
+    bake::PinholeCamera cc;
+    cc.position = glm::vec3(-0.278f, 0.274f, 1.0f);
+    cc.target = glm::vec3(-0.278f, 0.274f, -0.28f);
+    cc.verticalFovDeg = 40.0f;
+    std::vector<std::pair<glm::ivec3, int>> configs;
+    const std::vector<int> grids = quick ? std::vector<int>{2, 3, 4} : std::vector<int>{2, 3, 4, 6, 8};
+    const std::vector<int> resolutions = quick ? std::vector<int>{8, 32} : std::vector<int>{8, 32, 64};
+    for (int g : grids) configs.push_back({glm::ivec3(g), 16});
+    for (int r : resolutions) configs.push_back({glm::ivec3(4), r});
+    const std::vector<Row> c = sweep("cornell", cornell, night, cc, refSize, refSize, refSpp, configs, 64, 0.01f);
+    o.summary()["cornell_indirect_rel_rms"] = c[0].indirect;  // the paper's 2 x 2 x 2 grid, 16 x 16 maps
+    o.summary()["cornell_indirect_rel_rms_grid"] = "2x2x2, 16x16 maps";
+    o.summary()["shade_ms_per_mpixel"] = c[0].shadeMsPerMpix;
+
+    // Sponza at noon, one coarse grid (the paper's 18 x 7 x 11 is too slow to capture here with --quick).
+    {
+      const worlds::ScenePreset& sp = worlds::findScenePreset("sponza");
+      const worlds::TriangleMesh sponza = worlds::loadScenePreset(sp, scenesDir);
+      const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
+      bake::PinholeCamera scam;
+      scam.position = glm::vec3(-12.0f, 5.0f, -0.5f);
+      scam.target = glm::vec3(12.0f, 7.0f, -0.5f);
+      scam.verticalFovDeg = 60.0f;
+      const glm::ivec3 dims = quick ? glm::ivec3(9, 4, 6) : glm::ivec3(18, 7, 11);
+      const std::vector<Row> s = sweep("sponza", sponza, noon, scam, quick ? 64 : 128, quick ? 36 : 72,
+                                       quick ? 64 : 256, {{dims, quick ? 8 : 16}}, quick ? 16 : 64, 1e30f);
+      o.summary()["sponza_indirect_rel_rms"] = s[0].indirect;
+      o.summary()["sponza_grid"] = fmt::format("{}x{}x{}", dims.x, dims.y, dims.z);
+    }
+
+    // Leak test house.
+    {
+      const worlds::SyntheticWorld world(worlds::WorldParams::smallDefault(1));
+      const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
+      bake::CaptureOptions co;
+      co.samplesPerTexel = quick ? 16 : 64;
+      co.maxBounces = 6;
+      const bake::LeakTestResult l = bake::measureLeakTest(*ctx, world, {1, 1}, noon, co);
+      o.summary()["leak_ratio"] = l.ratioOn();
+      o.summary()["leak_ratio_without_chebyshev"] = l.ratioOff();
+      spdlog::info("leak test: sealed / lit indirect {:.5f} with Chebyshev, {:.5f} without", l.ratioOn(), l.ratioOff());
+    }
+    o.save();
+  } catch (const Error& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  }
+  return 0;
+}
