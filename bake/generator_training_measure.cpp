@@ -1,5 +1,5 @@
 // Developer measurement of the generator training (not a test, not built by default):
-//   lfgi_generator_training_measure [SCENES_DIR] [--quick]
+//   lfgi_generator_training_measure [SCENES_DIR] [--quick] [--threads N] [--steps N] [--probes N] [--spp N] [--sizing-steps N]
 // Captures a city cell and a field cell of WorldParams::smallDefault(1) under four lighting keys and the
 // Cornell box under one, then trains per scene: stored latents without and with the adversarial term,
 // position latents, and the automatic model sizing at a 5 % irradiance target. Prints one table row per
@@ -91,29 +91,41 @@ Scene cornell(const std::string& scenesDir, const CaptureOptions& co) {
 int main(int argc, char** argv) {
   std::string scenesDir = "../shared/scenes";
   bool quick = false;
+  int threads = 1, steps = 0, probes = 0, spp = 0, sizingSteps = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
+    auto next = [&] { return i + 1 < argc ? std::stoi(argv[++i]) : 0; };
     if (a == "--quick") quick = true;
+    else if (a == "--threads") threads = next();
+    else if (a == "--steps") steps = next();
+    else if (a == "--probes") probes = next();
+    else if (a == "--spp") spp = next();
+    else if (a == "--sizing-steps") sizingSteps = next();
     else scenesDir = a;
   }
+  if (steps <= 0) steps = quick ? 300 : 1500;
+  if (probes <= 0) probes = quick ? 16 : 48;
+  if (spp <= 0) spp = quick ? 4 : 16;
+  if (sizingSteps <= 0) sizingSteps = steps;
   try {
     CaptureOptions co;
     co.resolution = 16;
     co.irradianceResolution = 8;
-    co.samplesPerTexel = quick ? 4 : 16;
+    co.samplesPerTexel = spp;
     co.maxBounces = 3;
     std::vector<Scene> scenes;
-    scenes.push_back(syntheticCell(worlds::CellKind::kCity, co, quick ? 16 : 48, quick));
-    scenes.push_back(syntheticCell(worlds::CellKind::kField, co, quick ? 16 : 48, quick));
+    scenes.push_back(syntheticCell(worlds::CellKind::kCity, co, size_t(probes), quick));
+    scenes.push_back(syntheticCell(worlds::CellKind::kField, co, size_t(probes), quick));
     scenes.push_back(cornell(scenesDir, co));
 
     GeneratorTrainingOptions base;
     base.arch.latentDim = 8;
     base.arch.convChannels = {32, 16, kGeneratorChannels};
-    base.maxSteps = quick ? 300 : 1500;
+    base.maxSteps = steps;
     base.evalEvery = 100;
     base.irradianceErrorTarget = 0.0;  // fixed budget: compare options at equal steps
-    base.threads = 2;
+    base.threads = threads;
+    base.batchSize = 64;
     std::printf("%-12s %-22s %-26s %8s %9s %8s %8s %7s %8s %6s\n", "scene", "run", "model", "params", "bytes",
                 "B/probe", "irrRMS", "PSNRdB", "seconds", "steps");
     for (const Scene& s : scenes) {
@@ -138,7 +150,7 @@ int main(int argc, char** argv) {
       ModelSizingOptions so;
       so.irradianceErrorTarget = 0.05;
       so.training = base;
-      so.training.maxSteps = quick ? 300 : 1500;
+      so.training.maxSteps = sizingSteps;
       const CellModelChoice c = chooseCellModel(s.set, s.flags, so);
       for (const SizingAttempt& a : c.attempts)
         row(s.name, "  sizing try", a.kind == CellModelKind::kGenerator ? archName(a.arch)
