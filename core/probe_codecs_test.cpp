@@ -150,6 +150,30 @@ TEST(ProbeCodecs, PcaRecoversALowRankCellAndMeetsItsTarget) {
   EXPECT_LT(el, 0.04 + 1e-3);
 }
 
+// More probes than map values (P > D): the covariance path instead of the Gram path; and an all-black
+// cell keeps no component at all.
+TEST(ProbeCodecs, PcaCovariancePathAndBlackCell) {
+  const int P = 80, n = 4;
+  ProbeField f = skyField(P, n, false, 21);
+  std::mt19937 rng(9);
+  std::normal_distribution<float> g(0.0f, 0.02f);
+  for (float& v : f.radiance) v *= 1.0f + g(rng);
+  size_t tightBytes = 0, looseBytes = 0;
+  const ProbeField tight = roundTrip(*makePcaCodec(0.005), f, &tightBytes);
+  const ProbeField loose = roundTrip(*makePcaCodec(0.03), f, &looseBytes);
+  const double et = relativeRms(tight.radiance, f.radiance), el = relativeRms(loose.radiance, f.radiance);
+  std::printf("P > D cell: target 0.005 -> %.4f (%zu B), target 0.03 -> %.4f (%zu B)\n", et, tightBytes, el, looseBytes);
+  EXPECT_LT(et, 0.005 + 1e-3);
+  EXPECT_LT(el, 0.03 + 1e-3);
+  EXPECT_LT(looseBytes, tightBytes);
+
+  const ProbeField black = emptyField(5, 4);
+  size_t bytes = 0;
+  const ProbeField d = roundTrip(*makePcaCodec(0.01), black, &bytes);
+  EXPECT_EQ(bytes, size_t(11 + 2 + 4 + 2 * 48 + 4 + 4));  // k = 0: header, mean, empty basis and coefficients
+  for (float v : d.radiance) EXPECT_EQ(v, 0.0f);
+}
+
 TEST(ProbeCodecs, AstcHdrBytesAndError) {
   // Smooth maps: the block size sets the error. With a sun texel 10^3 above its neighbours the block
   // holding it dominates the error (printed, bounded loosely).
