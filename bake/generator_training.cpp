@@ -678,6 +678,16 @@ std::string_view cellModelKindName(CellModelKind k) {
   return "unknown";
 }
 
+std::string CellModelChoice::describe() const {
+  if (kind != CellModelKind::kGenerator || !generator) return "no network: " + std::string(cellModelKindName(kind));
+  const GeneratorArch& a = generator->weights.arch;
+  std::string s = a.latentSource == LatentSource::Stored ? "z" + std::to_string(a.latentDim)
+                                                         : "pos" + std::to_string(a.fourierOctaves);
+  s += " C";
+  for (size_t i = 0; i + 1 < a.convChannels.size(); ++i) s += (i ? "-" : "") + std::to_string(a.convChannels[i]);
+  return s + (a.latentSource == LatentSource::Stored ? " (stored latents)" : " (position latents)");
+}
+
 std::vector<GeneratorArch> sizingCandidates(int resolution, LatentSource source) {
   int k = 0;
   while ((kBase << k) < resolution) ++k;
@@ -778,7 +788,8 @@ CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const
     if (!(f & worlds::kProbeDisabledSolid) && !(f & worlds::kProbeSkyOnly)) allSky = false;
 
   std::vector<CellModelChoice> fits;
-  for (CellModelKind kind : {CellModelKind::kConstant, CellModelKind::kShL1, CellModelKind::kShL2}) {
+  for (CellModelKind kind : options.noNetworkKinds) {
+    if (kind == CellModelKind::kGenerator) fail("ModelSizingOptions.noNetworkKinds lists the generator");
     const auto ts = std::chrono::steady_clock::now();
     NoNetwork nn = fitNoNetwork(set, kind);
     CellModelChoice c;
@@ -799,7 +810,7 @@ CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const
   };
   for (CellModelChoice& c : fits)
     if (c.reachedTarget) return finish(std::move(c));
-  if (allSky) {
+  if (allSky && !fits.empty()) {
     size_t best = 0;
     for (size_t i = 1; i < fits.size(); ++i)
       if (fits[i].error.irradianceRelativeRms < fits[best].error.irradianceRelativeRms) best = i;

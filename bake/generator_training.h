@@ -194,6 +194,9 @@ struct CellModelChoice {
   size_t bytes = 0;                     // FP32: 4 x (parameters + latents + lighting) (+ 8 scale bytes)
   double trainingSeconds = 0.0;         // the whole search
   std::vector<SizingAttempt> attempts;  // in the order tried
+  // The model in words for CellBakeStats::model (core/cell_file.h): "z8 C32-16 (stored latents)",
+  // "pos3 C32-16 (position latents)" or "no network: SH L1".
+  std::string describe() const;
 };
 
 struct ModelSizingOptions {
@@ -203,6 +206,10 @@ struct ModelSizingOptions {
   // error.
   std::vector<GeneratorArch> candidates;
   LatentSource latentSource = LatentSource::Stored;
+  // No-network models tried (in this order, cheapest first). The cell file of core/cell_file.h stores
+  // one SH L1 fallback per cell: a writer of that format passes {kShL1} and one lighting key.
+  std::vector<CellModelKind> noNetworkKinds = {CellModelKind::kConstant, CellModelKind::kShL1,
+                                               CellModelKind::kShL2};
   GeneratorTrainingOptions training;    // template: arch and target are replaced per candidate
 };
 

@@ -279,6 +279,13 @@ TEST(GeneratorTraining, SizingGivesAnAllSkyCellNoNetwork) {
   EXPECT_EQ(c.kind, CellModelKind::kShL2);  // the sun's irradiance lobe needs band 2
   EXPECT_EQ(c.lighting.size(), 2u * 9u * 3u);
   EXPECT_LT(c.error.irradianceRelativeRms, 0.1);
+  EXPECT_EQ(c.describe(), "no network: sh-l2");
+  // Restricted to what core/cell_file.h stores (one SH L1 fallback): SH L1.
+  ModelSizingOptions l1 = so;
+  l1.noNetworkKinds = {CellModelKind::kShL1};
+  const CellModelChoice c1 = chooseCellModel(set, flags, l1);
+  EXPECT_EQ(c1.kind, CellModelKind::kShL1);
+  EXPECT_EQ(c1.lighting.size(), 2u * 4u * 3u);
   EXPECT_FALSE(c.reachedTarget);
   EXPECT_EQ(c.parameterCount, 0u);
 
@@ -294,6 +301,7 @@ TEST(GeneratorTraining, SizingGivesAnAllSkyCellNoNetwork) {
   EXPECT_LT(g.attempts[3].bytes, g.attempts[4].bytes);
   EXPECT_EQ(g.kind, CellModelKind::kGenerator);
   ASSERT_TRUE(g.generator.has_value());
+  EXPECT_NE(g.describe().find(" C"), std::string::npos) << g.describe();
   EXPECT_EQ(g.bytes, generatorBytes(g.generator->weights.arch, tinyCell().set.probeCount()));
   for (const SizingAttempt& a : g.attempts) EXPECT_GE(a.irradianceRelativeRms, g.error.irradianceRelativeRms);
 }
