@@ -129,4 +129,20 @@ struct RenderCommandOptions {
 };
 int runRender(const RenderCommandOptions& options);
 
+// `lfgi inspect CELLFILE` (app/inspect_command.cpp): model, bytes by part, error reached, probe count and
+// training time of a cell file (core/cell_file.h); a bad file is an lfgi::Error (exit 1).
+struct InspectOptions {
+  std::string file;
+  bool json = false;
+};
+int runInspect(const InspectOptions& options);
+// Hidden `lfgi debug-write-cell`: writes a small synthetic cell file (CLI tests; trying inspect without a bake).
+struct DebugWriteCellOptions {
+  std::string out;
+  bool noNetwork = false;
+  bool fp16 = false;
+  int latentBits = 8;
+};
+int runDebugWriteCell(const DebugWriteCellOptions& options);
+
 }  // namespace lfgi::app

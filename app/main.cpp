@@ -126,6 +126,17 @@ int main(int argc, char** argv) {
   renderCmd->add_option("--out", renderOpt.out, "Output .exr (PNGs are written beside it)")->required();
   renderCmd->add_option("--threads", renderOpt.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 256));
 
+  lfgi::app::InspectOptions inspectOpt;
+  CLI::App* inspect = app.add_subcommand("inspect", "Show a cell file: model, bytes by part, error reached, probes, training time");
+  inspect->add_option("cellfile", inspectOpt.file, "Cell file (.vdb)")->required();
+  inspect->add_flag("--json", inspectOpt.json, "Print JSON");
+  lfgi::app::DebugWriteCellOptions debugCellOpt;
+  CLI::App* debugCell = app.add_subcommand("debug-write-cell", "Write a small synthetic cell file (tests)")->group("");
+  debugCell->add_option("--out", debugCellOpt.out, "Output cell file")->required();
+  debugCell->add_flag("--no-network", debugCellOpt.noNetwork, "Fallback only");
+  debugCell->add_flag("--fp16", debugCellOpt.fp16, "FP16 weights instead of int8");
+  debugCell->add_option("--latent-bits", debugCellOpt.latentBits, "8 or 4")->check(CLI::IsMember({4, 8}));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -150,6 +161,8 @@ int main(int argc, char** argv) {
     if (*reference) return lfgi::app::runReference(refOpt);
     if (*virCmd) return lfgi::app::runVir(virOpt);
     if (*renderCmd) return lfgi::app::runRender(renderOpt);
+    if (*inspect) return lfgi::app::runInspect(inspectOpt);
+    if (*debugCell) return lfgi::app::runDebugWriteCell(debugCellOpt);
     std::fputs(app.help().c_str(), stdout);
     return 0;
   } catch (const lfgi::Error& e) {
