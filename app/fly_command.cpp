@@ -139,6 +139,13 @@ int runFly(const FlyOptions& opt) {
   j["cells_relit"] = s.cellsRelit;
   j["cells_failed"] = s.cellsFailed;
   j["peak_rss_mb"] = peakRssMb();
+  // Sizes the memory regression tests pin (tests/baselines/memory.json).
+  const size_t cellBytes = source.maxCellBytes();
+  const size_t cellProbes = size_t(src.layout.cellSize / src.probeSpacing) * size_t(src.layout.cellSize / src.probeSpacing) *
+                            size_t(src.layers);
+  j["cell_bytes"] = cellBytes;
+  j["bytes_per_probe"] = double(cellBytes) / double(cellProbes);
+  j["pool_bytes"] = (fo.streaming.memoryBudgetBytes / cellBytes) * cellBytes;
   writeFileAtomic(out / "frames.csv", framesCsv(frames));
   writeFileAtomic(out / "summary.json", j.dump(2) + "\n");
   std::printf("fly-through: %d frames, %d with missing GI, fallback %.2f %% of visible samples, p99 frame %.3f ms, peak resident %.1f MB, %ld cells loaded\n",

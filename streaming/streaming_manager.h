@@ -1,7 +1,8 @@
 // StreamingManager: keeps the light field of the cells around the camera resident (DESIGN.md §1,
 // issue 8). A game loop calls update() once per frame with the camera; the manager
 //   1. wants every cell within decodeRadius of the camera or of its predicted position
-//      (position + velocity * prefetchSeconds), ordered by priority = distance x view-direction factor;
+//      (position + velocity * prefetchSeconds, at most maxPrefetchDistance ahead), ordered by priority =
+//      distance x view-direction factor (cells near the prediction count half the look-ahead farther);
 //   2. drops resident cells beyond keepRadius (> decodeRadius: a camera oscillating across a border does
 //      not thrash) and, when the memory budget is full, the resident cell of worst priority if the
 //      candidate is better;
@@ -44,7 +45,8 @@ namespace lfgi::streaming {
 struct StreamingConfig {
   float decodeRadius = 160.0f;        // m, xz distance to a cell's square
   float keepRadius = 224.0f;          // m, > decodeRadius
-  float prefetchSeconds = 2.0f;       // predicted position = position + velocity * this
+  float prefetchSeconds = 2.0f;       // predicted position = position + velocity * this,
+  float maxPrefetchDistance = 160.0f; // ... at most this far ahead (m)
   float viewWeight = 0.5f;            // priority = distance * (1 - viewWeight * max(0, cos(view, to cell)))
   size_t memoryBudgetBytes = size_t(256) << 20;
   int ioThreads = 2;                  // 0: inline loads (deterministic)
