@@ -145,4 +145,33 @@ struct DebugWriteCellOptions {
 };
 int runDebugWriteCell(const DebugWriteCellOptions& options);
 
+// `lfgi render` (app/render_command.cpp): one view shaded from light-field probes -> layered EXR + PNG;
+// --compare adds the path-traced reference, an error heat map and the relative RMS.
+struct RenderCommandOptions {
+  std::string world;
+  std::string cell;  // "X,Z" (with --world)
+  std::string scene;
+  std::string scenesDir = "../shared/scenes";
+  float scale = 1.0f;
+  std::string grid;  // "NX,NY,NZ" probe grid override for scenes
+  std::string camera;
+  float fov = 60.0f;
+  std::string size = "320x180";
+  float timeOfDay = 12.0f;
+  float overcast = 0.0f;
+  std::string probes = "capture";
+  int resolution = 16;
+  int spp = 64;
+  int bounces = 12;
+  int specularLevels = 4;
+  float probeRadius = 0.0f;  // 0: the probes around what the camera sees
+  bool noChebyshev = false;
+  bool compare = false;
+  int referenceSpp = 64;
+  uint64_t seed = 1;
+  std::string out;
+  int threads = 0;
+};
+int runRender(const RenderCommandOptions& options);
+
 }  // namespace lfgi::app

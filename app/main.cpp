@@ -137,6 +137,32 @@ int main(int argc, char** argv) {
   debugCell->add_flag("--fp16", debugCellOpt.fp16, "FP16 weights instead of int8");
   debugCell->add_option("--latent-bits", debugCellOpt.latentBits, "8 or 4")->check(CLI::IsMember({4, 8}));
 
+  lfgi::app::RenderCommandOptions renderOpt;
+  CLI::App* renderCmd = app.add_subcommand("render", "Shade one view from light-field probes (EXR layers + PNG; --compare: path-traced reference, error map)");
+  CLI::Option* renWorld = renderCmd->add_option("--world", renderOpt.world, "World directory (with --cell)");
+  renderCmd->add_option("--cell", renderOpt.cell, "Cell as X,Z (its probes and its neighbours')");
+  renderCmd->add_option("--scene", renderOpt.scene, "Scene preset name or .gltf/.glb file")->excludes(renWorld);
+  renderCmd->add_option("--scenes-dir", renderOpt.scenesDir, "Folder of the scene presets")->capture_default_str();
+  renderCmd->add_option("--scale", renderOpt.scale, "Unit scale of a scene file (metres per unit)")->check(CLI::PositiveNumber);
+  renderCmd->add_option("--grid", renderOpt.grid, "Scene probe grid NX,NY,NZ (default: the preset's)");
+  renderCmd->add_option("--camera", renderOpt.camera, "Camera position and target: px,py,pz,tx,ty,tz")->required();
+  renderCmd->add_option("--fov", renderOpt.fov, "Vertical field of view, degrees")->capture_default_str();
+  renderCmd->add_option("--size", renderOpt.size, "Image size WIDTHxHEIGHT")->capture_default_str();
+  renderCmd->add_option("--time", renderOpt.timeOfDay, "Time of day, hours")->check(CLI::Range(0.0, 24.0))->capture_default_str();
+  renderCmd->add_option("--overcast", renderOpt.overcast, "Weather, 0 clear .. 1 overcast")->check(CLI::Range(0.0, 1.0))->capture_default_str();
+  renderCmd->add_option("--probes", renderOpt.probes, "Probe source: capture (vir, codec: not yet)")->capture_default_str();
+  renderCmd->add_option("--resolution", renderOpt.resolution, "Probe octahedral map resolution")->check(CLI::Range(2, 128))->capture_default_str();
+  renderCmd->add_option("--spp", renderOpt.spp, "Capture samples per texel")->check(CLI::Range(1, 65536))->capture_default_str();
+  renderCmd->add_option("--bounces", renderOpt.bounces, "Maximum bounces (capture and reference)")->check(CLI::Range(0, 256))->capture_default_str();
+  renderCmd->add_option("--specular-levels", renderOpt.specularLevels, "GGX-prefiltered roughness levels")->check(CLI::Range(1, 16))->capture_default_str();
+  renderCmd->add_option("--probe-radius", renderOpt.probeRadius, "World: capture the probes this close to the camera (m; default 0: those around visible surfaces)")->check(CLI::Range(0.0, 1e5))->capture_default_str();
+  renderCmd->add_flag("--no-chebyshev", renderOpt.noChebyshev, "Turn off visibility weights (shows leaks)");
+  renderCmd->add_flag("--compare", renderOpt.compare, "Also path-trace the reference, write an error map, print the relative RMS");
+  renderCmd->add_option("--reference-spp", renderOpt.referenceSpp, "Reference samples per pixel")->check(CLI::Range(1, 65536))->capture_default_str();
+  renderCmd->add_option("--seed", renderOpt.seed, "Random seed")->capture_default_str();
+  renderCmd->add_option("--out", renderOpt.out, "Output .exr (PNGs are written beside it)")->required();
+  renderCmd->add_option("--threads", renderOpt.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 256));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -4,8 +4,9 @@
 // the relative RMS of the total and of the indirect light.
 //
 // Probe sources: --probes capture (Embree capture at render time: scene presets over the preset's or
-// --grid probe grid; world cells over the cell's own placed probes, only those within --probe-radius of
-// the camera, for the cell --cell and its 8 neighbours so borders shade from both sides).
+// --grid probe grid; world cells over the cells' own placed probes, for the cell --cell and its 8
+// neighbours so borders shade from both sides: only the probes around surfaces the camera sees, or with
+// --probe-radius R those within R m of the camera).
 // --probes vir is not wired yet (gpu/vir_pass + relight belong to another module; they will produce
 // ProbeFields for ShadingRenderer::setProbes in the same way).
 //
@@ -168,21 +169,52 @@ int runRender(const RenderCommandOptions& opt) {
     }
     // Embree sees the 3 x 3 cells, so probes near the border capture what is next door.
     const bake::EmbreeScene scene(mesh, "world cells");
-    for (worlds::BuiltCell& b : built) {
-      std::vector<uint8_t> active(b.probes.flags.size(), 0);
+    // Which probes to capture: with --probe-radius those that close to the camera, else (default) the
+    // lattice probes around every surface point the camera sees (pixel-centre rays), i.e. exactly the
+    // probes the shading pass will read, including the neighbouring cells' first layers.
+    std::vector<std::vector<uint8_t>> active(built.size());
+    for (size_t k = 0; k < built.size(); ++k) active[k].assign(built[k].probes.flags.size(), 0);
+    if (opt.probeRadius > 0.0f) {
+      for (size_t k = 0; k < built.size(); ++k)
+        for (size_t i = 0; i < active[k].size(); ++i)
+          active[k][i] = glm::length(built[k].probes.position(int64_t(i)) - camera.position) <= opt.probeRadius;
+    } else {
+      for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+          const glm::vec3 d = bake::cameraRayDirection(camera, width, height, float(x) + 0.5f, float(y) + 0.5f);
+          const std::optional<bake::RayHit> hit = scene.intersect(camera.position, d);
+          if (!hit) continue;
+          const glm::vec3 p = camera.position + hit->t * d;
+          for (size_t k = 0; k < built.size(); ++k) {
+            const ProbeGrid& g = built[k].probes.grid;
+            const glm::vec3 local = (p - g.origin) / g.spacing;
+            if (glm::any(glm::lessThan(local, glm::vec3(-1.0f))) || glm::any(glm::greaterThan(local, glm::vec3(g.dims))))
+              continue;
+            const glm::ivec3 base = glm::ivec3(glm::floor(local));
+            for (int c8 = 0; c8 < 8; ++c8) {
+              const glm::ivec3 q = base + glm::ivec3(c8 & 1, (c8 >> 1) & 1, (c8 >> 2) & 1);
+              const glm::ivec3 qc = glm::clamp(q, glm::ivec3(0), g.dims - 1);
+              if (glm::any(glm::notEqual(q, qc)) && glm::all(glm::greaterThanEqual(local, glm::vec3(0.0f))) &&
+                  glm::all(glm::lessThan(local, glm::vec3(g.dims))))
+                active[k][size_t(g.linearIndex(qc))] = 1;  // clamped corner of the owning grid
+              else if (glm::all(glm::equal(q, qc)))
+                active[k][size_t(g.linearIndex(q))] = 1;
+            }
+          }
+        }
+    }
+    for (size_t k = 0; k < built.size(); ++k) {
+      worlds::BuiltCell& b = built[k];
       size_t n = 0;
-      for (size_t i = 0; i < active.size(); ++i) {
-        if (b.probes.flags[i] & worlds::kProbeDisabledSolid) continue;
-        if (glm::length(b.probes.position(int64_t(i)) - camera.position) > opt.probeRadius) continue;
-        active[i] = 1;
-        ++n;
+      for (size_t i = 0; i < active[k].size(); ++i) {
+        if (b.probes.flags[i] & worlds::kProbeDisabledSolid) active[k][i] = 0;
+        n += active[k][i];
       }
       if (n == 0) continue;
-      spdlog::info("cell {},{}: capturing {} of {} probes within {} m of the camera", b.layout.cell.x, b.layout.cell.z,
-                   n, active.size(), opt.probeRadius);
-      fields.push_back(bake::captureGridField(scene, sky, b.probes.grid, b.probes.offsets, active, co, true));
+      spdlog::info("cell {},{}: capturing {} of {} probes", b.layout.cell.x, b.layout.cell.z, n, active[k].size());
+      fields.push_back(bake::captureGridField(scene, sky, b.probes.grid, b.probes.offsets, active[k], co, true));
     }
-    if (fields.empty()) fail("--probe-radius {}: no probe of cell {} or its neighbours lies that close to the camera", opt.probeRadius, opt.cell);
+    if (fields.empty()) fail("--cell {}: no probe of the cell or its neighbours is near what the camera sees", opt.cell);
     what = fmt::format("world {} cells around {}", opt.world, opt.cell);
   }
 
@@ -229,7 +261,7 @@ int runRender(const RenderCommandOptions& opt) {
   size_t shaded = 0;
   for (uint8_t m : mask) shaded += m;
   if (shaded == 0) {
-    std::printf("no pixel is shaded from probes (none captured near what the camera sees; raise --probe-radius)\n");
+    std::printf("no pixel is shaded from probes (none captured near what the camera sees; move the camera over --cell)\n");
     return 0;
   }
   const double total = bake::layerRelativeRms(view.image, "", ref.image, "", &mask);
