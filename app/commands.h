@@ -119,7 +119,7 @@ struct RenderCommandOptions {
   int spp = 64;
   int bounces = 12;
   int specularLevels = 4;
-  float probeRadius = 24.0f;
+  float probeRadius = 0.0f;  // 0: the probes around what the camera sees
   bool noChebyshev = false;
   bool compare = false;
   int referenceSpp = 64;

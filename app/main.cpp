@@ -118,7 +118,7 @@ int main(int argc, char** argv) {
   renderCmd->add_option("--spp", renderOpt.spp, "Capture samples per texel")->check(CLI::Range(1, 65536))->capture_default_str();
   renderCmd->add_option("--bounces", renderOpt.bounces, "Maximum bounces (capture and reference)")->check(CLI::Range(0, 256))->capture_default_str();
   renderCmd->add_option("--specular-levels", renderOpt.specularLevels, "GGX-prefiltered roughness levels")->check(CLI::Range(1, 16))->capture_default_str();
-  renderCmd->add_option("--probe-radius", renderOpt.probeRadius, "World: capture only probes this close to the camera (m)")->check(CLI::PositiveNumber)->capture_default_str();
+  renderCmd->add_option("--probe-radius", renderOpt.probeRadius, "World: capture the probes this close to the camera (m; default 0: those around visible surfaces)")->check(CLI::Range(0.0, 1e5))->capture_default_str();
   renderCmd->add_flag("--no-chebyshev", renderOpt.noChebyshev, "Turn off visibility weights (shows leaks)");
   renderCmd->add_flag("--compare", renderOpt.compare, "Also path-trace the reference, write an error map, print the relative RMS");
   renderCmd->add_option("--reference-spp", renderOpt.referenceSpp, "Reference samples per pixel")->check(CLI::Range(1, 65536))->capture_default_str();
