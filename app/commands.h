@@ -129,6 +129,26 @@ struct RenderCommandOptions {
 };
 int runRender(const RenderCommandOptions& options);
 
+// `lfgi fly` / `lfgi profile` (app/fly_command.cpp): the streaming manager along a camera path over the
+// world; frames.csv + summary.json; profile adds trace.json (Perfetto), profile.png, summary.html.
+struct FlyOptions {
+  std::string world;          // world directory for the cell layout (default: 4096 m, 64 m cells)
+  std::string path = "loop";
+  float speed = 50.0f;
+  float seconds = 60.0f;
+  float fps = 60.0f;
+  float todStart = 6.0f, todEnd = 20.0f;
+  double budgetMb = 256.0;
+  float decodeRadius = 160.0f;
+  int ioThreads = 0;          // 0: inline loads, loadsPerFrame per frame (deterministic)
+  int loadsPerFrame = 2;
+  int loadDelayUs = 0;
+  int resolution = 8;
+  std::string outDir;
+  bool profile = false;
+};
+int runFly(const FlyOptions& options);
+
 // `lfgi inspect CELLFILE` (app/inspect_command.cpp): model, bytes by part, error reached, probe count and
 // training time of a cell file (core/cell_file.h); a bad file is an lfgi::Error (exit 1).
 struct InspectOptions {
@@ -144,34 +164,5 @@ struct DebugWriteCellOptions {
   int latentBits = 8;
 };
 int runDebugWriteCell(const DebugWriteCellOptions& options);
-
-// `lfgi render` (app/render_command.cpp): one view shaded from light-field probes -> layered EXR + PNG;
-// --compare adds the path-traced reference, an error heat map and the relative RMS.
-struct RenderCommandOptions {
-  std::string world;
-  std::string cell;  // "X,Z" (with --world)
-  std::string scene;
-  std::string scenesDir = "../shared/scenes";
-  float scale = 1.0f;
-  std::string grid;  // "NX,NY,NZ" probe grid override for scenes
-  std::string camera;
-  float fov = 60.0f;
-  std::string size = "320x180";
-  float timeOfDay = 12.0f;
-  float overcast = 0.0f;
-  std::string probes = "capture";
-  int resolution = 16;
-  int spp = 64;
-  int bounces = 12;
-  int specularLevels = 4;
-  float probeRadius = 0.0f;  // 0: the probes around what the camera sees
-  bool noChebyshev = false;
-  bool compare = false;
-  int referenceSpp = 64;
-  uint64_t seed = 1;
-  std::string out;
-  int threads = 0;
-};
-int runRender(const RenderCommandOptions& options);
 
 }  // namespace lfgi::app

@@ -126,6 +126,27 @@ int main(int argc, char** argv) {
   renderCmd->add_option("--out", renderOpt.out, "Output .exr (PNGs are written beside it)")->required();
   renderCmd->add_option("--threads", renderOpt.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 256));
 
+  lfgi::app::FlyOptions flyOpt, profileOpt;
+  profileOpt.profile = true;
+  auto addFlyOptions = [](CLI::App* c, lfgi::app::FlyOptions& o) {
+    c->add_option("--world", o.world, "World directory (cell layout); default: 4096 m with 64 m cells");
+    c->add_option("--path", o.path, "Camera path: loop or line")->capture_default_str();
+    c->add_option("--speed", o.speed, "Camera speed, m/s")->check(CLI::Range(0.0, 10000.0))->capture_default_str();
+    c->add_option("--seconds", o.seconds, "Simulated flight time")->check(CLI::Range(0.01, 3600.0))->capture_default_str();
+    c->add_option("--fps", o.fps, "Frames per simulated second")->check(CLI::Range(1.0, 1000.0))->capture_default_str();
+    c->add_option("--budget-mb", o.budgetMb, "Resident light-field memory budget, MB")->check(CLI::Range(0.01, 1e6))->capture_default_str();
+    c->add_option("--decode-radius", o.decodeRadius, "Cells nearer than this are loaded, m")->check(CLI::Range(1.0, 1e5))->capture_default_str();
+    c->add_option("--io-threads", o.ioThreads, "IO threads (0: inline, --loads-per-frame per frame)")->check(CLI::Range(0, 64))->capture_default_str();
+    c->add_option("--loads-per-frame", o.loadsPerFrame, "IO bandwidth with --io-threads 0, cells per frame")->check(CLI::Range(1, 1024))->capture_default_str();
+    c->add_option("--load-delay-us", o.loadDelayUs, "Simulated read + decode time per cell")->check(CLI::Range(0, 10000000))->capture_default_str();
+    c->add_option("--resolution", o.resolution, "Probe octahedral resolution of the synthetic cells")->check(CLI::Range(2, 64))->capture_default_str();
+    c->add_option("--out", o.outDir, "Output directory (default out/fly or out/profile)");
+  };
+  CLI::App* flyCmd = app.add_subcommand("fly", "Fly a camera over the world through the streaming manager: frames.csv + summary.json");
+  addFlyOptions(flyCmd, flyOpt);
+  CLI::App* profileCmd = app.add_subcommand("profile", "Streaming budget profiler: fly-through + Chrome trace (Perfetto), charts, summary.html");
+  addFlyOptions(profileCmd, profileOpt);
+
   lfgi::app::InspectOptions inspectOpt;
   CLI::App* inspect = app.add_subcommand("inspect", "Show a cell file: model, bytes by part, error reached, probes, training time");
   inspect->add_option("cellfile", inspectOpt.file, "Cell file (.vdb)")->required();
@@ -136,32 +157,6 @@ int main(int argc, char** argv) {
   debugCell->add_flag("--no-network", debugCellOpt.noNetwork, "Fallback only");
   debugCell->add_flag("--fp16", debugCellOpt.fp16, "FP16 weights instead of int8");
   debugCell->add_option("--latent-bits", debugCellOpt.latentBits, "8 or 4")->check(CLI::IsMember({4, 8}));
-
-  lfgi::app::RenderCommandOptions renderOpt;
-  CLI::App* renderCmd = app.add_subcommand("render", "Shade one view from light-field probes (EXR layers + PNG; --compare: path-traced reference, error map)");
-  CLI::Option* renWorld = renderCmd->add_option("--world", renderOpt.world, "World directory (with --cell)");
-  renderCmd->add_option("--cell", renderOpt.cell, "Cell as X,Z (its probes and its neighbours')");
-  renderCmd->add_option("--scene", renderOpt.scene, "Scene preset name or .gltf/.glb file")->excludes(renWorld);
-  renderCmd->add_option("--scenes-dir", renderOpt.scenesDir, "Folder of the scene presets")->capture_default_str();
-  renderCmd->add_option("--scale", renderOpt.scale, "Unit scale of a scene file (metres per unit)")->check(CLI::PositiveNumber);
-  renderCmd->add_option("--grid", renderOpt.grid, "Scene probe grid NX,NY,NZ (default: the preset's)");
-  renderCmd->add_option("--camera", renderOpt.camera, "Camera position and target: px,py,pz,tx,ty,tz")->required();
-  renderCmd->add_option("--fov", renderOpt.fov, "Vertical field of view, degrees")->capture_default_str();
-  renderCmd->add_option("--size", renderOpt.size, "Image size WIDTHxHEIGHT")->capture_default_str();
-  renderCmd->add_option("--time", renderOpt.timeOfDay, "Time of day, hours")->check(CLI::Range(0.0, 24.0))->capture_default_str();
-  renderCmd->add_option("--overcast", renderOpt.overcast, "Weather, 0 clear .. 1 overcast")->check(CLI::Range(0.0, 1.0))->capture_default_str();
-  renderCmd->add_option("--probes", renderOpt.probes, "Probe source: capture (vir, codec: not yet)")->capture_default_str();
-  renderCmd->add_option("--resolution", renderOpt.resolution, "Probe octahedral map resolution")->check(CLI::Range(2, 128))->capture_default_str();
-  renderCmd->add_option("--spp", renderOpt.spp, "Capture samples per texel")->check(CLI::Range(1, 65536))->capture_default_str();
-  renderCmd->add_option("--bounces", renderOpt.bounces, "Maximum bounces (capture and reference)")->check(CLI::Range(0, 256))->capture_default_str();
-  renderCmd->add_option("--specular-levels", renderOpt.specularLevels, "GGX-prefiltered roughness levels")->check(CLI::Range(1, 16))->capture_default_str();
-  renderCmd->add_option("--probe-radius", renderOpt.probeRadius, "World: capture the probes this close to the camera (m; default 0: those around visible surfaces)")->check(CLI::Range(0.0, 1e5))->capture_default_str();
-  renderCmd->add_flag("--no-chebyshev", renderOpt.noChebyshev, "Turn off visibility weights (shows leaks)");
-  renderCmd->add_flag("--compare", renderOpt.compare, "Also path-trace the reference, write an error map, print the relative RMS");
-  renderCmd->add_option("--reference-spp", renderOpt.referenceSpp, "Reference samples per pixel")->check(CLI::Range(1, 65536))->capture_default_str();
-  renderCmd->add_option("--seed", renderOpt.seed, "Random seed")->capture_default_str();
-  renderCmd->add_option("--out", renderOpt.out, "Output .exr (PNGs are written beside it)")->required();
-  renderCmd->add_option("--threads", renderOpt.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 256));
 
   try {
     app.parse(argc, argv);
@@ -187,6 +182,8 @@ int main(int argc, char** argv) {
     if (*reference) return lfgi::app::runReference(refOpt);
     if (*virCmd) return lfgi::app::runVir(virOpt);
     if (*renderCmd) return lfgi::app::runRender(renderOpt);
+    if (*flyCmd) return lfgi::app::runFly(flyOpt);
+    if (*profileCmd) return lfgi::app::runFly(profileOpt);
     if (*inspect) return lfgi::app::runInspect(inspectOpt);
     if (*debugCell) return lfgi::app::runDebugWriteCell(debugCellOpt);
     std::fputs(app.help().c_str(), stdout);
