@@ -2,6 +2,8 @@
 # (bytes pooled over the scenes, errors the mean of the per-scene errors). One line per codec family; a
 # "gan" family appears once the generative codec is in the run.
 set datafile separator ','
+set format x '%g'
+set format y '%g'
 set terminal pngcairo size 1200,480 font ',10' noenhanced
 csv = dir.'/results.csv'
 # the families present (a family without rows would abort the plot)
