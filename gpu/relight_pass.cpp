@@ -199,7 +199,7 @@ ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyPa
   params.probeCount = uint32_t(atlas.probeCount);
   params.irradianceRes = m;
   params.distanceRes = uint32_t(atlas.resolution);
-  params.flags = o.skyInProbes ? LFGI_RELIGHT_SKY : 0u;
+  params.flags = (o.skyInProbes ? LFGI_RELIGHT_SKY : 0u) | (o.filledTexelsSeeSky ? LFGI_RELIGHT_FILLED_SKY : 0u);
   params.missDistance = o.missDistance;
 
   Buffer frameBuf = storage(ctx_, sizeof(frame));

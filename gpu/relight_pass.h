@@ -58,6 +58,9 @@ struct RelightOptions {
   bool bounce = true;                 // last frame's probe irradiance
   bool chebyshev = true;              // Chebyshev visibility weights
   bool skyInProbes = true;            // probe texels no surfel covered see the sky
+  bool filledTexelsSeeSky = true;     // ... and so do texels only the VIR hole fill covered (see
+                                      // relight_probe_irradiance.comp; false: a gap between surfels
+                                      // never lets the sky in, but silhouettes swallow sky texels)
 };
 
 // Per-probe maps derived from one VIR atlas: the next frame's relight input.

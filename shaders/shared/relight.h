@@ -31,6 +31,7 @@ LFGI_CHECK_OFFSET(RelightFrame, gridDims, 368)
 #define LFGI_RELIGHT_BOUNCE 2u     // add last frame's probe irradiance (sky + bounces)
 #define LFGI_RELIGHT_CHEBYSHEV 4u  // weight probes by Chebyshev visibility from their distance moments
 #define LFGI_RELIGHT_SKY 8u        // probe convolution: texels no surfel covered see the sky (no disc)
+#define LFGI_RELIGHT_FILLED_SKY 16u  // probe convolution: texels only the hole fill covered count as uncovered
 
 struct RelightParams {
   uint surfelCount;
