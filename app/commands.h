@@ -165,4 +165,22 @@ struct DebugWriteCellOptions {
 };
 int runDebugWriteCell(const DebugWriteCellOptions& options);
 
+// `lfgi bake` (app/world_bake_command.cpp): world cells -> cell files (capture, model sizing, int8,
+// OpenVDB cell file); idempotent by input hash, resumable, Slurm job-array aware.
+struct WorldBakeOptions {
+  std::string world;
+  std::vector<std::string> cells;  // "X,Z" or linear index ranges "A-B"; empty: every cell
+  int arrayIndex = 0, arraySize = 0;  // arraySize > 0: bake share arrayIndex of arraySize
+  std::string outDir;                 // default WORLD/baked
+  double errorTarget = 0.05;
+  std::string keys = "8,12,17.5";     // lighting keys: HOURS[:OVERCAST],...
+  int resolution = 16;
+  int spp = 16;
+  int bounces = 4;
+  int maxSteps = 1500;
+  int threads = 1;
+  uint64_t seed = 1;
+};
+int runWorldBake(const WorldBakeOptions& options);
+
 }  // namespace lfgi::app

@@ -126,6 +126,22 @@ int main(int argc, char** argv) {
   renderCmd->add_option("--out", renderOpt.out, "Output .exr (PNGs are written beside it)")->required();
   renderCmd->add_option("--threads", renderOpt.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 256));
 
+  lfgi::app::WorldBakeOptions bakeOpt;
+  CLI::App* bakeCmd = app.add_subcommand("bake", "Bake world cells into cell files: capture, smallest model meeting the error target, int8, OpenVDB (resumable, skips unchanged cells)");
+  bakeCmd->add_option("--world", bakeOpt.world, "World directory (lfgi world generate)")->required();
+  bakeCmd->add_option("--cells", bakeOpt.cells, "Cells: X,Z or linear index ranges A-B (default: all)");
+  bakeCmd->add_option("--array-index", bakeOpt.arrayIndex, "Slurm job-array task index (with --array-size)")->check(CLI::NonNegativeNumber);
+  bakeCmd->add_option("--array-size", bakeOpt.arraySize, "Split the selected cells into this many contiguous shares")->check(CLI::Range(1, 1000000));
+  bakeCmd->add_option("--out", bakeOpt.outDir, "Output directory (default WORLD/baked)");
+  bakeCmd->add_option("--error-target", bakeOpt.errorTarget, "Irradiance relative RMS target per cell")->check(CLI::Range(0.001, 1.0))->capture_default_str();
+  bakeCmd->add_option("--keys", bakeOpt.keys, "Lighting keys HOURS[:OVERCAST],...")->capture_default_str();
+  bakeCmd->add_option("--resolution", bakeOpt.resolution, "Probe map resolution (8, 16 or 32)")->check(CLI::IsMember({8, 16, 32}))->capture_default_str();
+  bakeCmd->add_option("--spp", bakeOpt.spp, "Capture samples per texel")->check(CLI::Range(1, 65536))->capture_default_str();
+  bakeCmd->add_option("--bounces", bakeOpt.bounces, "Capture bounces")->check(CLI::Range(0, 256))->capture_default_str();
+  bakeCmd->add_option("--max-steps", bakeOpt.maxSteps, "Training steps per candidate model")->check(CLI::Range(1, 1000000))->capture_default_str();
+  bakeCmd->add_option("--threads", bakeOpt.threads, "Training threads")->check(CLI::Range(1, 256))->capture_default_str();
+  bakeCmd->add_option("--seed", bakeOpt.seed, "Seed (capture and training)")->capture_default_str();
+
   lfgi::app::FlyOptions flyOpt, profileOpt;
   profileOpt.profile = true;
   auto addFlyOptions = [](CLI::App* c, lfgi::app::FlyOptions& o) {
@@ -183,6 +199,7 @@ int main(int argc, char** argv) {
     if (*virCmd) return lfgi::app::runVir(virOpt);
     if (*renderCmd) return lfgi::app::runRender(renderOpt);
     if (*flyCmd) return lfgi::app::runFly(flyOpt);
+    if (*bakeCmd) return lfgi::app::runWorldBake(bakeOpt);
     if (*profileCmd) return lfgi::app::runFly(profileOpt);
     if (*inspect) return lfgi::app::runInspect(inspectOpt);
     if (*debugCell) return lfgi::app::runDebugWriteCell(debugCellOpt);
