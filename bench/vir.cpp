@@ -14,7 +14,9 @@
 // median angle (front-face hits), hole fraction (texels whose ray hits geometry but the method has no
 // value). This reference is deterministic (no Monte-Carlo noise), and it is exactly what both methods
 // point-sample; bake/probe_capture.h texel means would add the intra-texel depth spread (and its
-// sampling noise) to both methods' error alike, so they are not used for this comparison.
+// sampling noise) to both methods' error alike, so they are the secondary columns "*_vs_capture"
+// (4 samples per texel, direct light only: the distance and normal medians barely move with the sample
+// count, unlike the radiance).
 //
 // Atomics: the splat's 64-bit atomicMin count is replayed on the CPU (the same footprint test as
 // vir_splat.comp) for the accuracy probes and scaled to the probe count; achieved atomics/s = count /
@@ -31,6 +33,7 @@
 #include <optional>
 
 #include "bake/embree_scene.h"
+#include "bake/probe_capture.h"
 #include "bench/bench_output.h"
 #include "core/error.h"
 #include "core/progress.h"
@@ -40,6 +43,7 @@
 #include "gpu/vir_pass.h"
 #include "shared/ceilings.h"
 #include "shared/octahedral.h"
+#include "worlds/sky.h"
 #include "worlds/world_cells.h"
 
 namespace lfgi::bench {
@@ -120,6 +124,7 @@ double atomicCeilingPerSecond(gpu::Context& ctx) {
 struct Accuracy {
   double distMedianRel = 0.0, distP90Rel = 0.0, fracOff5pct = 0.0, normalMedianDeg = 0.0, normalP90Deg = 0.0;
   double holeFractionOfHits = 0.0;
+  double captureDistMedianRel = 0.0, captureNormalMedianDeg = 0.0;  // vs bake/probe_capture.h texel means
   size_t compared = 0;
 };
 
@@ -155,6 +160,28 @@ Accuracy accuracy(const gpu::ProbeAtlas& atlas, const std::vector<std::vector<st
   a.holeFractionOfHits = hits ? double(holes) / double(hits) : 0.0;
   a.compared = rel.size();
   return a;
+}
+
+// Against probe_capture texel means (distance: mean r of the texel's samples; normal: mean normal) of
+// the first probes; texels where any sample missed (mean r near maxDistance) are left out.
+void accuracyVsCapture(const gpu::ProbeAtlas& atlas, const bake::CaptureResult& cap, float maxDistance,
+                       Accuracy& a) {
+  const size_t n2 = size_t(atlas.resolution) * size_t(atlas.resolution);
+  std::vector<double> rel, angle;
+  for (size_t p = 0; p < cap.probes.size(); ++p)
+    for (size_t t = 0; t < n2; ++t) {
+      const size_t i = p * n2 + t;
+      const float r = cap.probes[p].distance[2 * t];
+      if (atlas.normal[i].w == 0.0f || !(r > 0.0f && r < 0.01f * maxDistance)) continue;
+      rel.push_back(std::abs(double(atlas.distance[i].x) - r) / double(r));
+      const glm::vec3 cn(cap.probes[p].normal[3 * t], cap.probes[p].normal[3 * t + 1], cap.probes[p].normal[3 * t + 2]);
+      if (glm::length(cn) > 0.5f) {
+        const float c = std::clamp(glm::dot(glm::vec3(atlas.normal[i]), glm::normalize(cn)), -1.0f, 1.0f);
+        angle.push_back(double(std::acos(c)) * 180.0 / std::numbers::pi);
+      }
+    }
+  a.captureDistMedianRel = quantile(rel, 0.5);
+  a.captureNormalMedianDeg = quantile(angle, 0.5);
 }
 
 }  // namespace
@@ -206,6 +233,9 @@ int main(int argc, char** argv) {
     spdlog::info("atomicMin64 ceiling: {:.1f} M/s", ceiling * 1e-6);
 
     bake::EmbreeScene embree(built.mesh, "vir benchmark cell");
+    worlds::SkyState skyState;
+    skyState.timeOfDayHours = 15.5f;
+    const worlds::SkyModel sky = worlds::makeSky(skyState);
     gpu::VirPass vir(*ctx);
     gpu::CubemapRaster cubemap(*ctx);
     gpu::VirOptions vo;
@@ -220,7 +250,8 @@ int main(int argc, char** argv) {
     o.setColumns({"method", "resolution", "probes", "surfels", "triangles", "gpu_ms", "ms_per_probe", "probes_per_s",
                   "surfel_probes_per_s", "splat_or_raster_ms", "resolve_or_resample_ms", "wall_ms", "atomics_per_s",
                   "dist_median_rel_error", "dist_p90_rel_error", "dist_frac_off_5pct", "normal_median_deg",
-                  "normal_p90_deg", "hole_fraction"});
+                  "normal_p90_deg", "hole_fraction", "dist_median_rel_error_vs_capture",
+                  "normal_median_deg_vs_capture"});
     nlohmann::ordered_json skipped = nlohmann::ordered_json::array();
     struct Measured {
       double probesPerS = 0.0, msPerProbe = 0.0;
@@ -243,6 +274,14 @@ int main(int argc, char** argv) {
       uint64_t atomicsSubset = 0;
       for (size_t p = 0; p < accuracyProbes; ++p) atomicsSubset += bench::splatAtomics(built.surfels, probes[p], vo);
       const double atomicsPerProbe = double(atomicsSubset) / double(accuracyProbes);
+      // Embree capture of the accuracy probes at low spp, direct only: its distance and normal maps are
+      // texel means, so it measures texel-mean vs point-sample differences as well as method error.
+      bake::CaptureOptions copt;
+      copt.resolution = n;
+      copt.irradianceResolution = 4;
+      copt.samplesPerTexel = 4;
+      copt.maxBounces = 0;
+      const bake::CaptureResult capture = bake::captureProbes(embree, sky, std::span(probes).first(accuracyProbes), copt);
 
       for (const char* method : {"vir", "cubemap"}) {
         double lastMsPerProbe = 0.0;
@@ -273,7 +312,10 @@ int main(int argc, char** argv) {
             atlas = std::move(c.atlas);
           }
           const double wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-          if (!acc) acc = bench::accuracy(atlas, ref, accuracyProbes);
+          if (!acc) {
+            acc = bench::accuracy(atlas, ref, accuracyProbes);
+            bench::accuracyVsCapture(atlas, capture, copt.maxDistance, *acc);
+          }
           Measured m;
           m.probes = count;
           m.msPerProbe = lastMsPerProbe = atlas.gpuMs / double(count);
@@ -295,7 +337,8 @@ int main(int argc, char** argv) {
                     bench::num(splat), bench::num(resolve), bench::num(wallMs), bench::num(m.atomicsPerS),
                     bench::num(acc->distMedianRel), bench::num(acc->distP90Rel), bench::num(acc->fracOff5pct),
                     bench::num(acc->normalMedianDeg), bench::num(acc->normalP90Deg),
-                    bench::num(acc->holeFractionOfHits)});
+                    bench::num(acc->holeFractionOfHits), bench::num(acc->captureDistMedianRel),
+                    bench::num(acc->captureNormalMedianDeg)});
         }
       }
     }
@@ -321,6 +364,10 @@ int main(int argc, char** argv) {
     s["distance_p90_rel_error"] = v16->second.acc.distP90Rel;
     s["cubemap_distance_p90_rel_error"] = c16->second.acc.distP90Rel;
     s["distance_frac_off_5pct"] = v16->second.acc.fracOff5pct;
+    s["distance_median_rel_error_vs_capture"] = v16->second.acc.captureDistMedianRel;
+    s["cubemap_distance_median_rel_error_vs_capture"] = c16->second.acc.captureDistMedianRel;
+    s["normal_median_deg_vs_capture"] = v16->second.acc.captureNormalMedianDeg;
+    s["cubemap_normal_median_deg_vs_capture"] = c16->second.acc.captureNormalMedianDeg;
     s["cubemap_distance_frac_off_5pct"] = c16->second.acc.fracOff5pct;
     s["vir_atomics_per_s"] = v16->second.atomicsPerS;
     s["atomics64_ceiling_per_s"] = ceiling;
