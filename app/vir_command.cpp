@@ -5,7 +5,8 @@
 // the cell's grid, and writes into --out:
 //   radiance.exr, distance.exr, normal.exr, albedo.exr   N x N tiles (the VIR channels, shared/vir.h)
 //   irradiance.exr                                       M x M tiles (probe irradiance without the discs)
-//   contact_sheet.png                                    radiance tiles, 4x enlarged, auto-exposed
+//   contact_sheet.png                                    radiance tiles of <= 256 active probes (listed in
+//                                                        vir.json), 4x enlarged, auto-exposed
 //   vir.json                                             layout, probes, sky, statistics
 // Tiles: probe i (core/probe_grid.h linear index, disabled probes included and flagged in vir.json) sits
 // at column i % cols, row i / cols, cols = ceil(sqrt(probes)). Only the cell's own surfels are splatted
@@ -114,26 +115,38 @@ int runVir(const VirCommandOptions& opt) {
   writeExr(out / "irradiance.exr",
            tileAtlas(pc, m, {"R", "G", "B"}, [&](size_t t) { return lighting.probes.irradiance[t]; }));
 
-  // Contact sheet: radiance tiles enlarged 4x with a 1-pixel gap; sky texels (coverage 0) show the sky;
-  // exposure puts the median luminance of the active probes' texels at 0.18.
-  const int scale = 4, tile = n * scale + 1;
-  const int cols = int(std::ceil(std::sqrt(double(pc)))), rows = (pc + cols - 1) / cols;
+  // Contact sheet: radiance tiles of at most kSheetProbes active probes (every k-th in index order),
+  // enlarged 4x with a 1-pixel gap; sky texels (coverage 0) show the sky; exposure puts the median
+  // luminance of the shown texels at 0.18.
+  constexpr size_t kSheetProbes = 256;
+  std::vector<int> shown;
+  for (int p = 0; p < pc; ++p)
+    if (probes.active[size_t(p)]) shown.push_back(p);
+  if (shown.size() > kSheetProbes) {
+    std::vector<int> every;
+    for (size_t k = 0; k < kSheetProbes; ++k) every.push_back(shown[k * shown.size() / kSheetProbes]);
+    shown = std::move(every);
+  }
+  if (shown.empty()) shown.push_back(0);
+  const int scale = 4, tile = n * scale + 1, sheetCount = int(shown.size());
+  const int cols = int(std::ceil(std::sqrt(double(sheetCount)))), rows = (sheetCount + cols - 1) / cols;
   Image sheet(cols * tile + 1, rows * tile + 1, {"R", "G", "B"});
   std::vector<float> lums;
-  for (int p = 0; p < pc; ++p)
+  for (int k = 0; k < sheetCount; ++k) {
+    const int p = shown[size_t(k)];
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < n; ++i) {
         const size_t t = (size_t(p) * size_t(n) + size_t(j)) * size_t(n) + size_t(i);
         glm::vec3 v(atlas.radiance[t]);
         if (atlas.normal[t].w == 0.0f)
           v = worlds::skyRadiance(sky, shared::octTexelDirection(glm::uvec2(uint32_t(i), uint32_t(j)), uint32_t(n)));
-        if (!probes.active[size_t(p)]) v = glm::vec3(0.0f);
-        else lums.push_back(0.2126f * v.x + 0.7152f * v.y + 0.0722f * v.z);
+        lums.push_back(0.2126f * v.x + 0.7152f * v.y + 0.0722f * v.z);
         for (int y = 0; y < scale; ++y)
           for (int x = 0; x < scale; ++x)
             for (int ch = 0; ch < 3; ++ch)
-              sheet.at((p % cols) * tile + 1 + i * scale + x, (p / cols) * tile + 1 + j * scale + y, ch) = v[ch];
+              sheet.at((k % cols) * tile + 1 + i * scale + x, (k / cols) * tile + 1 + j * scale + y, ch) = v[ch];
       }
+  }
   float exposureEv = 0.0f;
   if (!lums.empty()) {
     std::nth_element(lums.begin(), lums.begin() + std::ptrdiff_t(lums.size() / 2), lums.end());
@@ -156,7 +169,8 @@ int runVir(const VirCommandOptions& opt) {
   j["probe_grid"] = {{"origin", {probes.grid.origin.x, probes.grid.origin.y, probes.grid.origin.z}},
                      {"spacing", {probes.grid.spacing.x, probes.grid.spacing.y, probes.grid.spacing.z}},
                      {"dims", {probes.grid.dims.x, probes.grid.dims.y, probes.grid.dims.z}}};
-  j["tile_columns"] = cols;
+  j["tile_columns"] = int(std::ceil(std::sqrt(double(pc))));
+  j["contact_sheet_probes"] = shown;
   nlohmann::json active = nlohmann::json::array();
   for (uint8_t a : probes.active) active.push_back(int(a));
   j["probe_active"] = active;
