@@ -187,10 +187,10 @@ TEST(StreamingManager, VelocityPrefetchRequestsCellsAhead) {
   c.prefetchSeconds = 3.0f;
   c.maxPrefetchDistance = 400.0f;
   StreamingManager m(source, c);
-  m.update(at({100.0f, 20.0f, 500.0f}, {100.0f, 0.0f, 0.0f}));  // predicted x = 400
+  for (int f = 0; f < 10; ++f) m.update(at({100.0f, 20.0f, 500.0f}, {100.0f, 0.0f, 0.0f}));  // predicted x = 400
   EXPECT_TRUE(m.isResident({6, 7}));   // x 384..448: 284 m ahead of the camera, near the prediction
   StreamingManager still(source, inlineConfig());
-  still.update(at({100.0f, 20.0f, 500.0f}));
+  for (int f = 0; f < 10; ++f) still.update(at({100.0f, 20.0f, 500.0f}));
   EXPECT_FALSE(still.isResident({6, 7}));
 }
 
