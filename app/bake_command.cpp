@@ -41,24 +41,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Comma-separated numbers; fails naming flag unless there are exactly `count` finite ones.
-std::vector<float> parseNumbers(const std::string& flag, const std::string& text, size_t count, const char* what) {
-  std::vector<float> v;
-  size_t start = 0;
-  while (start <= text.size()) {
-    const size_t end = std::min(text.find(',', start), text.size());
-    const std::string item = text.substr(start, end - start);
-    char* stop = nullptr;
-    const float x = std::strtof(item.c_str(), &stop);
-    if (item.empty() || stop != item.c_str() + item.size() || !std::isfinite(x))
-      fail("{} '{}': expected {} ({} comma-separated numbers); '{}' is not a finite number", flag, text, what, count,
-           item);
-    v.push_back(x);
-    start = end + 1;
-  }
-  if (v.size() != count) fail("{} '{}': expected {} ({} numbers), got {}", flag, text, what, count, v.size());
-  return v;
-}
 
 worlds::SkyModel skyFor(float timeOfDay, float overcast) {
   worlds::SkyState s;

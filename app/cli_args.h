@@ -4,6 +4,7 @@
 
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "worlds/synthetic_world.h"
 
@@ -11,5 +12,9 @@ namespace lfgi::app {
 
 // "X,Z" (two integers) -> cell coordinate; throws lfgi::Error "<flag> '<text>': expected X,Z ...".
 worlds::CellCoord parseCellArg(const std::string& text, std::string_view flag);
+
+// Comma-separated numbers; throws lfgi::Error naming flag unless there are exactly `count` finite ones
+// (`what` describes them, e.g. "px,py,pz,tx,ty,tz").
+std::vector<float> parseNumbers(const std::string& flag, const std::string& text, size_t count, const char* what);
 
 }  // namespace lfgi::app

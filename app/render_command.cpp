@@ -42,23 +42,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::vector<float> numbers(const std::string& flag, const std::string& text, size_t count, const char* what) {
-  std::vector<float> v;
-  size_t start = 0;
-  while (start <= text.size()) {
-    const size_t end = std::min(text.find(',', start), text.size());
-    const std::string item = text.substr(start, end - start);
-    char* stop = nullptr;
-    const float x = std::strtof(item.c_str(), &stop);
-    if (item.empty() || stop != item.c_str() + item.size() || !std::isfinite(x))
-      fail("{} '{}': expected {} ({} comma-separated numbers); '{}' is not a finite number", flag, text, what, count,
-           item);
-    v.push_back(x);
-    start = end + 1;
-  }
-  if (v.size() != count) fail("{} '{}': expected {} ({} numbers), got {}", flag, text, what, count, v.size());
-  return v;
-}
 
 float medianLuminance(const Image& img, const std::string& layer) {
   const int r = img.channelIndex(layer + "R"), g = img.channelIndex(layer + "G"), b = img.channelIndex(layer + "B");
@@ -84,7 +67,7 @@ int runRender(const RenderCommandOptions& opt) {
     fail("--probes {}: not available yet in lfgi render (use --probes capture)", opt.probes);
   if (opt.probes != "capture") fail("--probes '{}': expected capture, vir or codec", opt.probes);
   if (fs::path(opt.out).extension() != ".exr") fail("--out {}: expected a .exr file name", opt.out);
-  const std::vector<float> cam = numbers("--camera", opt.camera, 6, "px,py,pz,tx,ty,tz");
+  const std::vector<float> cam = parseNumbers("--camera", opt.camera, 6, "px,py,pz,tx,ty,tz");
   bake::PinholeCamera camera;
   camera.position = glm::vec3(cam[0], cam[1], cam[2]);
   camera.target = glm::vec3(cam[3], cam[4], cam[5]);
@@ -140,7 +123,7 @@ int runRender(const RenderCommandOptions& opt) {
       mesh = worlds::loadScenePreset(preset, opt.scenesDir);
     }
     if (!opt.grid.empty()) {
-      const std::vector<float> d = numbers("--grid", opt.grid, 3, "NX,NY,NZ");
+      const std::vector<float> d = parseNumbers("--grid", opt.grid, 3, "NX,NY,NZ");
       for (int k = 0; k < 3; ++k) {
         if (d[size_t(k)] < 1.0f || d[size_t(k)] > 64.0f || d[size_t(k)] != std::floor(d[size_t(k)]))
           fail("--grid '{}': each count must be a whole number in [1, 64]", opt.grid);

@@ -8,9 +8,10 @@
 #include "bake/brdf.h"
 
 namespace lfgi::bake::detail {
-namespace {
 
+namespace {
 constexpr float kInvPi = float(1.0 / std::numbers::pi);
+}  // namespace
 
 float maxComponent(glm::vec3 c) {
   return std::max(c.x, std::max(c.y, c.z));
@@ -55,7 +56,6 @@ glm::vec3 offsetRayOrigin(glm::vec3 p, glm::vec3 n) {
   return out;
 }
 
-}  // namespace
 
 Discs activeDiscs(const worlds::SkyModel& sky) {
   Discs d{};

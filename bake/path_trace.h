@@ -35,6 +35,17 @@ class PathRng {
   uint64_t counter_ = 0;
 };
 
+// Surface-hit helpers shared by the path tracer and the shading references (bake/shading_inputs.cpp).
+float maxComponent(glm::vec3 c);
+// The material's albedo times its texture at the hit's uv.
+glm::vec3 hitAlbedo(const worlds::TriangleMesh& mesh, const worlds::Material& m, const RayHit& hit);
+// The hit point from the triangle's vertices and barycentrics (more accurate than origin + t dir far
+// from the origin).
+glm::vec3 hitPoint(const worlds::TriangleMesh& mesh, const RayHit& hit);
+// Secondary ray origin pushed off the surface by float ulps (Waechter & Binder 2019, Ray Tracing Gems
+// ch. 6); see path_trace.cpp.
+glm::vec3 offsetRayOrigin(glm::vec3 p, glm::vec3 n);
+
 struct PathOptions {
   int maxBounces = 12;
   int rouletteAfter = 3;

@@ -19,42 +19,10 @@ namespace {
 
 constexpr float kInvPi = float(1.0 / std::numbers::pi);
 
-float maxComponent(glm::vec3 c) {
-  return std::max(c.x, std::max(c.y, c.z));
-}
-
-// As path_trace.cpp, where these helpers are internal (ShadingReference tests check the direct layer
-// against renderReference).
-glm::vec3 hitAlbedo(const worlds::TriangleMesh& mesh, const worlds::Material& m, const RayHit& hit) {
-  glm::vec3 a = m.albedo;
-  if (m.albedoTexture >= 0 && !mesh.uvs.empty()) {
-    const size_t t = hit.triangle;
-    const glm::vec2 uv = (1.0f - hit.barycentric.x - hit.barycentric.y) * mesh.uvs[mesh.indices[t * 3]] +
-                         hit.barycentric.x * mesh.uvs[mesh.indices[t * 3 + 1]] +
-                         hit.barycentric.y * mesh.uvs[mesh.indices[t * 3 + 2]];
-    a *= mesh.textures[size_t(m.albedoTexture)].sampleLinear(uv);
-  }
-  return a;
-}
-
-glm::vec3 hitPoint(const worlds::TriangleMesh& mesh, const RayHit& hit) {
-  const size_t t = hit.triangle;
-  return (1.0f - hit.barycentric.x - hit.barycentric.y) * mesh.positions[mesh.indices[t * 3]] +
-         hit.barycentric.x * mesh.positions[mesh.indices[t * 3 + 1]] +
-         hit.barycentric.y * mesh.positions[mesh.indices[t * 3 + 2]];
-}
-
-// Waechter & Binder 2019 (Ray Tracing Gems ch. 6), the same constants as path_trace.cpp.
-glm::vec3 offsetRayOrigin(glm::vec3 p, glm::vec3 n) {
-  glm::vec3 out;
-  for (int k = 0; k < 3; ++k) {
-    const int32_t ulps = int32_t(256.0f * n[k]);
-    const int32_t bits = std::bit_cast<int32_t>(p[k]);
-    const float moved = std::bit_cast<float>(bits + (p[k] < 0.0f ? -ulps : ulps));
-    out[k] = std::abs(p[k]) < 1.0f / 32.0f ? p[k] + n[k] / 65536.0f : moved;
-  }
-  return out;
-}
+using detail::hitAlbedo;
+using detail::hitPoint;
+using detail::maxComponent;
+using detail::offsetRayOrigin;
 
 // Emission + disc NEE at the first hit (or sky + discs on a miss): the part of tracePath's total that
 // shading computes without probes.
