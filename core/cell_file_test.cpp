@@ -15,6 +15,7 @@
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/half.h"
+#include "generator_test_util.h"
 
 namespace lfgi {
 namespace {
@@ -28,26 +29,6 @@ fs::path tmpDir() {
 }
 
 enum class Variant { Int8Latents8, Fp16Latents4, PositionLatents, NoNetwork };
-
-GeneratorWeights randomWeights(const GeneratorArch& arch, std::mt19937& rng) {
-  std::uniform_real_distribution<float> u(-0.5f, 0.5f);
-  auto fill = [&](size_t n) {
-    std::vector<float> v(n);
-    for (float& x : v) x = u(rng);
-    return v;
-  };
-  GeneratorWeights w;
-  w.arch = arch;
-  size_t c0 = size_t(arch.convChannels.front());
-  w.linearWeight = fill(16 * c0 * size_t(arch.inputDim()));
-  w.linearBias = fill(16 * c0);
-  for (int i = 0; i < arch.layers(); ++i) {
-    size_t ci = size_t(arch.convChannels[size_t(i)]), co = size_t(arch.convChannels[size_t(i) + 1]);
-    w.convWeight.push_back(fill(ci * co * 16));
-    w.convBias.push_back(fill(co));
-  }
-  return w;
-}
 
 // A small cell: 3x2x2 probes (some disabled), a 2-layer generator.
 CellFile makeCell(Variant v, uint32_t seed = 1) {
@@ -72,7 +53,7 @@ CellFile makeCell(Variant v, uint32_t seed = 1) {
       a.latentDim = 12;
     }
     CellGenerator g;
-    g.weights = quantizeWeights(randomWeights(a, rng),
+    g.weights = quantizeWeights(test::uniformRandomWeights(a, rng),
                                 v == Variant::Fp16Latents4 ? WeightPrecision::Float16 : WeightPrecision::Int8);
     if (a.latentSource == LatentSource::Stored) {
       std::vector<float> lat(size_t(n * a.latentDim));
@@ -358,7 +339,7 @@ TEST(CellFile, BytesOfADefaultSizedCell) {
   c.grid.dims = {16, 8, 16};
   GeneratorArch a;  // defaults
   CellGenerator g;
-  g.weights = quantizeWeights(randomWeights(a, rng), WeightPrecision::Int8);
+  g.weights = quantizeWeights(test::uniformRandomWeights(a, rng), WeightPrecision::Int8);
   std::vector<float> lat(size_t(c.grid.probeCount() * a.latentDim));
   for (float& x : lat) x = std::normal_distribution<float>(0.0f, 1.0f)(rng);
   g.latents = quantizeLatents(lat, a.latentDim, 8);

@@ -6,27 +6,13 @@
 #include <random>
 
 #include "core/error.h"
+#include "generator_test_util.h"
 
 namespace lfgi {
 namespace {
 
-std::vector<float> randomLatents(size_t count, int dim, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<float> nd(0.0f, 1.0f);
-  std::vector<float> z(count * size_t(dim));
-  for (float& v : z) v = nd(rng);
-  return z;
-}
-
-// max |a - b| / max |b|: the fast decoder sums in a different order than the reference.
-double relMaxError(const std::vector<float>& a, const std::vector<float>& b) {
-  double scale = 0.0, err = 0.0;
-  for (size_t i = 0; i < b.size(); ++i) {
-    scale = std::max(scale, double(std::abs(b[i])));
-    err = std::max(err, double(std::abs(a[i] - b[i])));
-  }
-  return err / std::max(scale, 1e-30);
-}
+using test::randomLatents;
+using test::relMaxError;
 
 struct Case {
   GeneratorArch arch;

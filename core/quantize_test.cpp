@@ -8,29 +8,14 @@
 
 #include "core/error.h"
 #include "core/half.h"
+#include "generator_test_util.h"
 
 namespace lfgi {
 namespace {
 
 GeneratorWeights randomWeights(const GeneratorArch& arch, uint32_t seed, float amplitude = 0.5f) {
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-amplitude, amplitude);
-  auto fill = [&](size_t n) {
-    std::vector<float> v(n);
-    for (float& x : v) x = u(rng);
-    return v;
-  };
-  GeneratorWeights w;
-  w.arch = arch;
-  size_t c0 = size_t(arch.convChannels.front());
-  w.linearWeight = fill(16 * c0 * size_t(arch.inputDim()));
-  w.linearBias = fill(16 * c0);
-  for (int i = 0; i < arch.layers(); ++i) {
-    size_t ci = size_t(arch.convChannels[size_t(i)]), co = size_t(arch.convChannels[size_t(i) + 1]);
-    w.convWeight.push_back(fill(ci * co * 16));
-    w.convBias.push_back(fill(co));
-  }
-  return w;
+  return test::uniformRandomWeights(arch, rng, amplitude);
 }
 
 GeneratorArch smallArch() {

@@ -9,9 +9,13 @@
 #include "core/error.h"
 #include "core/generator_cpu.h"
 #include "gpu/timing.h"
+#include "generator_test_util.h"
 
 namespace lfgi::gpu {
 namespace {
+
+using test::randomLatents;
+using test::relMaxError;
 
 GeneratorArch makeArch(int latent, int cond, std::vector<int> channels) {
   GeneratorArch a;
@@ -19,23 +23,6 @@ GeneratorArch makeArch(int latent, int cond, std::vector<int> channels) {
   a.condDim = cond;
   a.convChannels = std::move(channels);
   return a;
-}
-
-std::vector<float> randomLatents(size_t count, int dim, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<float> nd(0.0f, 1.0f);
-  std::vector<float> z(count * size_t(dim));
-  for (float& v : z) v = nd(rng);
-  return z;
-}
-
-double relMaxError(const std::vector<float>& a, const std::vector<float>& b) {
-  double scale = 0.0, err = 0.0;
-  for (size_t i = 0; i < b.size(); ++i) {
-    scale = std::max(scale, double(std::abs(b[i])));
-    err = std::max(err, double(std::abs(a[i] - b[i])));
-  }
-  return err / std::max(scale, 1e-30);
 }
 
 std::vector<float> condFor(const GeneratorArch& a) {
