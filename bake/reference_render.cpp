@@ -9,6 +9,7 @@
 
 #include "bake/parallel_work.h"
 #include "bake/path_trace.h"
+#include "bake/tiled_render.h"
 #include "core/error.h"
 
 namespace lfgi::bake {
@@ -105,40 +106,54 @@ glm::vec3 cameraRayDirection(const PinholeCamera& camera, int width, int height,
   return glm::normalize(forward + sx * right + sy * up);
 }
 
-RenderResult renderReference(const EmbreeScene& scene, const worlds::SkyModel& sky, const PinholeCamera& camera,
-                             const RenderOptions& o, bool showProgress) {
+namespace detail {
+
+RenderResult renderTiled(const worlds::SkyModel& sky, const PinholeCamera& camera, const RenderOptions& o,
+                         std::vector<std::string> layers, bool showProgress,
+                         const std::function<void(const TileJob& job, Image& image, uint64_t& rays)>& tile) {
   validateRenderOptions(o);
   validateCamera(camera);
   const auto start = std::chrono::steady_clock::now();
   RenderResult result;
-  result.image = Image(o.width, o.height,
-                       {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect_diffuse.R", "indirect_diffuse.G",
-                        "indirect_diffuse.B", "indirect_specular.R", "indirect_specular.G", "indirect_specular.B",
-                        "std_error.R", "std_error.G", "std_error.B"});
+  result.image = Image(o.width, o.height, std::move(layers));
   const int tilesX = (o.width + o.tileSize - 1) / o.tileSize;
   const int tilesY = (o.height + o.tileSize - 1) / o.tileSize;
   result.tiles = size_t(tilesX) * size_t(tilesY);
-  detail::PathOptions po;
+  PathOptions po;
   po.maxBounces = o.maxBounces;
   po.rouletteAfter = o.rouletteAfter;
   po.maxDistance = o.maxDistance;
   po.discsOnPrimaryMiss = true;
-  const detail::Discs discs = detail::activeDiscs(sky);
-  const uint64_t key = detail::mix64(o.seed ^ 0x6c666769'63616d65ULL);
+  const Discs discs = activeDiscs(sky);
+  const uint64_t key = mix64(o.seed ^ 0x6c666769'63616d65ULL);
 
   std::atomic<uint64_t> rays{0};
-  const detail::ParallelWorkResult run =
-      detail::runParallelInterruptible(result.tiles, "reference", "tiles", showProgress, [&](size_t t) {
-        uint64_t localRays = 0;
-        renderTile(scene, sky, discs, camera, o, po, key, int(t % size_t(tilesX)) * o.tileSize,
-                   int(t / size_t(tilesX)) * o.tileSize, result.image, localRays);
-        rays.fetch_add(localRays, std::memory_order_relaxed);
-      });
+  const ParallelWorkResult run = runParallelInterruptible(result.tiles, "reference", "tiles", showProgress, [&](size_t t) {
+    uint64_t localRays = 0;
+    const int x0 = int(t % size_t(tilesX)) * o.tileSize, y0 = int(t / size_t(tilesX)) * o.tileSize;
+    const TileJob job{po, discs, key, x0, y0, std::min(x0 + o.tileSize, o.width), std::min(y0 + o.tileSize, o.height)};
+    tile(job, result.image, localRays);
+    rays.fetch_add(localRays, std::memory_order_relaxed);
+  });
   result.tilesDone = run.done;
   result.interrupted = run.interrupted;
   result.rays = rays.load();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
+}
+
+}  // namespace detail
+
+RenderResult renderReference(const EmbreeScene& scene, const worlds::SkyModel& sky, const PinholeCamera& camera,
+                             const RenderOptions& o, bool showProgress) {
+  return detail::renderTiled(
+      sky, camera, o,
+      {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect_diffuse.R", "indirect_diffuse.G",
+       "indirect_diffuse.B", "indirect_specular.R", "indirect_specular.G", "indirect_specular.B", "std_error.R",
+       "std_error.G", "std_error.B"},
+      showProgress, [&](const detail::TileJob& job, Image& image, uint64_t& rays) {
+        renderTile(scene, sky, job.discs, camera, o, job.path, job.key, job.x0, job.y0, image, rays);
+      });
 }
 
 }  // namespace lfgi::bake

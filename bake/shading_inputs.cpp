@@ -11,6 +11,7 @@
 #include "bake/brdf.h"
 #include "bake/parallel_work.h"
 #include "bake/path_trace.h"
+#include "bake/tiled_render.h"
 #include "core/error.h"
 #include "core/octahedral.h"
 
@@ -144,43 +145,25 @@ std::vector<float> prefilterSpecularLevels(const ProbeField& field, int levels) 
 
 RenderResult renderShadingReference(const EmbreeScene& scene, const worlds::SkyModel& sky,
                                     const PinholeCamera& camera, const RenderOptions& o, bool showProgress) {
-  validateRenderOptions(o);
-  validateCamera(camera);
-  const auto start = std::chrono::steady_clock::now();
-  RenderResult result;
-  result.image = Image(o.width, o.height,
-                       {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect.R", "indirect.G", "indirect.B"});
-  const int tilesX = (o.width + o.tileSize - 1) / o.tileSize;
-  const int tilesY = (o.height + o.tileSize - 1) / o.tileSize;
-  result.tiles = size_t(tilesX) * size_t(tilesY);
-  detail::PathOptions po;
-  po.maxBounces = o.maxBounces;
-  po.rouletteAfter = o.rouletteAfter;
-  po.maxDistance = o.maxDistance;
-  po.discsOnPrimaryMiss = true;
-  const detail::Discs discs = detail::activeDiscs(sky);
-  // The same key as renderReference, so the totals agree sample for sample.
-  const uint64_t key = detail::mix64(o.seed ^ 0x6c666769'63616d65ULL);
-  std::atomic<uint64_t> rays{0};
-  const detail::ParallelWorkResult run =
-      detail::runParallelInterruptible(result.tiles, "reference", "tiles", showProgress, [&](size_t t) {
-        uint64_t localRays = 0;
-        const int x0 = int(t % size_t(tilesX)) * o.tileSize, y0 = int(t / size_t(tilesX)) * o.tileSize;
-        const int x1 = std::min(x0 + o.tileSize, o.width), y1 = std::min(y0 + o.tileSize, o.height);
-        for (int y = y0; y < y1; ++y) {
-          for (int x = x0; x < x1; ++x) {
+  // detail::renderTiled uses renderReference's random key, so the totals agree sample for sample.
+  return detail::renderTiled(
+      sky, camera, o, {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect.R", "indirect.G", "indirect.B"},
+      showProgress, [&](const detail::TileJob& job, Image& image, uint64_t& localRays) {
+        for (int y = job.y0; y < job.y1; ++y) {
+          for (int x = job.x0; x < job.x1; ++x) {
             const int pixel = y * o.width + x;
             glm::dvec3 total(0.0), direct(0.0);
             for (int s = 0; s < o.samplesPerPixel; ++s) {
-              detail::PathRng rng(key, pixel, s);
+              detail::PathRng rng(job.key, pixel, s);
               const float jx = rng.nextFloat();
               const float jy = rng.nextFloat();
               const glm::vec3 dir = cameraRayDirection(camera, o.width, o.height, float(x) + jx, float(y) + jy);
               detail::FirstHit first;
-              total += glm::dvec3(detail::tracePath(scene, sky, discs, po, camera.position, dir, rng, first, localRays));
-              direct += glm::dvec3(directAtFirstHit(scene, sky, discs, po, camera.position, dir, localRays));
+              total += glm::dvec3(detail::tracePath(scene, sky, job.discs, job.path, camera.position, dir, rng, first,
+                                                    localRays));
+              direct += glm::dvec3(directAtFirstHit(scene, sky, job.discs, job.path, camera.position, dir, localRays));
             }
-            std::span<float> px = result.image.pixel(x, y);
+            std::span<float> px = image.pixel(x, y);
             for (int ch = 0; ch < 3; ++ch) {
               const float tot = float(total[ch] / o.samplesPerPixel);
               const float dir = float(direct[ch] / o.samplesPerPixel);
@@ -190,13 +173,7 @@ RenderResult renderShadingReference(const EmbreeScene& scene, const worlds::SkyM
             }
           }
         }
-        rays.fetch_add(localRays, std::memory_order_relaxed);
       });
-  result.tilesDone = run.done;
-  result.interrupted = run.interrupted;
-  result.rays = rays.load();
-  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return result;
 }
 
 }  // namespace lfgi::bake
