@@ -1,10 +1,11 @@
 // Where the streaming manager gets cells from. A CellSource knows the world's cell layout, hands out
 // every cell's coarse fallback up front, and loads (reads + validates + decodes) one cell's full light
 // field on request. Implementations: SyntheticCellSource (below: an analytic light field, for tests and
-// the fly-through benchmark before cells are baked), and cell-file sources (raw, SH or codec cells) that
-// plug in behind the same interface.
+// the fly-through benchmark before cells are baked), and CellFileSource (streaming/cell_file_source.h:
+// baked OpenVDB cell files, generator or SH-only cells).
 //
-// Threading contract: layout(), fallback() and maxCellBytes() are called from the game thread only;
+// Threading contract: layout(), fallback(), maxCellBytes() and setTimeOfDay() are called from the game
+// thread only;
 // load() is called concurrently from the manager's IO threads (several at once, never twice for the
 // same cell at the same time) and must be thread-safe. load() throws lfgi::Error on a bad cell (the
 // manager logs it, keeps the fallback and never asks for that cell again).
@@ -49,6 +50,9 @@ class CellSource {
   virtual size_t maxCellBytes() const = 0;
   // Loads cell `cell` into `out`, reusing out's capacity (no allocation when it fits).
   virtual void load(glm::ivec2 cell, ProbeField& out) = 0;
+  // The lighting loads started from now on decode under (sources whose cells depend on the time of day:
+  // the generator's conditioning). StreamingManager::update calls it first every frame. Default: ignored.
+  virtual void setTimeOfDay(float /*hours*/) {}
 };
 
 // An analytic light field: every cell has the same probe lattice (spacing, layers), and a probe's

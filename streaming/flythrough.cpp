@@ -208,6 +208,14 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
   sum.p99ActivateMs = percentile(activateMs, 0.99);
   sum.p99RelightMs = percentile(relightMs, 0.99);
   sum.p99ShadeMs = percentile(shadeMs, 0.99);
+  sum.p50IoMs = percentile(ioMs, 0.5);
+  sum.p50ActivateMs = percentile(activateMs, 0.5);
+  sum.p50RelightMs = percentile(relightMs, 0.5);
+  sum.p50ShadeMs = percentile(shadeMs, 0.5);
+  sum.p95IoMs = percentile(ioMs, 0.95);
+  sum.p95ActivateMs = percentile(activateMs, 0.95);
+  sum.p95RelightMs = percentile(relightMs, 0.95);
+  sum.p95ShadeMs = percentile(shadeMs, 0.95);
   return sum;
 }
 

@@ -57,6 +57,8 @@ struct FlythroughSummary {
   double p50FrameMs = 0.0, p95FrameMs = 0.0, p99FrameMs = 0.0;
   double p50UpdateMs = 0.0, p95UpdateMs = 0.0, p99UpdateMs = 0.0;
   double p99IoMs = 0.0, p99ActivateMs = 0.0, p99RelightMs = 0.0, p99ShadeMs = 0.0;
+  double p50IoMs = 0.0, p50ActivateMs = 0.0, p50RelightMs = 0.0, p50ShadeMs = 0.0;
+  double p95IoMs = 0.0, p95ActivateMs = 0.0, p95RelightMs = 0.0, p95ShadeMs = 0.0;
   size_t peakBytesResident = 0;
   long cellsRequested = 0, cellsEvicted = 0, cellsRelit = 0, cellsFailed = 0;
 };

@@ -175,6 +175,7 @@ void StreamingManager::collectFinished(FrameStats& stats) {
       spdlog::warn("streaming: cell {},{} failed to load, keeping its fallback: {}", slot.cell.x, slot.cell.y,
                    slot.error);
       failed_[size_t(layout_.linear(slot.cell))] = 1;
+      failures_.push_back({slot.cell, slot.error});
       ++stats.failed;
       record(StreamingEventType::Fail, slot.cell);
       freeSlot(s);
@@ -192,6 +193,7 @@ FrameStats StreamingManager::update(const FrameInput& in) {
   FrameStats stats;
   stats.frame = frame_;
   last_ = in;
+  source_.setTimeOfDay(in.timeOfDayHours);
   // Straight-line extrapolation, capped: on a curved path a long look-ahead lands off the path (at 400 m/s
   // on a 1.4 km radius loop, 2 s ahead is ~230 m off it) and would spend IO on cells never visited.
   glm::vec3 ahead = in.velocity * config_.prefetchSeconds;

@@ -88,6 +88,11 @@ struct StreamingEvent {
   friend bool operator==(const StreamingEvent&, const StreamingEvent&) = default;
 };
 
+struct CellFailure {
+  glm::ivec2 cell{0};
+  std::string error;  // what load() threw (what the log line says)
+};
+
 struct IrradianceSample {
   glm::vec3 irradiance{0.0f};
   float fallbackWeight = 1.0f;  // 0: all from full cells, 1: all from fallbacks
@@ -116,6 +121,8 @@ class StreamingManager {
   float fade(glm::ivec2 cell) const;       // 0 not resident .. 1 fully faded in
   int slotCount() const { return int(slots_.size()); }
   const std::vector<StreamingEvent>& events() const { return events_; }
+  // Every failed load so far (at most one per cell: a failed cell is never requested again).
+  const std::vector<CellFailure>& failures() const { return failures_; }
   const WorldLayout& layout() const { return layout_; }
   // Blocks until every queued IO request has finished (tests, shutdown).
   void drainIo();
@@ -157,6 +164,7 @@ class StreamingManager {
   std::vector<Slot> slots_;
   std::vector<Candidate> wanted_;  // reused every frame
   std::vector<StreamingEvent> events_;
+  std::vector<CellFailure> failures_;
   uint64_t frame_ = 0;
   FrameInput last_{};
 

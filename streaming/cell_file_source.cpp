@@ -1,0 +1,382 @@
+#include "streaming/cell_file_source.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <mutex>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "core/error.h"
+#include "core/generator_cpu.h"
+#include "core/half.h"
+#include "core/octahedral.h"
+#include "core/quantize.h"
+#include "core/sh.h"
+#include "worlds/world_cells.h"
+
+namespace lfgi::streaming {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+uint64_t usSince(Clock::time_point t0) {
+  return uint64_t(std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - t0).count());
+}
+
+int irradianceResolutionFor(int n, int option) { return option > 0 ? option : std::max(2, n / 2); }
+
+ShL1 shFromHalves(const uint16_t* h) {
+  ShL1 sh;
+  for (int k = 0; k < 4; ++k)
+    for (int c = 0; c < 3; ++c) sh.c[size_t(k)][c] = halfToFloat(h[k * 3 + c]);
+  return sh;
+}
+
+size_t fieldBytesFor(int64_t probes, int n, int m) {
+  const size_t P = size_t(probes), tn = size_t(n) * size_t(n), tm = size_t(m) * size_t(m);
+  return sizeof(float) * P * (tn * 3 + tn * 2 + tm * 3) + P;  // + the active flags
+}
+
+// The semantic checks of a cell file against the world it is streamed into (readCellFile has checked
+// the file against itself).
+void checkCellFits(const CellFile& c, glm::ivec2 cell, uint64_t worldSeed, const WorldLayout& layout,
+                   const fs::path& path) {
+  if (c.cellX != cell.x || c.cellZ != cell.y)
+    fail("{}: holds cell {},{}, expected {},{}", path.string(), c.cellX, c.cellZ, cell.x, cell.y);
+  if (c.worldSeed != worldSeed)
+    fail("{}: baked for world seed {}, the world's seed is {}", path.string(), c.worldSeed, worldSeed);
+  const glm::vec2 lo = layout.cellMin(cell), hi = lo + layout.cellSize;
+  const glm::vec3 a = c.grid.origin, b = c.grid.boxMax();
+  const float eps = 1e-3f * layout.cellSize;
+  if (a.x < lo.x - eps || a.z < lo.y - eps || b.x > hi.x + eps || b.z > hi.y + eps)
+    fail("{}: probe box x [{}, {}] z [{}, {}] is not inside the cell's square x [{}, {}] z [{}, {}]", path.string(),
+         a.x, b.x, a.z, b.z, lo.x, hi.x, lo.y, hi.y);
+}
+
+// Kernel K[t][s] = max(0, n_t . w_s) * omega_s of bruteForceIrradiance, per (n, m), built once.
+std::shared_ptr<const std::vector<float>> irradianceKernel(int n, int m) {
+  static std::mutex mutex;
+  static std::map<std::pair<int, int>, std::shared_ptr<const std::vector<float>>> cache;
+  const std::lock_guard lock(mutex);
+  auto it = cache.find({n, m});
+  if (it != cache.end()) return it->second;
+  const std::vector<double> omega = octTexelSolidAngles(n);
+  auto k = std::make_shared<std::vector<float>>(size_t(m * m) * size_t(n * n));
+  for (int tj = 0; tj < m; ++tj)
+    for (int ti = 0; ti < m; ++ti) {
+      const glm::vec3 nrm = octTexelDirection(ti, tj, m);
+      float* row = k->data() + size_t(tj * m + ti) * size_t(n * n);
+      for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+          const float c = glm::dot(nrm, octTexelDirection(i, j, n));
+          row[j * n + i] = c > 0.0f ? float(double(c) * omega[size_t(j * n + i)]) : 0.0f;
+        }
+    }
+  return cache.emplace(std::make_pair(n, m), std::move(k)).first->second;
+}
+
+// Probe p's maps from SH L1 radiance (see decodeCellField).
+void fillFromSh(const ShL1& sh, float range, ProbeField& f, size_t p) {
+  const int n = f.resolution, m = f.irradianceResolution;
+  const size_t tn = size_t(n) * size_t(n), tm = size_t(m) * size_t(m);
+  float* rad = f.radiance.data() + p * tn * 3;
+  float* dist = f.distance.data() + p * tn * 2;
+  float* irr = f.irradiance.data() + p * tm * 3;
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const glm::vec3 L = glm::max(shEvaluate(sh, octTexelDirection(i, j, n)), glm::vec3(0.0f));
+      const size_t t = size_t(j * n + i);
+      rad[t * 3] = L.x, rad[t * 3 + 1] = L.y, rad[t * 3 + 2] = L.z;
+      dist[t * 2] = range, dist[t * 2 + 1] = range * range;
+    }
+  for (int j = 0; j < m; ++j)
+    for (int i = 0; i < m; ++i) {
+      const glm::vec3 E = glm::max(shIrradiance(sh, octTexelDirection(i, j, m)), glm::vec3(0.0f));
+      const size_t t = size_t(j * m + i);
+      irr[t * 3] = E.x, irr[t * 3 + 1] = E.y, irr[t * 3 + 2] = E.z;
+    }
+}
+
+void copyProbe(const ProbeField& from, size_t a, ProbeField& to, size_t b) {
+  const size_t tn = size_t(to.resolution) * size_t(to.resolution);
+  const size_t tm = size_t(to.irradianceResolution) * size_t(to.irradianceResolution);
+  std::copy_n(from.radiance.data() + a * tn * 3, tn * 3, to.radiance.data() + b * tn * 3);
+  std::copy_n(from.distance.data() + a * tn * 2, tn * 2, to.distance.data() + b * tn * 2);
+  std::copy_n(from.irradiance.data() + a * tm * 3, tm * 3, to.irradiance.data() + b * tm * 3);
+}
+
+}  // namespace
+
+void CellFileSourceOptions::validate() const {
+  if (worldDir.empty()) fail("CellFileSourceOptions.worldDir is empty");
+  if (irradianceResolution < 0 || irradianceResolution > 64)
+    fail("CellFileSourceOptions.irradianceResolution = {} outside [0, 64]", irradianceResolution);
+  if (shOnlyResolution < 0 || shOnlyResolution > 128)
+    fail("CellFileSourceOptions.shOnlyResolution = {} outside [0, 128]", shOnlyResolution);
+  if (!(weather >= 0.0f && weather <= 1.0f)) fail("CellFileSourceOptions.weather = {} outside [0, 1]", weather);
+}
+
+ShL1 cellFileFallback(const CellFile& cell) {
+  const std::vector<uint16_t>& h = cell.fallback.shHalf;
+  const size_t entries = h.size() / 12;
+  if (entries == 0) fail("cell {},{}: no fallback SH", cell.cellX, cell.cellZ);
+  if (cell.fallback.kind == CellFallback::Kind::PerCell || entries == 1) return shFromHalves(h.data());
+  ShL1 mean;
+  for (size_t e = 0; e < entries; ++e) {
+    const ShL1 sh = shFromHalves(h.data() + e * 12);
+    for (int k = 0; k < 4; ++k) mean.c[size_t(k)] += sh.c[size_t(k)];
+  }
+  for (glm::vec3& c : mean.c) c /= float(entries);
+  return mean;
+}
+
+int decodedResolution(const CellFile& cell, int shOnlyResolution) {
+  return cell.generator ? cell.generator->weights.arch.outputResolution() : shOnlyResolution;
+}
+
+void convolveIrradiance(ProbeField& f, int64_t first, int64_t count) {
+  const int n = f.resolution, m = f.irradianceResolution;
+  const size_t tn = size_t(n) * size_t(n), tm = size_t(m) * size_t(m);
+  if (first < 0 || count < 0 || first + count > f.probeCount() || f.radiance.size() < size_t(f.probeCount()) * tn * 3 ||
+      f.irradiance.size() < size_t(f.probeCount()) * tm * 3)
+    fail("convolveIrradiance: probes [{}, {}) or array sizes disagree with the field's {} probes", first,
+         first + count, f.probeCount());
+  const auto kernel = irradianceKernel(n, m);
+  const float* K = kernel->data();
+  for (int64_t p = first; p < first + count; ++p) {
+    const float* L = f.radiance.data() + size_t(p) * tn * 3;
+    float* E = f.irradiance.data() + size_t(p) * tm * 3;
+    for (size_t t = 0; t < tm; ++t) {
+      const float* row = K + t * tn;
+      float r = 0.0f, g = 0.0f, b = 0.0f;
+      for (size_t s = 0; s < tn; ++s) {
+        r += row[s] * L[s * 3];
+        g += row[s] * L[s * 3 + 1];
+        b += row[s] * L[s * 3 + 2];
+      }
+      E[t * 3] = r, E[t * 3 + 1] = g, E[t * 3 + 2] = b;
+    }
+  }
+}
+
+void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, int irradianceResolution,
+                     int shOnlyResolution, ProbeField& out, const std::string& name) {
+  const int n = decodedResolution(cell, shOnlyResolution);
+  if (n < 1 || n > 128) fail("{}: decoded resolution {} outside [1, 128]", name, n);
+  const int m = irradianceResolutionFor(n, irradianceResolution);
+  const int64_t P = cell.grid.probeCount();
+  const size_t tn = size_t(n) * size_t(n), tm = size_t(m) * size_t(m);
+  out.grid = cell.grid;
+  out.resolution = n;
+  out.irradianceResolution = m;
+  out.offsets.clear();
+  out.normal.clear();
+  out.albedo.clear();
+  if (cell.active.empty()) out.active.assign(size_t(P), 1);
+  else out.active.assign(cell.active.begin(), cell.active.end());
+  out.radiance.resize(size_t(P) * tn * 3);
+  out.distance.resize(size_t(P) * tn * 2);
+  out.irradiance.resize(size_t(P) * tm * 3);
+
+  const ShL1 cellSh = cellFileFallback(cell);
+  const bool perProbe = cell.fallback.kind == CellFallback::Kind::PerProbe;
+  const float range = cell.outputScale.range;
+  const int64_t A = cell.activeProbeCount();
+
+  if (cell.generator && A > 0) {
+    const GeneratorWeights weights = dequantizeWeights(cell.generator->weights);
+    const GeneratorArch& arch = weights.arch;
+    GeneratorCpu decoder(weights);
+    // The active probes in latent order are decoded densely into a staging field, then scattered.
+    thread_local std::vector<float> latents;
+    thread_local ProbeField stage;
+    const size_t L = size_t(arch.latentDim);
+    if (arch.latentSource == LatentSource::Stored) {
+      latents = dequantizeLatents(cell.generator->latents);
+    } else {
+      latents.resize(size_t(A) * L);
+      const glm::vec3 lo = cell.grid.origin, ext = cell.grid.boxMax() - cell.grid.origin;
+      size_t k = 0;
+      for (int64_t i = 0; i < P; ++i) {
+        if (!out.active[size_t(i)]) continue;
+        const glm::vec3 p = cell.grid.probePosition(cell.grid.probeCoord(i));
+        glm::vec3 q;
+        for (int a = 0; a < 3; ++a) q[a] = ext[a] > 0.0f ? std::clamp((p[a] - lo[a]) / ext[a], 0.0f, 1.0f) : 0.5f;
+        positionLatent(q, arch.fourierOctaves, std::span<float>(latents).subspan(k * L, L));
+        ++k;
+      }
+    }
+    if (latents.size() != size_t(A) * L)
+      fail("{}: {} latent floats for {} active probes of {}", name, latents.size(), A, L);
+    const auto cond = conditioningVector(timeOfDayHours, weather);
+    const std::span<const float> condSpan(cond.data(), size_t(arch.condDim));
+    // Chunks of whole decoder batches: the same sgemm batches as one decodeProbeField over every active
+    // probe (identical values), with a staging field of ~1024 probes instead of the cell's.
+    const size_t chunk = decoder.chunkProbes() * std::max<size_t>(1, 1024 / decoder.chunkProbes());
+    stage.grid = ProbeGrid{};
+    stage.resolution = n;
+    stage.irradianceResolution = m;
+    int64_t next = 0;           // next probe index to place
+    size_t firstInactive = size_t(-1);
+    auto placeUpTo = [&](int64_t end, size_t& k) {  // scatter staged probes, SH for the inactive ones
+      for (; next < end; ++next) {
+        if (out.active[size_t(next)]) {
+          copyProbe(stage, k++, out, size_t(next));
+        } else if (firstInactive == size_t(-1)) {
+          fillFromSh(cellSh, range, out, size_t(next));
+          firstInactive = size_t(next);
+        } else {
+          copyProbe(out, firstInactive, out, size_t(next));
+        }
+      }
+    };
+    for (size_t k0 = 0; k0 < size_t(A); k0 += chunk) {
+      const size_t cnt = std::min(chunk, size_t(A) - k0);
+      stage.grid.dims = {int(cnt), 1, 1};
+      decodeProbeField(decoder, std::span<const float>(latents).subspan(k0 * L, cnt * L), condSpan, cell.outputScale,
+                       stage);
+      stage.irradiance.resize(cnt * tm * 3);
+      convolveIrradiance(stage, 0, int64_t(cnt));
+      // Place probes up to (excluding) the (k0 + cnt)-th active one.
+      size_t k = 0, seen = 0;
+      int64_t end = next;
+      while (end < P && seen < cnt) seen += out.active[size_t(end++)] != 0;
+      placeUpTo(end, k);
+    }
+    size_t k = 0;
+    placeUpTo(P, k);  // trailing inactive probes
+    return;
+  }
+  // No network (or no active probe): every probe from SH; a per-cell SH is evaluated once and copied.
+  size_t k = 0, firstShared = size_t(-1);
+  for (int64_t i = 0; i < P; ++i) {
+    const bool own = perProbe && out.active[size_t(i)];
+    if (own) {
+      fillFromSh(shFromHalves(cell.fallback.shHalf.data() + k * 12), range, out, size_t(i));
+    } else if (firstShared == size_t(-1)) {
+      fillFromSh(cellSh, range, out, size_t(i));
+      firstShared = size_t(i);
+    } else {
+      copyProbe(out, firstShared, out, size_t(i));
+    }
+    if (out.active[size_t(i)]) ++k;
+  }
+}
+
+CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::move(options)) {
+  options_.validate();
+  if (options_.cellsDir.empty()) options_.cellsDir = options_.worldDir / "baked" / "cells";
+  const worlds::WorldParams params = worlds::readWorldManifest(options_.worldDir);
+  const int cells = int(std::lround(params.sizeM / params.cellM));
+  layout_ = {{0.0f, 0.0f}, float(params.cellM), {cells, cells}};
+  worldSeed_ = params.seed;
+  std::error_code ec;
+  if (!fs::is_directory(options_.cellsDir, ec))
+    fail("{}: no cell-file directory (bake the world with `lfgi bake` first)", options_.cellsDir.string());
+
+  const size_t N = size_t(cells) * size_t(cells);
+  info_.assign(N, {});
+  fallback_.assign(N, {});
+  int maxGeneratorN = 0, logged = 0;
+  for (int z = 0; z < cells; ++z)
+    for (int x = 0; x < cells; ++x) {
+      const glm::ivec2 c{x, z};
+      CellFileInfo& inf = info_[size_t(layout_.linear(c))];
+      const fs::path path = cellPath(c);
+      if (!fs::exists(path, ec)) {
+        inf.state = CellFileState::Missing;
+        inf.error = fmt::format("{}: no cell file", path.string());
+        ++missingCells_;
+        continue;
+      }
+      try {
+        CellFile file = readCellFile(path);
+        checkCellFits(file, c, worldSeed_, layout_, path);
+        fallback_[size_t(layout_.linear(c))] = cellFileFallback(file);
+        inf.state = CellFileState::Valid;
+        inf.network = file.generator.has_value();
+        inf.probes = file.grid.probeCount();
+        inf.activeProbes = file.activeProbeCount();
+        inf.resolution = inf.network ? file.generator->weights.arch.outputResolution() : 0;
+        if (inf.network) maxGeneratorN = std::max(maxGeneratorN, inf.resolution);
+        ++validCells_;
+      } catch (const Error& e) {
+        inf.state = CellFileState::Corrupt;
+        inf.error = e.what();
+        ++corruptCells_;
+        if (logged++ < 8) spdlog::warn("streaming: {} (the cell streams its neighbours' mean fallback)", inf.error);
+      }
+    }
+  if (validCells_ == 0)
+    fail("{}: none of the world's {} cells has a readable cell file ({} missing, {} corrupt)",
+         options_.cellsDir.string(), N, missingCells_, corruptCells_);
+  if (options_.shOnlyResolution == 0) options_.shOnlyResolution = maxGeneratorN > 0 ? maxGeneratorN : 8;
+  for (CellFileInfo& inf : info_) {
+    if (inf.state != CellFileState::Valid) continue;
+    if (!inf.network) inf.resolution = options_.shOnlyResolution;
+    inf.fieldBytes = fieldBytesFor(inf.probes, inf.resolution,
+                                   irradianceResolutionFor(inf.resolution, options_.irradianceResolution));
+    maxCellBytes_ = std::max(maxCellBytes_, inf.fieldBytes);
+  }
+  // Cells without a usable file: the mean fallback of the nearest ring (Chebyshev distance r) holding a
+  // valid cell. Any ring reaches every cell by r = cells, and a valid cell exists.
+  for (int z = 0; z < cells; ++z)
+    for (int x = 0; x < cells; ++x) {
+      if (info_[size_t(layout_.linear({x, z}))].state == CellFileState::Valid) continue;
+      for (int r = 1; r <= cells; ++r) {
+        ShL1 sum;
+        int count = 0;
+        for (int dz = -r; dz <= r; ++dz)
+          for (int dx = -r; dx <= r; ++dx) {
+            const glm::ivec2 c{x + dx, z + dz};
+            if (std::max(std::abs(dx), std::abs(dz)) != r || !layout_.contains(c) ||
+                info_[size_t(layout_.linear(c))].state != CellFileState::Valid)
+              continue;
+            for (int k = 0; k < 4; ++k) sum.c[size_t(k)] += fallback_[size_t(layout_.linear(c))].c[size_t(k)];
+            ++count;
+          }
+        if (count == 0) continue;
+        for (glm::vec3& v : sum.c) v /= float(count);
+        fallback_[size_t(layout_.linear({x, z}))] = sum;
+        break;
+      }
+    }
+  if (missingCells_ > 0)
+    spdlog::warn("streaming: {} of {} cells have no cell file in {} (they stream their neighbours' mean fallback)",
+                 missingCells_, N, options_.cellsDir.string());
+  spdlog::info("streaming: cell files in {}: {} valid, {} missing, {} corrupt; slot {} bytes",
+               options_.cellsDir.string(), validCells_, missingCells_, corruptCells_, maxCellBytes_);
+}
+
+fs::path CellFileSource::cellPath(glm::ivec2 cell) const {
+  return options_.cellsDir / fmt::format("cell_{}_{}.vdb", cell.x, cell.y);
+}
+
+ShL1 CellFileSource::fallback(glm::ivec2 cell) const {
+  if (!layout_.contains(cell)) fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, layout_.cells.x, layout_.cells.y);
+  return fallback_[size_t(layout_.linear(cell))];
+}
+
+void CellFileSource::load(glm::ivec2 cell, ProbeField& out) {
+  if (!layout_.contains(cell)) fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, layout_.cells.x, layout_.cells.y);
+  const fs::path path = cellPath(cell);
+  const auto t0 = Clock::now();
+  std::error_code ec;
+  if (!fs::exists(path, ec)) fail("{}: no cell file", path.string());
+  const CellFile file = readCellFile(path);
+  checkCellFits(file, cell, worldSeed_, layout_, path);
+  const auto t1 = Clock::now();
+  readUs_.fetch_add(usSince(t0));
+  decodeCellField(file, timeOfDay_.load(), options_.weather, options_.irradianceResolution, options_.shOnlyResolution,
+                  out, path.string());
+  decodeUs_.fetch_add(usSince(t1));
+  loads_.fetch_add(1);
+}
+
+}  // namespace lfgi::streaming

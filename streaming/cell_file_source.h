@@ -1,0 +1,115 @@
+// CellFileSource: the streaming manager's cells from baked cell files (`lfgi bake`: WORLD/baked/cells/
+// cell_X_Z.vdb, core/cell_file.h) instead of an analytic field (issue 8).
+//
+// Construction (game thread, once): the layout comes from the world manifest (worlds::readWorldManifest:
+// cells of cellM metres from (0, 0)). Every cell file is read once through readCellFile (its checksum
+// covers the whole stream, so a trusted fallback needs the whole file read; the weights are dropped at
+// once) to keep only what must stay resident or sizes the slots: the cell's SH L1 fallback (the per-cell
+// entry, or the mean of the per-probe entries), its probe count and model resolution. A file must also
+// name its own cell, the world's seed and a probe grid inside the cell's square, else it counts as
+// corrupt. A cell with no file or a corrupt one is logged and gets the mean fallback of its nearest ring
+// of valid cells (8 neighbours first, then wider rings): a smooth guess, never a hole. No valid cell at
+// all is an lfgi::Error naming the directory.
+//
+// load() (IO threads, concurrently): readCellFile again (every check: a file corrupted or deleted after
+// construction throws lfgi::Error naming the file, the manager logs it and keeps the fallback) then a CPU
+// decode into the slot's ProbeField (decodeCellField below), reusing the slot's arrays (no allocation
+// once a slot has held a cell of this size; reading and dequantizing a file still allocates).
+//
+// Lighting: generator cells decode under the conditioning of the time of day the manager last set
+// (setTimeOfDay, called by StreamingManager::update) and options.weather. The fallback is the bake's
+// first lighting key (core/cell_file.h stores one SH L1), so it does not follow the time of day.
+#pragma once
+
+#include <atomic>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/cell_file.h"
+#include "streaming/cell_source.h"
+
+namespace lfgi::streaming {
+
+struct CellFileSourceOptions {
+  std::filesystem::path worldDir;      // holds world.json (the layout)
+  std::filesystem::path cellsDir;      // empty: worldDir / "baked" / "cells"
+  int irradianceResolution = 0;        // m of the decoded irradiance maps; 0: max(2, n / 2)
+  int shOnlyResolution = 0;            // n for cells without a network; 0: the largest generator n, else 8
+  float weather = 0.0f;                // generator conditioning, [0, 1]
+  // Throws lfgi::Error naming the bad field.
+  void validate() const;
+};
+
+enum class CellFileState : uint8_t { Valid, Missing, Corrupt };
+
+struct CellFileInfo {
+  CellFileState state = CellFileState::Missing;
+  std::string error;          // Missing / Corrupt: why
+  bool network = false;       // a generator is stored
+  int64_t probes = 0;         // grid probe count
+  int64_t activeProbes = 0;
+  int resolution = 0;         // n the decoded field will have
+  size_t fieldBytes = 0;      // ProbeField::bytes() of the decoded cell
+};
+
+class CellFileSource final : public CellSource {
+ public:
+  // Throws lfgi::Error for a bad manifest or options, or when no cell file is readable.
+  explicit CellFileSource(CellFileSourceOptions options);
+
+  WorldLayout layout() const override { return layout_; }
+  ShL1 fallback(glm::ivec2 cell) const override;
+  size_t maxCellBytes() const override { return maxCellBytes_; }
+  void load(glm::ivec2 cell, ProbeField& out) override;
+  void setTimeOfDay(float hours) override { timeOfDay_.store(hours); }
+
+  std::filesystem::path cellPath(glm::ivec2 cell) const;
+  const CellFileInfo& info(glm::ivec2 cell) const { return info_[size_t(layout_.linear(cell))]; }
+  int validCells() const { return validCells_; }
+  int missingCells() const { return missingCells_; }
+  int corruptCells() const { return corruptCells_; }
+  // Totals over every load() so far (any thread): file read + checks, and decode.
+  uint64_t loads() const { return loads_.load(); }
+  double readMsTotal() const { return double(readUs_.load()) * 1e-3; }
+  double decodeMsTotal() const { return double(decodeUs_.load()) * 1e-3; }
+
+ private:
+  CellFileSourceOptions options_;
+  WorldLayout layout_;
+  uint64_t worldSeed_ = 0;
+  std::vector<ShL1> fallback_;
+  std::vector<CellFileInfo> info_;
+  size_t maxCellBytes_ = 0;
+  int validCells_ = 0, missingCells_ = 0, corruptCells_ = 0;
+  std::atomic<float> timeOfDay_{12.0f};
+  std::atomic<uint64_t> loads_{0}, readUs_{0}, decodeUs_{0};
+};
+
+// The cell's SH L1 fallback: the per-cell entry, or the mean of the per-probe entries (cell.fallback must
+// be valid, as readCellFile guarantees).
+ShL1 cellFileFallback(const CellFile& cell);
+
+// The resolution n a decoded cell has: the generator's output resolution, else shOnlyResolution.
+int decodedResolution(const CellFile& cell, int shOnlyResolution);
+
+// Decodes a read cell file into `out` (grid, resolutions, active, radiance, distance, irradiance; no
+// normal / albedo / offsets), reusing out's capacity:
+//   generator cells: the active probes (latent order) through decodeProbeField (core/generator_cpu.h)
+//     with conditioningVector(timeOfDayHours, weather); position latents from the probe's lattice
+//     position (the cell file keeps no relocation offsets, so a relocated probe's latent differs from
+//     the bake's by its offset); irradiance = convolveIrradiance of the decoded radiance;
+//   cells without a network, and the inactive probes of any cell: the probe's SH L1 (its per-probe
+//     entry, else the cell's) evaluated: radiance max(0, shEvaluate) at texel centres, irradiance
+//     shIrradiance at texel-centre normals, distance moments (range, range^2) (nothing occludes).
+// Throws lfgi::Error (starting with `name`) if the model cannot decode to a probe field.
+void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, int irradianceResolution,
+                     int shOnlyResolution, ProbeField& out, const std::string& name = "cell");
+
+// field.irradiance from field.radiance for probes [first, first + count): the texel sum of
+// bruteForceIrradiance (core/sh.h: E(n) = sum L(w) max(0, n.w) omega, exact texel solid angles), with the
+// m^2 x n^2 kernel precomputed once per (n, m) in float. Same values as core's deriveIrradiance up to
+// float rounding; field.irradiance must already have its full size.
+void convolveIrradiance(ProbeField& field, int64_t first, int64_t count);
+
+}  // namespace lfgi::streaming

@@ -1,0 +1,398 @@
+#include "streaming/cell_file_source.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "core/generator_cpu.h"
+#include "core/half.h"
+#include "core/octahedral.h"
+#include "core/probe_codecs.h"
+#include "core/quantize.h"
+#include "generator_test_util.h"
+#include "streaming/streaming_manager.h"
+#include "worlds/world_cells.h"
+
+namespace lfgi::streaming {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr uint64_t kSeed = 7;
+constexpr float kCell = 64.0f;
+
+enum class Kind { Stored, Position, ShPerCell, ShPerProbe };
+
+Kind kindOf(int x, int z) {
+  if (x == 0 && z == 0) return Kind::Position;
+  if (x == 2 && z == 2) return Kind::ShPerProbe;
+  return (x + z) % 2 == 0 ? Kind::Stored : Kind::ShPerCell;
+}
+
+void pushSh(std::vector<uint16_t>& h, glm::vec3 dc, glm::vec3 dir) {
+  const glm::vec3 c[4] = {dc, dir.y * dc, dir.z * dc, dir.x * dc};
+  for (const glm::vec3& v : c)
+    for (int k = 0; k < 3; ++k) h.push_back(floatToHalfClamped(v[k]));
+}
+
+// A cell of 4 x 2 x 4 probes, 16 m apart; the centre cell has two probes disabled.
+CellFile makeCell(int x, int z) {
+  std::mt19937 rng(unsigned(100 + 10 * z + x));
+  CellFile c;
+  c.worldSeed = kSeed;
+  c.cellX = x;
+  c.cellZ = z;
+  c.inputHash = uint64_t(x * 31 + z);
+  c.grid.origin = {float(x) * kCell, 0.5f, float(z) * kCell};
+  c.grid.spacing = glm::vec3(16.0f);
+  c.grid.dims = {4, 2, 4};
+  if (x == 1 && z == 1) {
+    c.active.assign(32, 1);
+    c.active[5] = c.active[17] = 0;
+  }
+  const Kind kind = kindOf(x, z);
+  const int64_t n = c.activeProbeCount();
+  if (kind == Kind::Stored || kind == Kind::Position) {
+    GeneratorArch a;
+    a.latentDim = 4;
+    a.convChannels = {8, kGeneratorChannels};  // 8 x 8 maps
+    if (kind == Kind::Position) {
+      a.latentSource = LatentSource::PositionFourier;
+      a.fourierOctaves = 1;
+      a.latentDim = 6;
+    }
+    CellGenerator g;
+    g.weights = quantizeWeights(test::uniformRandomWeights(a, rng, 0.2f), WeightPrecision::Int8);
+    if (kind == Kind::Stored) g.latents = quantizeLatents(test::randomLatents(size_t(n), a.latentDim, unsigned(x + 7 * z)), a.latentDim, 8);
+    c.generator = std::move(g);
+  }
+  c.outputScale = {2.0f, 48.0f};
+  const glm::vec3 dc(0.6f + 0.1f * float(x), 0.5f + 0.1f * float(z), 0.55f);
+  if (kind == Kind::ShPerProbe) {
+    c.fallback.kind = CellFallback::Kind::PerProbe;
+    for (int64_t i = 0; i < n; ++i) pushSh(c.fallback.shHalf, dc * (1.0f + 0.05f * float(i)), {0.1f, 0.3f, -0.1f});
+  } else {
+    pushSh(c.fallback.shHalf, dc, {0.05f, 0.25f, 0.0f});
+  }
+  c.stats.model = c.generator ? "test generator" : "no network: SH L1";
+  return c;
+}
+
+// A 3 x 3 world of 64 m cells with every cell file written.
+fs::path makeWorld(const std::string& name) {
+  const fs::path dir = fs::path(LFGI_TEST_TMP_DIR) / "cell_file_source" / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir / "baked" / "cells");
+  worlds::writeWorldManifest(dir, worlds::WorldParams{kSeed, 3 * kCell, kCell});
+  for (int z = 0; z < 3; ++z)
+    for (int x = 0; x < 3; ++x) writeCellFile(dir / "baked" / "cells" / fmt::format("cell_{}_{}.vdb", x, z), makeCell(x, z));
+  return dir;
+}
+
+CellFileSourceOptions options(const fs::path& world) {
+  CellFileSourceOptions o;
+  o.worldDir = world;
+  return o;
+}
+
+fs::path cellFile(const fs::path& world, int x, int z) {
+  return world / "baked" / "cells" / fmt::format("cell_{}_{}.vdb", x, z);
+}
+
+void flipByte(const fs::path& file, size_t at) {
+  std::fstream f(file, std::ios::in | std::ios::out | std::ios::binary);
+  ASSERT_TRUE(f.good());
+  f.seekg(std::streamoff(at));
+  char b = 0;
+  f.read(&b, 1);
+  b = char(b ^ 0x10);
+  f.seekp(std::streamoff(at));
+  f.write(&b, 1);
+}
+
+bool sameBits(const float* a, const float* b, size_t n) { return std::memcmp(a, b, n * sizeof(float)) == 0; }
+
+TEST(CellFileSource, LoadEqualsADirectDecode) {
+  const fs::path world = makeWorld("direct");
+  CellFileSource source(options(world));
+  EXPECT_EQ(source.validCells(), 9);
+  EXPECT_EQ(source.layout().cells, glm::ivec2(3, 3));
+  EXPECT_EQ(source.layout().cellSize, kCell);
+  source.setTimeOfDay(15.5f);
+  size_t largest = 0;
+  for (int z = 0; z < 3; ++z)
+    for (int x = 0; x < 3; ++x) {
+      SCOPED_TRACE(fmt::format("cell {},{}", x, z));
+      const CellFile file = readCellFile(cellFile(world, x, z));
+      const ShL1 cellSh = cellFileFallback(file);
+      const ShL1 fb = source.fallback({x, z});
+      for (int k = 0; k < 4; ++k) EXPECT_EQ(fb.c[size_t(k)], cellSh.c[size_t(k)]);
+      ProbeField f;
+      source.load({x, z}, f);
+      largest = std::max(largest, f.bytes());
+      ASSERT_EQ(f.resolution, 8);
+      ASSERT_EQ(f.irradianceResolution, 4);
+      ASSERT_EQ(f.probeCount(), 32);
+      ASSERT_NO_THROW(f.validate());
+      const size_t tn = 64, tm = 16;
+      const int64_t A = file.activeProbeCount();
+      if (file.generator) {
+        // The direct route: core's dequantize + decodeProbeField over the active probes, deriveIrradiance.
+        const GeneratorWeights w = dequantizeWeights(file.generator->weights);
+        GeneratorCpu dec(w);
+        std::vector<float> z8;
+        if (w.arch.latentSource == LatentSource::Stored) {
+          z8 = dequantizeLatents(file.generator->latents);
+        } else {
+          for (int64_t i = 0; i < 32; ++i) {
+            const glm::vec3 p = file.grid.probePosition(file.grid.probeCoord(i));
+            const glm::vec3 q = (p - file.grid.origin) / (file.grid.boxMax() - file.grid.origin);
+            z8.resize(z8.size() + 6);
+            positionLatent(q, 1, std::span<float>(z8).last(6));
+          }
+        }
+        ProbeField d;
+        d.grid.dims = {int(A), 1, 1};
+        d.resolution = 8;
+        d.irradianceResolution = 4;
+        const auto cond = conditioningVector(15.5f, 0.0f);
+        decodeProbeField(dec, z8, cond, file.outputScale, d);
+        deriveIrradiance(d);
+        int64_t k = 0;
+        for (int64_t i = 0; i < 32; ++i) {
+          if (!f.isActive(i)) continue;
+          EXPECT_TRUE(sameBits(&f.radiance[size_t(i) * tn * 3], &d.radiance[size_t(k) * tn * 3], tn * 3)) << i;
+          EXPECT_TRUE(sameBits(&f.distance[size_t(i) * tn * 2], &d.distance[size_t(k) * tn * 2], tn * 2)) << i;
+          for (size_t t = 0; t < tm * 3; ++t) {
+            const float want = d.irradiance[size_t(k) * tm * 3 + t];
+            EXPECT_NEAR(f.irradiance[size_t(i) * tm * 3 + t], want, 1e-5f * std::abs(want) + 1e-6f) << i;
+          }
+          ++k;
+        }
+        EXPECT_EQ(k, A);
+      }
+      // SH-evaluated probes: every probe of an SH-only cell, the disabled probes of a generator cell.
+      int64_t k = 0;
+      for (int64_t i = 0; i < 32; ++i) {
+        const bool own = file.fallback.kind == CellFallback::Kind::PerProbe && f.isActive(i);
+        if (file.generator && f.isActive(i)) {
+          ++k;
+          continue;
+        }
+        ShL1 sh = cellSh;
+        if (own)
+          for (int b = 0; b < 4; ++b)
+            for (int ch = 0; ch < 3; ++ch) sh.c[size_t(b)][ch] = halfToFloat(file.fallback.shHalf[size_t(k) * 12 + size_t(b) * 3 + size_t(ch)]);
+        for (int t = 0; t < 16; ++t) {
+          const glm::vec3 e = shIrradiance(sh, octTexelDirection(t % 4, t / 4, 4));
+          EXPECT_EQ(f.irradiance[size_t(i) * tm * 3 + size_t(t) * 3], std::max(e.x, 0.0f)) << i;
+        }
+        EXPECT_EQ(f.distance[size_t(i) * tn * 2], 48.0f);
+        if (f.isActive(i)) ++k;
+      }
+      // A second load into the same field reuses its arrays.
+      const float* before = f.radiance.data();
+      source.load({x, z}, f);
+      EXPECT_EQ(f.radiance.data(), before);
+    }
+  EXPECT_EQ(source.maxCellBytes(), largest);
+  EXPECT_EQ(source.loads(), 18u);
+}
+
+// More active probes than one staging chunk (>= 1024): the chunked decode equals one decodeProbeField
+// over all active probes, bit for bit, and disabled probes between chunks land in the right places.
+TEST(CellFileSource, ChunkedDecodeOfALargeCellEqualsOneDecode) {
+  CellFile c = makeCell(2, 0);  // a stored-latent cell
+  ASSERT_TRUE(c.generator.has_value());
+  c.grid.dims = {16, 6, 16};
+  c.grid.spacing = glm::vec3(4.0f);
+  c.active.assign(size_t(c.grid.probeCount()), 1);
+  for (size_t i = 0; i < c.active.size(); i += 7) c.active[i] = 0;
+  const int64_t A = c.activeProbeCount();
+  ASSERT_GT(A, 1024 + 256);
+  const GeneratorWeights w = dequantizeWeights(c.generator->weights);
+  c.generator->latents = quantizeLatents(test::randomLatents(size_t(A), w.arch.latentDim, 5), w.arch.latentDim, 8);
+  ProbeField f;
+  decodeCellField(c, 9.0f, 0.25f, 0, 8, f);
+  GeneratorCpu dec(w);
+  ASSERT_LT(dec.chunkProbes(), size_t(A));
+  ProbeField d;
+  d.grid.dims = {int(A), 1, 1};
+  d.resolution = 8;
+  const auto cond = conditioningVector(9.0f, 0.25f);
+  decodeProbeField(dec, dequantizeLatents(c.generator->latents), cond, c.outputScale, d);
+  int64_t k = 0;
+  for (int64_t i = 0; i < c.grid.probeCount(); ++i) {
+    if (!f.isActive(i)) {
+      EXPECT_EQ(f.distance[size_t(i) * 128], c.outputScale.range) << i;
+      continue;
+    }
+    ASSERT_TRUE(sameBits(&f.radiance[size_t(i) * 192], &d.radiance[size_t(k) * 192], 192)) << i;
+    ASSERT_TRUE(sameBits(&f.distance[size_t(i) * 128], &d.distance[size_t(k) * 128], 128)) << i;
+    ++k;
+  }
+  EXPECT_EQ(k, A);
+}
+
+TEST(CellFileSource, MissingAndCorruptFilesGetTheirNeighboursFallback) {
+  const fs::path world = makeWorld("broken");
+  fs::remove(cellFile(world, 0, 2));
+  flipByte(cellFile(world, 2, 0), 300);
+  fs::copy_file(cellFile(world, 1, 1), cellFile(world, 1, 2), fs::copy_options::overwrite_existing);  // wrong cell
+  CellFileSource source(options(world));
+  EXPECT_EQ(source.validCells(), 6);
+  EXPECT_EQ(source.missingCells(), 1);
+  EXPECT_EQ(source.corruptCells(), 2);
+  EXPECT_EQ(source.info({0, 2}).state, CellFileState::Missing);
+  EXPECT_EQ(source.info({2, 0}).state, CellFileState::Corrupt);
+  EXPECT_NE(source.info({2, 0}).error.find("cell_2_0.vdb"), std::string::npos) << source.info({2, 0}).error;
+  EXPECT_NE(source.info({1, 2}).error.find("holds cell 1,1, expected 1,2"), std::string::npos) << source.info({1, 2}).error;
+  // Cell (0, 2)'s valid 8-neighbours: (0, 1) and (1, 1) ((1, 2) is corrupt).
+  const ShL1 a = cellFileFallback(makeCell(0, 1)), b = cellFileFallback(makeCell(1, 1)), m = source.fallback({0, 2});
+  for (int k = 0; k < 4; ++k) EXPECT_EQ(m.c[size_t(k)], (a.c[size_t(k)] + b.c[size_t(k)]) / 2.0f);
+  ProbeField f;
+  try {
+    source.load({0, 2}, f);
+    ADD_FAILURE() << "loaded a missing cell";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cell_0_2.vdb: no cell file"), std::string::npos) << e.what();
+  }
+  try {
+    source.load({2, 0}, f);
+    ADD_FAILURE() << "loaded a corrupt cell";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cell_2_0.vdb"), std::string::npos) << e.what();
+  }
+}
+
+TEST(CellFileSource, NoReadableCellNamesTheDirectory) {
+  const fs::path world = makeWorld("empty");
+  for (int z = 0; z < 3; ++z)
+    for (int x = 0; x < 3; ++x) fs::remove(cellFile(world, x, z));
+  try {
+    CellFileSource source(options(world));
+    ADD_FAILURE() << "constructed";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("none of the world's 9 cells"), std::string::npos) << e.what();
+  }
+  fs::remove_all(world / "baked");
+  EXPECT_THROW(CellFileSource(options(world)), Error);
+}
+
+StreamingConfig fileConfig(size_t cellBytes) {
+  StreamingConfig c;
+  c.decodeRadius = 40.0f;
+  c.keepRadius = 56.0f;
+  c.maxPrefetchDistance = 20.0f;
+  c.ioThreads = 0;
+  c.maxInlineLoadsPerFrame = 1;
+  c.maxActivationsPerFrame = 4;
+  c.activateBudgetMs = 1e9;
+  c.fadeSeconds = 0.0f;
+  c.recordEvents = true;
+  c.memoryBudgetBytes = 4 * cellBytes + 17;  // fewer slots than cells
+  return c;
+}
+
+// West -> east through the middle row, 20 m/s at 10 fps, time of day moving.
+std::vector<FrameInput> eastward() {
+  std::vector<FrameInput> path;
+  for (int f = 0; f < 90; ++f) {
+    FrameInput in;
+    in.position = {8.0f + 2.0f * float(f), 10.0f, 96.0f};
+    in.velocity = {20.0f, 0.0f, 0.0f};
+    in.direction = {1.0f, 0.0f, 0.0f};
+    in.timeOfDayHours = 8.0f + 0.05f * float(f);
+    in.dtSeconds = 0.1f;
+    path.push_back(in);
+  }
+  return path;
+}
+
+// Ground points around the camera (in the world) have GI every frame.
+void expectNoHoles(const StreamingManager& m, glm::vec3 cam, int frame) {
+  for (float dz : {-60.0f, -20.0f, 0.0f, 20.0f, 60.0f})
+    for (float dx : {-60.0f, -20.0f, 0.0f, 20.0f, 60.0f}) {
+      glm::vec3 p(cam.x + dx, 1.0f, cam.z + dz);
+      if (!m.layout().contains(m.layout().cellOf(p))) continue;
+      IrradianceSample s = m.sample(p, {0, 1, 0});
+      ASSERT_FALSE(s.missing) << "frame " << frame;
+      ASSERT_TRUE(std::isfinite(s.irradiance.x + s.irradiance.y + s.irradiance.z)) << "frame " << frame;
+    }
+}
+
+TEST(CellFileStreaming, ScriptedFlightIsDeterministicWithinBudgetAndReplacesFallbacks) {
+  const fs::path world = makeWorld("flight");
+  auto run = [&](std::vector<float>* fallbackAtFar) {
+    CellFileSource source(options(world));
+    const StreamingConfig c = fileConfig(source.maxCellBytes());
+    StreamingManager m(source, c);
+    EXPECT_EQ(m.slotCount(), 4);
+    const glm::vec3 far(2 * kCell + 30.0f, 1.0f, kCell + 30.0f);  // cell (2, 1), reached late
+    int f = 0;
+    for (const FrameInput& in : eastward()) {
+      FrameStats s = m.update(in);
+      EXPECT_LE(s.bytesResident, c.memoryBudgetBytes) << "frame " << f;
+      EXPECT_EQ(s.failed, 0);
+      expectNoHoles(m, in.position, f);
+      fallbackAtFar->push_back(m.sample(far, {0, 1, 0}).fallbackWeight);
+      ++f;
+    }
+    EXPECT_TRUE(m.isResident({2, 1}));
+    EXPECT_GT(source.loads(), 4u);
+    return m.events();
+  };
+  std::vector<float> w1, w2;
+  const std::vector<StreamingEvent> e1 = run(&w1), e2 = run(&w2);
+  EXPECT_EQ(e1, e2);
+  EXPECT_EQ(w1, w2);
+  EXPECT_EQ(w1.front(), 1.0f);  // the far cell starts on its fallback...
+  EXPECT_EQ(w1.back(), 0.0f);   // ...and ends on its full field
+  int evictions = 0;
+  for (const StreamingEvent& e : e1) evictions += e.type == StreamingEventType::Evict;
+  EXPECT_GT(evictions, 0);  // the western cells were dropped to make room
+}
+
+TEST(CellFileStreaming, CorruptAndMissingFilesMidFlightKeepTheFallback) {
+  const fs::path world = makeWorld("midflight");
+  fs::remove(cellFile(world, 2, 0));  // missing from the start
+  CellFileSource source(options(world));
+  ASSERT_EQ(source.info({2, 1}).state, CellFileState::Valid);
+  StreamingManager m(source, fileConfig(source.maxCellBytes()));
+  int f = 0, failed = 0;
+  bool flipped = false;
+  for (const FrameInput& in : eastward()) {
+    // Corrupt cell (2, 1) while the camera is still two cells away from it.
+    if (!flipped && in.position.x > 40.0f) {
+      EXPECT_FALSE(m.isResident({2, 1}));
+      flipByte(cellFile(world, 2, 1), size_t(fs::file_size(cellFile(world, 2, 1)) / 2));
+      flipped = true;
+    }
+    failed += m.update(in).failed;
+    expectNoHoles(m, in.position, f++);
+  }
+  EXPECT_TRUE(flipped);
+  EXPECT_EQ(failed, 2);
+  ASSERT_EQ(m.failures().size(), 2u);
+  for (const CellFailure& e : m.failures()) {
+    EXPECT_TRUE(e.cell == glm::ivec2(2, 1) || e.cell == glm::ivec2(2, 0)) << e.cell.x << "," << e.cell.y;
+    EXPECT_NE(e.error.find(fmt::format("cell_{}_{}.vdb", e.cell.x, e.cell.y)), std::string::npos) << e.error;
+  }
+  EXPECT_FALSE(m.isResident({2, 1}));
+  EXPECT_TRUE(m.isResident({2, 2}));
+  // The corrupt cell is lit by its fallback (the one read at construction), not by nothing.
+  IrradianceSample s = m.sample({2 * kCell + 40.0f, 1.0f, kCell + 40.0f}, {0, 1, 0});
+  EXPECT_FALSE(s.missing);
+  EXPECT_EQ(s.fallbackWeight, 1.0f);
+  EXPECT_GT(s.irradiance.x, 0.0f);
+}
+
+}  // namespace
+}  // namespace lfgi::streaming
