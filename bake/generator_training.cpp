@@ -508,6 +508,22 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
   double err = INFINITY, loss = 0.0;
   int stepsThisCall = 0;
   bool done = false;
+  // Divergence guard: the state of the last finite evaluation (at first the starting weights). A
+  // non-finite loss or error stops training and restores it, so the exported model is always finite.
+  auto snapshot = [&]() {
+    std::vector<torch::Tensor> st;
+    for (const torch::Tensor& p : gen->parameters()) st.push_back(p.detach().clone());
+    if (stored) st.push_back(latents.detach().clone());
+    return st;
+  };
+  std::vector<torch::Tensor> lastFinite = snapshot();
+  auto restoreLastFinite = [&]() {
+    torch::NoGradGuard noGrad;
+    std::vector<torch::Tensor> params = gen->parameters();
+    for (size_t i = 0; i < params.size(); ++i) params[i].copy_(lastFinite[i]);
+    if (stored) latents.copy_(lastFinite.back());
+    result.report.diverged = true;
+  };
   while (step < o.maxSteps && !done) {
     if (InterruptGuard::interrupted() || (o.stopAfterSteps > 0 && stepsThisCall >= o.stopAfterSteps)) {
       result.report.interrupted = true;
@@ -528,6 +544,10 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
                           eRef.pow(2).sum().clamp_min(1e-30);
     }
     if (stored && o.loss.latent > 0.0f) total = total + o.loss.latent * latents.pow(2).mean();
+    if (!std::isfinite(total.item<double>())) {
+      restoreLastFinite();
+      break;
+    }
     torch::Tensor cond = o.arch.condDim > 0 ? d.cond.index_select(0, idx.div(d.P, "floor")) : torch::Tensor();
     if (o.adversarial) {
       // Discriminator step on real captures vs the current (detached) outputs, then the generator's
@@ -549,6 +569,11 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
     ++stepsThisCall;
     if (step % o.evalEvery == 0 || step == o.maxSteps) {
       err = evaluate();
+      if (!std::isfinite(err)) {
+        restoreLastFinite();
+        break;
+      }
+      lastFinite = snapshot();
       if (o.showProgress)
         std::fprintf(stderr, "\ntrain generator: step %d loss %.5f irradiance rel RMS %.4f (target %.4f)\n", step,
                      loss, err, o.irradianceErrorTarget);
@@ -824,6 +849,7 @@ CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const
     return generatorBytes(a, P) < generatorBytes(b, P);
   });
   std::optional<CellModelChoice> best;
+  bool bestUsable = false;
   for (size_t i = 0; i < candidates.size(); ++i) {
     GeneratorTrainingOptions to = options.training;
     to.arch = candidates[i];
@@ -840,13 +866,21 @@ CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const
     choice.attempts.push_back(SizingAttempt{CellModelKind::kGenerator, to.arch, c.bytes,
                                             c.error.irradianceRelativeRms, g.report.seconds, g.report.steps});
     const bool interrupted = g.report.interrupted;
+    // A diverged network (or a non-finite error) is kept only when there is nothing else at all.
+    const bool usable = !g.report.diverged && std::isfinite(c.error.irradianceRelativeRms);
     c.generator = std::move(g);
-    if (c.reachedTarget) return finish(std::move(c));
-    if (!best || c.error.irradianceRelativeRms < best->error.irradianceRelativeRms) best = std::move(c);
+    if (c.reachedTarget && usable) return finish(std::move(c));
+    if (!best || (usable && (!bestUsable || c.error.irradianceRelativeRms < best->error.irradianceRelativeRms))) {
+      best = std::move(c);
+      bestUsable = usable;
+    }
     if (interrupted) break;
   }
   for (CellModelChoice& c : fits)
-    if (!best || c.error.irradianceRelativeRms < best->error.irradianceRelativeRms) best = std::move(c);
+    if (!best || !bestUsable || c.error.irradianceRelativeRms < best->error.irradianceRelativeRms) {
+      best = std::move(c);
+      bestUsable = true;
+    }
   return finish(std::move(*best));
 }
 

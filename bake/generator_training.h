@@ -113,6 +113,9 @@ struct GeneratorTrainingReport {
   int resumedFromStep = 0;              // 0: started fresh
   bool reachedTarget = false;
   bool interrupted = false;             // stopped by InterruptGuard or stopAfterSteps (checkpoint written)
+  bool diverged = false;                // the loss or the error went non-finite: training stopped and the
+                                        // last finite state (last finite evaluation, else the initial
+                                        // weights) is what was exported; chooseCellModel never prefers it
   double seconds = 0.0;                 // wall time of this call
   double finalLoss = 0.0;
   double irradianceRelativeRms = 0.0;   // of the exported model through core generatorForward
