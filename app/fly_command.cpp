@@ -1,11 +1,13 @@
 // `lfgi fly` and `lfgi profile`: the streaming manager over a whole world along a camera path.
-// Cells come from SyntheticCellSource (an analytic light field on the world's cell layout) until baked
-// codec cell files exist; the layout is the world directory's (--world) or the 4096 m default.
+// Cells come from the baked cell files when --world DIR has DIR/baked/cells (CellFileSource: OpenVDB
+// cell files decoded on the CPU at load), else from SyntheticCellSource (an analytic light field on the
+// world's cell layout, or the 4096 m default without --world). The summary says which.
 #include <sys/resource.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -16,6 +18,7 @@
 #include "core/file_util.h"
 #include "core/progress.h"
 #include "core/trace.h"
+#include "streaming/cell_file_source.h"
 #include "streaming/flythrough.h"
 #include "worlds/world_cells.h"
 
@@ -78,7 +81,14 @@ unset multiplot
 int runFly(const FlyOptions& opt) {
   streaming::SyntheticSourceOptions src;
   src.layout = {{0.0f, 0.0f}, 64.0f, {64, 64}};
-  if (!opt.world.empty()) {
+  std::unique_ptr<streaming::CellFileSource> fileSource;
+  const std::filesystem::path cellsDir = std::filesystem::path(opt.world) / "baked" / "cells";
+  if (!opt.world.empty() && std::filesystem::is_directory(cellsDir)) {
+    streaming::CellFileSourceOptions fso;
+    fso.worldDir = opt.world;
+    fileSource = std::make_unique<streaming::CellFileSource>(fso);
+    src.layout = fileSource->layout();
+  } else if (!opt.world.empty()) {
     worlds::WorldParams params = worlds::readWorldManifest(opt.world);
     int cells = int(std::lround(params.sizeM / params.cellM));
     src.layout = {{0.0f, 0.0f}, float(params.cellM), {cells, cells}};
@@ -87,7 +97,15 @@ int runFly(const FlyOptions& opt) {
   src.resolution = opt.resolution;
   src.irradianceResolution = std::max(2, opt.resolution / 2);
   src.loadDelayUs = opt.loadDelayUs;
-  streaming::SyntheticCellSource source(src);
+  std::unique_ptr<streaming::SyntheticCellSource> synthetic;
+  if (!fileSource) synthetic = std::make_unique<streaming::SyntheticCellSource>(src);
+  streaming::CellSource& source = fileSource ? static_cast<streaming::CellSource&>(*fileSource) : *synthetic;
+  const std::string sourceText =
+      fileSource ? fmt::format("cell files from {} ({} valid, {} missing, {} corrupt; CPU decode at load)",
+                               cellsDir.string(), fileSource->validCells(), fileSource->missingCells(),
+                               fileSource->corruptCells())
+                 : std::string("synthetic analytic cells (raw FP32 probe fields) on the world's cell layout");
+  std::printf("source: %s\n", sourceText.c_str());
 
   streaming::FlythroughOptions fo;
   fo.path = opt.path;
@@ -101,6 +119,8 @@ int runFly(const FlyOptions& opt) {
   fo.streaming.memoryBudgetBytes = size_t(opt.budgetMb * 1024.0 * 1024.0);
   fo.streaming.decodeRadius = opt.decodeRadius;
   fo.streaming.keepRadius = opt.decodeRadius * 1.4f;
+  if (fileSource)
+    fo.onRelight = [&](glm::ivec2 cell, ProbeField& field, float hours) { fileSource->relight(cell, field, hours); };
   fo.validate();
 
   const std::filesystem::path out = opt.outDir.empty() ? (opt.profile ? "out/profile" : "out/fly") : opt.outDir;
@@ -117,7 +137,7 @@ int runFly(const FlyOptions& opt) {
 
   const double km2 = double(src.layout.cells.x) * src.layout.cells.y * src.layout.cellSize * src.layout.cellSize / 1e6;
   nlohmann::ordered_json j;
-  j["source"] = "synthetic analytic cells (raw FP32 probe fields) on the world's cell layout";
+  j["source"] = sourceText;
   j["world_km2"] = km2;
   j["speed_mps"] = opt.speed;
   j["frames"] = s.frames;
@@ -132,6 +152,14 @@ int runFly(const FlyOptions& opt) {
   j["p99_activate_ms"] = s.p99ActivateMs;
   j["p99_relight_ms"] = s.p99RelightMs;
   j["p99_shade_ms"] = s.p99ShadeMs;
+  j["p50_io_ms"] = s.p50IoMs;
+  j["p95_io_ms"] = s.p95IoMs;
+  j["p50_activate_ms"] = s.p50ActivateMs;
+  j["p95_activate_ms"] = s.p95ActivateMs;
+  j["p50_relight_ms"] = s.p50RelightMs;
+  j["p95_relight_ms"] = s.p95RelightMs;
+  j["p50_shade_ms"] = s.p50ShadeMs;
+  j["p95_shade_ms"] = s.p95ShadeMs;
   j["peak_bytes_resident"] = s.peakBytesResident;
   j["memory_budget_bytes"] = fo.streaming.memoryBudgetBytes;
   j["cells_requested"] = s.cellsRequested;
@@ -141,8 +169,18 @@ int runFly(const FlyOptions& opt) {
   j["peak_rss_mb"] = peakRssMb();
   // Sizes the memory regression tests pin (tests/baselines/memory.json).
   const size_t cellBytes = source.maxCellBytes();
-  const size_t cellProbes = size_t(src.layout.cellSize / src.probeSpacing) * size_t(src.layout.cellSize / src.probeSpacing) *
-                            size_t(src.layers);
+  size_t cellProbes = size_t(src.layout.cellSize / src.probeSpacing) * size_t(src.layout.cellSize / src.probeSpacing) *
+                      size_t(src.layers);
+  if (fileSource) {  // the largest cell's (the slot size)
+    for (int z = 0; z < src.layout.cells.y; ++z)
+      for (int x = 0; x < src.layout.cells.x; ++x)
+        if (const auto& inf = fileSource->info({x, z}); inf.fieldBytes == cellBytes) cellProbes = size_t(inf.probes);
+    j["cell_files"] = {{"dir", cellsDir.string()}, {"valid", fileSource->validCells()},
+                       {"missing", fileSource->missingCells()}, {"corrupt", fileSource->corruptCells()}};
+    j["cell_loads"] = fileSource->loads();
+    j["cell_read_ms_total"] = fileSource->readMsTotal();
+    j["cell_decode_ms_total"] = fileSource->decodeMsTotal();
+  }
   j["cell_bytes"] = cellBytes;
   j["bytes_per_probe"] = double(cellBytes) / double(cellProbes);
   j["pool_bytes"] = (fo.streaming.memoryBudgetBytes / cellBytes) * cellBytes;

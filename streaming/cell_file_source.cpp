@@ -379,4 +379,27 @@ void CellFileSource::load(glm::ivec2 cell, ProbeField& out) {
   loads_.fetch_add(1);
 }
 
+bool CellFileSource::relight(glm::ivec2 cell, ProbeField& field, float timeOfDayHours) {
+  if (!layout_.contains(cell) || !info_[size_t(layout_.linear(cell))].network) return true;
+  const fs::path path = cellPath(cell);
+  try {
+    const auto t0 = Clock::now();
+    const CellFile file = readCellFile(path);
+    checkCellFits(file, cell, worldSeed_, layout_, path);
+    if (!file.generator) return true;
+    const auto t1 = Clock::now();
+    readUs_.fetch_add(usSince(t0));
+    // In place: past readCellFile's checks and this size check, decoding cannot fail halfway.
+    if (file.grid.probeCount() != field.probeCount() || decodedResolution(file, options_.shOnlyResolution) != field.resolution)
+      fail("{}: changed size since the cell was loaded", path.string());
+    decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution, options_.shOnlyResolution,
+                    field, path.string());
+    decodeUs_.fetch_add(usSince(t1));
+    return true;
+  } catch (const Error& e) {
+    spdlog::warn("streaming: relight of cell {},{} failed, keeping its lighting: {}", cell.x, cell.y, e.what());
+    return false;
+  }
+}
+
 }  // namespace lfgi::streaming

@@ -17,8 +17,9 @@
 // once a slot has held a cell of this size; reading and dequantizing a file still allocates).
 //
 // Lighting: generator cells decode under the conditioning of the time of day the manager last set
-// (setTimeOfDay, called by StreamingManager::update) and options.weather. The fallback is the bake's
-// first lighting key (core/cell_file.h stores one SH L1), so it does not follow the time of day.
+// (setTimeOfDay, called by StreamingManager::update) and options.weather; relight() re-decodes a resident
+// cell when the time of day has moved. The fallback is the bake's first lighting key (core/cell_file.h
+// stores one SH L1), so it does not follow the time of day.
 #pragma once
 
 #include <atomic>
@@ -63,6 +64,12 @@ class CellFileSource final : public CellSource {
   size_t maxCellBytes() const override { return maxCellBytes_; }
   void load(glm::ivec2 cell, ProbeField& out) override;
   void setTimeOfDay(float hours) override { timeOfDay_.store(hours); }
+  // Relight of a resident cell for StreamingManager::onRelight (game thread): a generator cell is
+  // re-read and re-decoded under the new time of day into `field` (same size: no allocation); a cell
+  // without a network does not depend on it and is left as is. A file that fails now is logged and the
+  // field kept (returns false). The re-read is IO inside the relight stage: caching the quantized model
+  // of resident cells would remove it.
+  bool relight(glm::ivec2 cell, ProbeField& field, float timeOfDayHours);
 
   std::filesystem::path cellPath(glm::ivec2 cell) const;
   const CellFileInfo& info(glm::ivec2 cell) const { return info_[size_t(layout_.linear(cell))]; }

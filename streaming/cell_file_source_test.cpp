@@ -241,6 +241,30 @@ TEST(CellFileSource, ChunkedDecodeOfALargeCellEqualsOneDecode) {
   EXPECT_EQ(k, A);
 }
 
+TEST(CellFileSource, RelightReDecodesGeneratorCellsUnderTheNewTimeOfDay) {
+  const fs::path world = makeWorld("relight");
+  CellFileSource source(options(world));
+  source.setTimeOfDay(8.0f);
+  ProbeField gen, sh, fresh;
+  source.load({1, 1}, gen);
+  source.load({1, 0}, sh);  // no network
+  const std::vector<float> morning = gen.irradiance, shBefore = sh.irradiance;
+  const float* data = gen.radiance.data();
+  EXPECT_TRUE(source.relight({1, 1}, gen, 16.0f));
+  EXPECT_EQ(gen.radiance.data(), data);  // in place
+  source.setTimeOfDay(16.0f);
+  source.load({1, 1}, fresh);
+  EXPECT_EQ(gen.irradiance, fresh.irradiance);
+  EXPECT_EQ(gen.radiance, fresh.radiance);
+  EXPECT_NE(gen.irradiance, morning);  // the conditioning matters
+  EXPECT_TRUE(source.relight({1, 0}, sh, 16.0f));
+  EXPECT_EQ(sh.irradiance, shBefore);
+  // A file corrupted after the load: the relight fails and the cell keeps its lighting.
+  flipByte(cellFile(world, 1, 1), 400);
+  EXPECT_FALSE(source.relight({1, 1}, gen, 20.0f));
+  EXPECT_EQ(gen.irradiance, fresh.irradiance);
+}
+
 TEST(CellFileSource, MissingAndCorruptFilesGetTheirNeighboursFallback) {
   const fs::path world = makeWorld("broken");
   fs::remove(cellFile(world, 0, 2));

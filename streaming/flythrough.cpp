@@ -100,6 +100,7 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
   const WorldLayout layout = source.layout();
   const PathTable path = buildPath(layout, o);
   StreamingManager manager(source, o.streaming);
+  manager.onRelight = o.onRelight;
   const int frames = std::max(1, int(std::lround(double(o.seconds) * o.fps)));
   const double dt = 1.0 / o.fps;
   FlythroughSummary sum;

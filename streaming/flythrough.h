@@ -31,6 +31,8 @@ struct FlythroughOptions {
   int sampleRaysX = 24, sampleRaysY = 12;  // view rays of the visible-sample grid (90 x 50 deg)
   bool preload = true;           // load everything around the start before the first frame (uncounted)
   StreamingConfig streaming;
+  // StreamingManager::onRelight for the flight (e.g. CellFileSource::relight); empty: relight is a no-op.
+  std::function<void(glm::ivec2 cell, ProbeField& field, float timeOfDayHours)> onRelight;
   // Throws lfgi::Error naming the bad option.
   void validate() const;
 };
