@@ -12,6 +12,18 @@
 // neighbour makes the cell stale), probe grid, flags and offsets, every bake setting. A cell whose file
 // holds the same input hash is up to date.
 //
+// Invalidation after a world edit (worlds/world_edits.h; issue 11 incremental rebake): an edit changes
+// the meshes of the cells it overlaps (SyntheticWorld::editCells; usually one), and a cell's bake reads
+// geometry only through (a) its capture scene, exactly its 3 x 3 block, and (b) probe placement, which
+// sees its own mesh and the 8 neighbours' solid boxes (part of their meshes). Every other input of the
+// bake is the cell's own. So the stale cells are exactly the changed cells and their in-world neighbours:
+// 9 for an interior cell, 6 on an edge, 4 in a corner. The rule is neighbour MESH hashes, not neighbour
+// input hashes, so staleness never cascades further than one ring. It is not tightened further on
+// purpose: capture.maxDistance (4 cells) exceeds the 3 x 3 block, and with bounces > 0 a path can reach
+// any triangle of the block, so no sub-region of a neighbour is provably unseen; proving a change
+// invisible (e.g. inside a sealed room) would need a visibility analysis of both scenes, and even an
+// unseen change rebuilds the Embree BVH, so the file is only guaranteed bit-identical when the scene is.
+//
 // Determinism: with threads = 1 (the default) the same inputs give a bit-identical file in any process on
 // any machine of the same build (capture is per-texel seeded; training is bit-identical at 1 thread).
 #pragma once

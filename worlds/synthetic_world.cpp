@@ -53,6 +53,7 @@ enum Purpose : int64_t {
   kPurposeHill = 6,  // octave o uses kPurposeHill + 16 * o
   kPurposeBlock = 7,
   kPurposeField = 9,
+  kPurposeEdit = 10,  // world edits (world_edits.h): keyed by edit index
 };
 
 // A stream of numbers from one key: value i is mix64(key + i * golden). Used inside one object's
@@ -401,6 +402,14 @@ class CellBuilder {
   CellBuilder(TriangleMesh* mesh, CellLayout& layout) : mesh_(mesh), layout_(layout) {}
 
   CellLayout& layout() { return layout_; }
+  // XZ regions of clear-region / add-building edits over this cell: generated buildings and props whose
+  // extent overlaps one (positive area) are not emitted (world_edits.h).
+  void setClears(std::vector<Rect> clears) { clears_ = std::move(clears); }
+  bool cleared(const Rect& r) const {
+    for (const Rect& c : clears_)
+      if (r.x0 < c.x1 && c.x0 < r.x1 && r.z0 < c.z1 && c.z0 < r.z1) return true;
+    return false;
+  }
   bool hasMesh() const { return mesh_ != nullptr; }
   TriangleMesh* mesh() { return mesh_; }
 
@@ -465,6 +474,7 @@ class CellBuilder {
   TriangleMesh* mesh_;
   CellLayout& layout_;
   float maxY_ = 0.0f;
+  std::vector<Rect> clears_;
 };
 
 Aabb makeAabb(glm::dvec3 a, glm::dvec3 b) {
@@ -573,7 +583,23 @@ struct BuildingPlan {
   double arcadeDepth = 3.0;
   bool courtyardWing = false;
   bool forceLit = true;  // at least one lit window if the building has windows
+  bool edit = false;     // from an add-building edit: not subject to the cell's clear regions
 };
+
+// XZ extent of everything a plan emits (footprint, roof overhang, arcade).
+Rect planExtent(const BuildingPlan& bp) {
+  double u0 = 0.0, u1 = bp.L, v0 = 0.0, v1 = bp.D;
+  if (bp.roof == RoofKind::kFlatOverhang) {
+    u0 -= bp.overhang;
+    u1 += bp.overhang;
+    v0 -= bp.overhang;
+    v1 += bp.overhang;
+  }
+  if (bp.arcadeSide == 0 && bp.storeys >= 2) v0 = std::min(v0, -bp.arcadeDepth - 0.25);
+  if (bp.arcadeSide == 1 && bp.storeys >= 2) v1 = std::max(v1, bp.D + bp.arcadeDepth + 0.25);
+  const glm::dvec3 a = bp.f.p(u0, 0.0, v0), b = bp.f.p(u1, 0.0, v1);
+  return {std::min(a.x, b.x), std::min(a.z, b.z), std::max(a.x, b.x), std::max(a.z, b.z)};
+}
 
 struct Opening {
   int side = -1;          // 0..3 facade, or -1 interior
@@ -677,8 +703,10 @@ void emitExteriorWall(CellBuilder& cb, const Frame& f, int side, double L, doubl
   if (wallTop > split) emit({s0, s1, split, wallTop});
 }
 
-// Emits one building from its plan; returns its index in layout.buildings.
+// Emits one building from its plan; returns its index in layout.buildings, or -1 when a clear region
+// removed it (nothing emitted; the caller's random stream is unchanged either way).
 int emitBuilding(CellBuilder& cb, const BuildingPlan& bp, Rng rng) {
+  if (!bp.edit && cb.cleared(planExtent(bp))) return -1;
   CellLayout& lay = cb.layout();
   const Frame& f = bp.f;
   const double L = bp.L, D = bp.D, t = bp.extT, it = bp.intT, h = bp.storeyH, st = bp.slabT;
@@ -951,6 +979,10 @@ int emitBuilding(CellBuilder& cb, const BuildingPlan& bp, Rng rng) {
 // sunlit for any sun above the horizon on the street side or high in the sky; the sealed room has no
 // opening of any kind.
 int emitLeakHouse(CellBuilder& cb, const Frame& f, double L, double D, int front, glm::vec3 facade, Rng rng) {
+  {
+    const Aabb e = f.aabb(0, L, 0, D, 0, 0);
+    if (cb.cleared({e.min.x, e.min.z, e.max.x, e.max.z})) return -1;
+  }
   CellLayout& lay = cb.layout();
   const double t = 0.3, st = 0.25, h = 3.2, base = 0.15, parapet = 0.6;
   const double tw = 0.1 + 0.05 * double(rng.irange(0, 2));  // 0.10, 0.15 or 0.20
@@ -1170,11 +1202,12 @@ void layoutCourtyard(CellBuilder& cb, Rng rng, const Rect& lotIn) {
       bp.blocked[2] = {{-1e9, 1e9}};
       bp.blocked[3] = {{-1e9, 1e9}};
     }
-    court.wings.push_back(emitBuilding(cb, bp, wr));
+    const int wing = emitBuilding(cb, bp, wr);
+    if (wing >= 0) court.wings.push_back(wing);
     minTop = std::min(minTop, bp.base + storeys * storeyH);
   }
   court.yard = makeAabb({lot.x0 + d, 0.0, lot.z0 + d}, {lot.x1 - d, minTop, lot.z1 - d});
-  cb.layout().courtyards.push_back(court);
+  if (court.wings.size() == 4) cb.layout().courtyards.push_back(court);  // a cleared wing opens the ring
 }
 
 void layoutArcade(CellBuilder& cb, Rng rng, const Rect& lot, int side) {
@@ -1247,6 +1280,7 @@ void layoutHouses(CellBuilder& cb, Rng rng, const Rect& lot) {
 }
 
 void addLamp(CellBuilder& cb, double x, double z, double ground) {
+  if (cb.cleared({x - 0.35, z - 0.35, x + 0.35, z + 0.35})) return;
   const double top = ground + 5.4;
   cb.box({x - 0.08, ground - 0.1, z - 0.08}, {x + 0.08, top - 0.15, z + 0.08},
          propMat("lamp_pole", {0.2f, 0.2f, 0.22f}));
@@ -1273,6 +1307,7 @@ void layoutPark(CellBuilder& cb, Rng rng, const Rect& lot) {
     if (!ok) continue;
     trees.push_back(p);
     const double r = rng.range(1.4, 2.2), th = rng.range(2.0, 3.0), ch = rng.range(2.5, 4.0);
+    if (cb.cleared({p.x - r, p.y - r, p.x + r, p.y + r})) continue;
     cb.box({p.x - 0.2, -0.1, p.y - 0.2}, {p.x + 0.2, th, p.y + 0.2},
            propMat("tree_trunk", {0.25f, 0.16f, 0.1f}));
     cb.box({p.x - r, th, p.y - r}, {p.x + r, th + ch, p.y + r}, propMat("tree_canopy", {0.1f, 0.3f, 0.08f}));
@@ -1283,7 +1318,7 @@ void layoutPark(CellBuilder& cb, Rng rng, const Rect& lot) {
     const double bx = cx + b * 4.0;
     bool clear = true;
     for (const glm::dvec2& q : trees) clear = clear && glm::length(q - glm::dvec2(bx, cz)) > 3.5;
-    if (clear)
+    if (clear && !cb.cleared({bx - 0.9, cz - 0.25, bx + 0.9, cz + 0.25}))
       cb.box({bx - 0.9, -0.05, cz - 0.25}, {bx + 0.9, 0.45, cz + 0.25}, propMat("bench", {0.4f, 0.3f, 0.2f}));
   }
   bool clear = true;
@@ -1355,6 +1390,7 @@ void layoutField(CellBuilder& cb, const WorldView& w, Rng rng, int64_t cx, int64
         lo = std::min(lo, y);
         hi = std::max(hi, y);
       }
+    if (cb.cleared({px - 0.5 * sx, pz - 0.5 * sz, px + 0.5 * sx, pz + 0.5 * sz})) continue;
     cb.box({px - 0.5 * sx, lo - 0.3, pz - 0.5 * sz}, {px + 0.5 * sx, hi + hgt, pz + 0.5 * sz},
            hay ? propMat("hay_bale", {0.6f, 0.5f, 0.2f}) : propMat("rock", {0.4f, 0.4f, 0.38f}));
   }
@@ -1499,12 +1535,124 @@ WorldView viewOf(const SyntheticWorld& world) {
                    world.mainRoadSpacingCells()};
 }
 
-void buildCell(const WorldView& w, CellCoord c, TriangleMesh* mesh, CellLayout& layout) {
+// ---------------------------------------------------------------------------------------------------
+// World edits (world_edits.h).
+
+Rect editRect(const WorldEdit& e) {
+  return {e.min.x, e.min.z, e.max.x, e.max.z};
+}
+bool overlaps(const Rect& a, const Rect& b) {
+  return a.x0 < b.x1 && b.x0 < a.x1 && a.z0 < b.z1 && b.z0 < a.z1;
+}
+
+// What the edits do to one cell: the regions that clear generated content, and the additions the cell
+// owns (clipped to it) that no later clear-region/add-building removes.
+struct CellEditPlan {
+  std::vector<Rect> clears;
+  struct Add {
+    size_t index;
+    Rect xz;
+  };
+  std::vector<Add> adds;
+};
+CellEditPlan cellEditPlan(const std::vector<WorldEdit>& edits, const Rect& cell) {
+  CellEditPlan plan;
+  for (size_t i = 0; i < edits.size(); ++i) {
+    const WorldEdit& e = edits[i];
+    const Rect r = editRect(e);
+    if (!overlaps(r, cell)) continue;
+    if (e.kind != WorldEditKind::kAddBox) plan.clears.push_back(r);
+    if (e.kind == WorldEditKind::kClearRegion) continue;
+    const Rect piece{std::max(r.x0, cell.x0), std::max(r.z0, cell.z0), std::min(r.x1, cell.x1),
+                     std::min(r.z1, cell.z1)};
+    bool removed = false;
+    for (size_t j = i + 1; j < edits.size() && !removed; ++j)
+      removed = edits[j].kind != WorldEditKind::kAddBox && overlaps(editRect(edits[j]), piece);
+    if (!removed) plan.adds.push_back({i, piece});
+  }
+  return plan;
+}
+
+// Lowest and highest terrain-mesh height over a rectangle, exactly: a piecewise-linear surface takes its
+// extremes over a convex region at vertices of the overlay (lattice vertices inside, the rectangle's
+// corners, its crossings with lattice lines and with the triangles' diagonals).
+void terrainRange(const WorldView& w, const Rect& r, double& lo, double& hi) {
+  lo = 1e30;
+  hi = -1e30;
+  auto at = [&](double x, double z) {
+    const double y = w.terrainHeight(x, z);
+    lo = std::min(lo, y);
+    hi = std::max(hi, y);
+  };
+  const int64_t i0 = w.latticeIndexBelow(r.x0), i1 = w.latticeIndexBelow(r.x1);
+  const int64_t j0 = w.latticeIndexBelow(r.z0), j1 = w.latticeIndexBelow(r.z1);
+  std::vector<double> xs{r.x0, r.x1}, zs{r.z0, r.z1};
+  for (int64_t i = i0; i <= i1 + 1; ++i)
+    if (const double x = w.latticeCoord(i); x > r.x0 && x < r.x1) xs.push_back(x);
+  for (int64_t j = j0; j <= j1 + 1; ++j)
+    if (const double z = w.latticeCoord(j); z > r.z0 && z < r.z1) zs.push_back(z);
+  for (double x : xs)
+    for (double z : zs) at(x, z);
+  for (double ze : {r.z0, r.z1}) {  // diagonals fx + fz = 1 crossing the edges z = ze
+    const int64_t j = w.latticeIndexBelow(ze);
+    const double fz = (ze - w.latticeCoord(j)) / (w.latticeCoord(j + 1) - w.latticeCoord(j));
+    for (int64_t i = i0; i <= i1; ++i) {
+      const double xa = w.latticeCoord(i), x = xa + (1.0 - fz) * (w.latticeCoord(i + 1) - xa);
+      if (x >= r.x0 && x <= r.x1) at(x, ze);
+    }
+  }
+  for (double xe : {r.x0, r.x1}) {
+    const int64_t i = w.latticeIndexBelow(xe);
+    const double fx = (xe - w.latticeCoord(i)) / (w.latticeCoord(i + 1) - w.latticeCoord(i));
+    for (int64_t j = j0; j <= j1; ++j) {
+      const double za = w.latticeCoord(j), z = za + (1.0 - fx) * (w.latticeCoord(j + 1) - za);
+      if (z >= r.z0 && z <= r.z1) at(xe, z);
+    }
+  }
+}
+
+void emitEditBuilding(CellBuilder& cb, const WorldView& w, const WorldEdit& e, size_t index) {
+  Rng rng(hashKey(w.seed, kPurposeEdit, int64_t(index)));
+  const Rect r = editRect(e);
+  double lo = 0.0, hi = 0.0;
+  terrainRange(w, r, lo, hi);
+  BuildingPlan bp = planForRect(rng, r, e.storeys);
+  bp.roof = RoofKind::kFlatParapet;  // no overhang: the building stays on its footprint, inside the cell
+  bp.overhang = 0.0;
+  bp.parapet = rng.range(0.6, 1.0);
+  bp.entrance = rng.irange(0, 3);
+  bp.base = hi + 0.15;
+  bp.edit = true;
+  // Sloped ground: a plinth under the walls down into the terrain, so no gap opens under the building.
+  if (lo < hi)
+    cb.box({r.x0, lo - 0.3, r.z0}, {r.x1, bp.base - bp.slabT, r.z1},
+           mat("edit_plinth", {0.45f, 0.44f, 0.42f}, SurfaceCategory::kWall));
+  emitBuilding(cb, bp, rng);
+}
+
+void applyEditAdds(CellBuilder& cb, const WorldView& w, const std::vector<WorldEdit>& edits,
+                   const CellEditPlan& plan) {
+  for (const CellEditPlan::Add& a : plan.adds) {
+    const WorldEdit& e = edits[a.index];
+    if (e.kind == WorldEditKind::kAddBuilding) {
+      emitEditBuilding(cb, w, e, a.index);
+    } else {
+      cb.box({a.xz.x0, e.min.y, a.xz.z0}, {a.xz.x1, e.max.y, a.xz.z1},
+             mat(fmt::format("edit_box_{}", categoryName(e.category)), {0.5f, 0.5f, 0.5f}, e.category));
+    }
+  }
+}
+
+void buildCell(const WorldView& w, const std::vector<WorldEdit>& edits, CellCoord c, TriangleMesh* mesh,
+               CellLayout& layout) {
   layout = CellLayout{};
   layout.cell = c;
   layout.kind = w.kindAt(c.x, c.z);
   layout.block = w.blockAt(c.x, c.z, 0, 0);
   CellBuilder cb(mesh, layout);
+  const CellEditPlan editPlan = cellEditPlan(
+      edits, {w.cellOrigin(c.x), w.cellOrigin(c.z), w.cellOrigin(c.x + 1), w.cellOrigin(c.z + 1)});
+  cb.setClears(editPlan.clears);
   float minY = 0.0f, maxTerrain = 0.0f;
   emitTerrain(cb, w, c.x, c.z, minY, maxTerrain);
   emitRoads(cb, w, c.x, c.z);
@@ -1544,6 +1692,7 @@ void buildCell(const WorldView& w, CellCoord c, TriangleMesh* mesh, CellLayout& 
       }
   }
   placeLamps(cb, w, c.x, c.z);
+  applyEditAdds(cb, w, edits, editPlan);
   const glm::vec3 lo(float(w.cellOrigin(c.x)), minY, float(w.cellOrigin(c.z)));
   const glm::vec3 hi(float(w.cellOrigin(c.x + 1)), std::max({cb.maxY(), maxTerrain, kRoadRaiseM}),
                      float(w.cellOrigin(c.z + 1)));
@@ -1597,6 +1746,7 @@ void WorldParams::validate() const {
   if (n < 1.0 || std::abs(n * cellM - sizeM) > 1e-9 * sizeM)
     fail("synthetic world: size {} m is not a whole multiple of the cell size {} m", sizeM, cellM);
   if (n > 65536.0) fail("synthetic world: {} cells per axis is more than 65536", n);
+  validateWorldEdits(edits, sizeM, cellM);
 }
 
 bool CellLayout::insideSolid(glm::vec3 p, float margin) const {
@@ -1644,6 +1794,22 @@ bool SyntheticWorld::isRoad(float x, float z) const {
   return viewOf(*this).isRoad(x, z);
 }
 
+std::vector<CellCoord> SyntheticWorld::editCells(const WorldEdit& e) const {
+  std::vector<CellCoord> out;
+  const double m = params_.cellM, last = double(cells_ - 1);
+  for (double v : {e.min.x, e.min.z, e.max.x, e.max.z})
+    if (!std::isfinite(v)) return out;
+  const int x0 = int(std::clamp(std::floor(e.min.x / m), 0.0, last)),
+            z0 = int(std::clamp(std::floor(e.min.z / m), 0.0, last));
+  const int x1 = int(std::clamp(std::ceil(e.max.x / m) - 1.0, -1.0, last)),
+            z1 = int(std::clamp(std::ceil(e.max.z / m) - 1.0, -1.0, last));
+  for (int z = z0; z <= z1; ++z)
+    for (int x = x0; x <= x1; ++x)
+      if (overlaps(editRect(e), {double(x) * m, double(z) * m, double(x + 1) * m, double(z + 1) * m}))
+        out.push_back({x, z});
+  return out;
+}
+
 TriangleMesh SyntheticWorld::generateCell(CellCoord c) const {
   return generate(c).mesh;
 }
@@ -1651,14 +1817,14 @@ TriangleMesh SyntheticWorld::generateCell(CellCoord c) const {
 CellLayout SyntheticWorld::describeCell(CellCoord c) const {
   requireCell(c);
   CellLayout layout;
-  buildCell(viewOf(*this), c, nullptr, layout);
+  buildCell(viewOf(*this), params_.edits, c, nullptr, layout);
   return layout;
 }
 
 GeneratedCell SyntheticWorld::generate(CellCoord c) const {
   requireCell(c);
   GeneratedCell out;
-  buildCell(viewOf(*this), c, &out.mesh, out.layout);
+  buildCell(viewOf(*this), params_.edits, c, &out.mesh, out.layout);
   out.mesh.validate(fmt::format("synthetic cell ({}, {})", c.x, c.z));
   return out;
 }

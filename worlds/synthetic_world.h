@@ -10,6 +10,8 @@
 //   cell and its 8 neighbours (their kinds decide the road edges and the terrain's flattening), so any
 //   cell can be generated alone, in any order, in any process, by any instance, with bit-identical
 //   output (TriangleMesh::contentHash() equal).
+// - Edits (world_edits.h): a cell also reads the edits whose XZ extent overlaps it (editCells), nothing
+//   else, so an edit changes only the cells it overlaps; with no edits the world is the pure one.
 // - Randomness: every random number is a splitmix64-style hash of (seed, purpose, cell x, cell z,
 //   object indices, counter); there is no global RNG stream.
 // - Containment: every vertex of cell (x, z) lies in its closed XZ range. Nothing crosses a cell border
@@ -52,6 +54,7 @@
 #include <glm/glm.hpp>
 
 #include "worlds/mesh.h"
+#include "worlds/world_edits.h"
 
 namespace lfgi::worlds {
 
@@ -59,9 +62,12 @@ struct WorldParams {
   uint64_t seed = 1;
   double sizeM = 4096;  // world extent in X and Z; a whole multiple of cellM
   double cellM = 64;    // streaming cell size, in [16, 512]
+  // Hand edits applied on top of the generated world, in order (world_edits.h); empty: the pure world.
+  std::vector<WorldEdit> edits{};
 
   // Throws lfgi::Error unless sizeM is finite and a positive whole multiple of cellM (relative tolerance
-  // 1e-9), cellM is in [16, 512], and there are at most 65536 cells per axis.
+  // 1e-9), cellM is in [16, 512], there are at most 65536 cells per axis, and every edit is valid
+  // (validateWorldEdits: "edit I (KIND): ...").
   void validate() const;
   // The 256 m × 256 m (4×4 cells) world of the README demo.
   static WorldParams smallDefault(uint64_t seed = 1) { return WorldParams{seed, 256.0, 64.0}; }
@@ -233,7 +239,12 @@ class SyntheticWorld {
   // boundary); streets run along every edge of urban cells.
   int mainRoadSpacingCells() const { return mainSpacing_; }
 
-  // The cell's mesh. Deterministic from (seed, c); throws lfgi::Error for cells outside the world.
+  // Cells whose XZ range the edit overlaps with positive area (clipped to the world): the only cells whose
+  // generation reads it, so the only ones whose content it can change (an edit that removes nothing there
+  // or clips to nothing leaves a cell bit-identical).
+  std::vector<CellCoord> editCells(const WorldEdit& edit) const;
+
+  // The cell's mesh. Deterministic from (seed, edits, c); throws lfgi::Error for cells outside the world.
   TriangleMesh generateCell(CellCoord c) const;
   // The cell's descriptors alone, without building the mesh (about 2× faster); equal to generate(c).layout.
   CellLayout describeCell(CellCoord c) const;

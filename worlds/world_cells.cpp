@@ -124,16 +124,9 @@ std::filesystem::path cellJsonPath(const std::filesystem::path& dir, CellCoord c
 
 bool cellDone(const std::filesystem::path& dir, CellCoord c) { return std::filesystem::exists(cellJsonPath(dir, c)); }
 
-void writeWorldManifest(const std::filesystem::path& dir, const WorldParams& p) {
-  p.validate();
-  const std::filesystem::path file = dir / "world.json";
-  if (std::filesystem::exists(file)) {
-    WorldParams old = readWorldManifest(dir);
-    if (old.seed != p.seed || old.sizeM != p.sizeM || old.cellM != p.cellM)
-      fail("{}: holds a different world (seed {}, size {} m, cell {} m); use another directory", file.string(),
-           old.seed, old.sizeM, old.cellM);
-    return;
-  }
+namespace {
+
+void writeManifestFile(const std::filesystem::path& file, const WorldParams& p) {
   nlohmann::ordered_json j;
   j["format"] = "lfgi-world";
   j["version"] = kWorldFormatVersion;
@@ -143,7 +136,38 @@ void writeWorldManifest(const std::filesystem::path& dir, const WorldParams& p) 
   j["cell_m"] = p.cellM;
   j["cells_x"] = SyntheticWorld(p).cellsX();
   j["cells_z"] = SyntheticWorld(p).cellsZ();
+  if (!p.edits.empty()) j["edits"] = worldEditsToJson(p.edits);
   writeFileAtomic(file, j.dump(2) + "\n");
+}
+
+}  // namespace
+
+void writeWorldManifest(const std::filesystem::path& dir, const WorldParams& p) {
+  p.validate();
+  const std::filesystem::path file = dir / "world.json";
+  if (std::filesystem::exists(file)) {
+    WorldParams old = readWorldManifest(dir);
+    if (old.seed != p.seed || old.sizeM != p.sizeM || old.cellM != p.cellM)
+      fail("{}: holds a different world (seed {}, size {} m, cell {} m); use another directory", file.string(),
+           old.seed, old.sizeM, old.cellM);
+    if (!p.edits.empty() && p.edits != old.edits)
+      fail("{}: holds other edits ({}); add edits with `lfgi world edit`", file.string(), old.edits.size());
+    return;
+  }
+  writeManifestFile(file, p);
+}
+
+WorldParams appendWorldEdits(const std::filesystem::path& dir, const std::vector<WorldEdit>& edits) {
+  WorldParams p = readWorldManifest(dir);
+  const std::filesystem::path file = dir / "world.json";
+  p.edits.insert(p.edits.end(), edits.begin(), edits.end());
+  try {
+    p.validate();
+  } catch (const Error& e) {
+    fail("{}: {}", file.string(), e.what());
+  }
+  writeManifestFile(file, p);
+  return p;
 }
 
 WorldParams readWorldManifest(const std::filesystem::path& dir) {
@@ -164,6 +188,13 @@ WorldParams readWorldManifest(const std::filesystem::path& dir) {
     p.cellM = j.at("cell_m").get<double>();
   } catch (const nlohmann::json::exception& e) {
     fail("{}: missing or wrong field ({})", file.string(), e.what());
+  }
+  if (const auto edits = j.find("edits"); edits != j.end()) {
+    try {
+      p.edits = worldEditsFromJson(*edits);
+    } catch (const Error& e) {
+      fail("{}: {}", file.string(), e.what());
+    }
   }
   try {
     p.validate();

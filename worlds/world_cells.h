@@ -71,6 +71,11 @@ nlohmann::ordered_json cellStatsJson(const CellStats& s);
 // parameters; readWorldManifest validates the format, version and parameters and names the file.
 void writeWorldManifest(const std::filesystem::path& dir, const WorldParams& params);
 WorldParams readWorldManifest(const std::filesystem::path& dir);
+// Appends edits to the manifest's list (world_edits.h; validated together, errors name the file and the
+// edit index) and rewrites it atomically; returns the new parameters. Generated cell files are left alone.
+// writeWorldManifest keeps an existing manifest's edits (it refuses different non-empty ones), and
+// readWorldManifest reads and validates them ("edits", optional).
+WorldParams appendWorldEdits(const std::filesystem::path& dir, const std::vector<WorldEdit>& edits);
 std::filesystem::path cellJsonPath(const std::filesystem::path& dir, CellCoord c);
 bool cellDone(const std::filesystem::path& dir, CellCoord c);
 void writeCell(const std::filesystem::path& dir, const BuiltCell& cell);
