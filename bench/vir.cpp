@@ -1,5 +1,7 @@
 // Benchmark `vir`: View-Independent Rasterization (gpu/vir_pass.h, surfels splatted into all probes at
-// once) against the cubemap-rasterization baseline (gpu/cubemap_raster.h, 6 rasterized faces per probe
+// once; two methods: `vir_lod` = VirPass's default, a per-probe-block cut of the surfel LOD tree
+// gpu/vir_lod.h, and `vir` = every surfel into every probe, VirOptions::lod = false) against the
+// cubemap-rasterization baseline (gpu/cubemap_raster.h, 6 rasterized faces per probe
 // resampled to octahedral) on the same device, the same cell and the same output resolution, in one run.
 //
 // Scene: one cell of the default synthetic world (worlds/world_cells.h): VIR gets the cell's surfels,
@@ -18,7 +20,8 @@
 // (4 samples per texel, direct light only: the distance and normal medians barely move with the sample
 // count, unlike the radiance).
 //
-// Atomics: the splat's 64-bit atomicMin count is replayed on the CPU (the same footprint test as
+// Atomics: vir_lod counts its atomicMin calls on the device (ProbeAtlas::splatAtomics). vir: the
+// splat's 64-bit atomicMin count is replayed on the CPU (the same footprint test as
 // vir_splat.comp) for the accuracy probes and scaled to the probe count; achieved atomics/s = count /
 // VIR's whole device time (a lower bound for the splat's own rate), against the ceiling measured in this run by shaders/atomic_min64.comp with the parameters
 // of bench/ceilings.cpp.
@@ -26,9 +29,11 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <tuple>
 #include <numbers>
 #include <optional>
 
@@ -40,6 +45,7 @@
 #include "gpu/cubemap_raster.h"
 #include "gpu/program.h"
 #include "gpu/timing.h"
+#include "gpu/vir_lod.h"
 #include "gpu/vir_pass.h"
 #include "shared/ceilings.h"
 #include "shared/octahedral.h"
@@ -200,6 +206,20 @@ int main(int argc, char** argv) {
   app.add_option("--cell", cellArg, "Cell X,Z of the default world (2,1: the arcade block)");
   app.add_option("--budget-s", budgetS, "Skip a configuration projected to take longer (default 12 quick, 90 full)");
   app.add_option("--accuracy-probes", accuracyProbes, "Probes compared with Embree (default 8 quick, 16 full)");
+  float lodTexels = gpu::VirOptions{}.lodTexels;
+  int lodBlockProbes = gpu::VirOptions{}.lodBlockProbes;
+  app.add_option("--lod-texels", lodTexels, "vir_lod: VirOptions::lodTexels");
+  app.add_option("--lod-block-probes", lodBlockProbes, "vir_lod: VirOptions::lodBlockProbes");
+  std::string methodsArg = "all";
+  bool lodStats = false;
+  float statThickness = gpu::VirLodBuildOptions{}.coherentThickness, statCone = gpu::VirLodBuildOptions{}.coherentConeDeg;
+  app.add_option("--lod-stats-thickness", statThickness, "--lod-stats: VirLodBuildOptions::coherentThickness");
+  app.add_option("--lod-stats-cone", statCone, "--lod-stats: VirLodBuildOptions::coherentConeDeg");
+  app.add_flag("--lod-stats", lodStats, "Print the surfel LOD tree's statistics and one probe's cut, then exit");
+  app.add_option("--methods", methodsArg, "Comma-separated subset of vir_lod,vir,cubemap (default all; the "
+                                          "summary's ratios need vir_lod and cubemap)");
+  double lodBuildMs = 0.0;
+  uint64_t lodNodes = 0;
   CLI11_PARSE(app, argc, argv);
   try {
     if (budgetS <= 0.0) budgetS = quick ? 12.0 : 90.0;
@@ -229,6 +249,50 @@ int main(int argc, char** argv) {
                  ctx->info.name, quick ? "quick" : "full", cx, cz, built.surfels.size(), scene.triangleCount(),
                  active.size(), budgetS);
 
+    if (lodStats) {  // tree diagnostics: per depth-from-leaves level, how many nodes may be splatted
+      gpu::VirLodBuildOptions bo;
+      bo.coherentThickness = statThickness;
+      bo.coherentConeDeg = statCone;
+      const gpu::VirLodTree tree = gpu::buildVirLodTree(built.surfels, bo);
+      std::vector<int> height(tree.nodes.size(), 0);
+      std::map<int, std::array<double, 3>> byHeight;  // nodes, coherent, sum footprint radius
+      for (uint32_t i = 0; i < tree.nodes.size(); ++i) {
+        for (uint32_t c = 0; c < tree.links[i].childCount; ++c)
+          height[i] = std::max(height[i], height[tree.children[tree.links[i].firstChild + c]] + 1);
+        auto& h = byHeight[height[i]];
+        h[0] += 1;
+        h[1] += (tree.links[i].flags & LFGI_VIR_LOD_COHERENT) ? 1 : 0;
+        h[2] += tree.nodes[i].positionRadius.w * 1.5;
+      }
+      for (const auto& [hgt, h] : byHeight)
+        spdlog::info("height {}: {} nodes, {:.1f} % coherent, mean footprint radius {:.2f} m", hgt, h[0],
+                     100.0 * h[1] / h[0], h[2] / h[0]);
+      // One probe's cut at N = 8 and 16 (CPU replay of vir_lod_cut.comp, block = the probe).
+      for (int n : {8, 16}) {
+        size_t leaves = 0, inner = 0, leavesUnderIncoherent = 0;
+        std::vector<uint32_t> st{tree.root()};
+        const glm::vec3 eye = active[active.size() / 2];
+        while (!st.empty()) {
+          const uint32_t i = st.back();
+          st.pop_back();
+          const float r = tree.nodes[i].positionRadius.w * 1.5f;
+          const float d = glm::length(glm::vec3(tree.nodes[i].positionRadius) - eye);
+          const auto& l = tree.links[i];
+          const bool coherent = (l.flags & LFGI_VIR_LOD_COHERENT) != 0;
+          if (l.childCount == 0) {
+            ++leaves;
+            leavesUnderIncoherent += (tree.up[i].x != ~0u && !(tree.links[tree.up[i].x].flags & LFGI_VIR_LOD_COHERENT));
+          } else if (coherent && r * float(n) <= d) {
+            ++inner;
+          } else {
+            for (uint32_t c = 0; c < l.childCount; ++c) st.push_back(tree.children[l.firstChild + c]);
+          }
+        }
+        spdlog::info("N={} cut for one probe: {} leaves ({} with an incoherent parent), {} merged nodes", n, leaves,
+                     leavesUnderIncoherent, inner);
+      }
+      return 0;
+    }
     const double ceiling = bench::atomicCeilingPerSecond(*ctx);
     spdlog::info("atomicMin64 ceiling: {:.1f} M/s", ceiling * 1e-6);
 
@@ -240,10 +304,21 @@ int main(int argc, char** argv) {
     gpu::CubemapRaster cubemap(*ctx);
     gpu::VirOptions vo;
     vo.maxRange = 1000.0f;  // the whole cell, as the baseline renders it
+    gpu::VirOptions vlod = vo;
+    vlod.lod = true;
+    vlod.lodTexels = lodTexels;
+    vlod.lodBlockProbes = lodBlockProbes;
+    vo.lod = false;
     gpu::CubemapRasterOptions co;
     {  // warm-up: lavapipe compiles each pipeline at its first use
       vo.resolution = co.resolution = 8;
       vir.run(built.surfels, std::span(probes).first(1), vo);
+      vlod.resolution = 8;
+      const gpu::ProbeAtlas first = vir.run(built.surfels, std::span(probes).first(1), vlod);
+      lodBuildMs = first.lodBuildMs;
+      lodNodes = first.lodNodes;
+      spdlog::info("surfel LOD tree: {} nodes for {} surfels, built + uploaded in {:.0f} ms (once per cell)", lodNodes,
+                   built.surfels.size(), lodBuildMs);
       cubemap.run(scene, std::span(probes).first(1), co);
     }
 
@@ -251,20 +326,26 @@ int main(int argc, char** argv) {
                   "surfel_probes_per_s", "splat_or_raster_ms", "resolve_or_resample_ms", "wall_ms", "atomics_per_s",
                   "dist_median_rel_error", "dist_p90_rel_error", "dist_frac_off_5pct", "normal_median_deg",
                   "normal_p90_deg", "hole_fraction", "dist_median_rel_error_vs_capture",
-                  "normal_median_deg_vs_capture"});
+                  "normal_median_deg_vs_capture", "splat_pairs_per_s", "lod_nodes", "lod_build_ms"});
     nlohmann::ordered_json skipped = nlohmann::ordered_json::array();
     struct Measured {
       double probesPerS = 0.0, msPerProbe = 0.0;
       size_t probes = 0;
       bench::Accuracy acc;
-      double atomicsPerS = 0.0;
+      double atomicsPerS = 0.0, splatPairsPerS = 0.0;
     };
+    nlohmann::ordered_json table = nlohmann::ordered_json::array();  // every (N, probes) both methods measured
     std::map<std::pair<std::string, int>, Measured> best;  // (method, N) -> largest probe count measured
+    std::map<std::tuple<std::string, int, size_t>, double> perCount;  // (method, N, probes) -> probes/s
     InterruptGuard guard;
-    Progress progress("vir bench configurations", resolutions.size() * counts.size() * 2, "configs");
+    std::vector<std::string> methods;
+    for (const std::string m : {"vir_lod", "vir", "cubemap"})
+      if (methodsArg.find(m + ",") != std::string::npos || methodsArg.ends_with(m) || methodsArg == "all")
+        methods.push_back(m);
+    Progress progress("vir bench configurations", resolutions.size() * counts.size() * methods.size(), "configs");
     size_t done = 0;
     for (int n : resolutions) {
-      vo.resolution = co.resolution = n;
+      vo.resolution = co.resolution = vlod.resolution = n;
       // Reference rays for the accuracy probes at this N.
       std::vector<std::vector<std::optional<bake::RayHit>>> ref(accuracyProbes);
       for (size_t p = 0; p < accuracyProbes; ++p)
@@ -283,7 +364,7 @@ int main(int argc, char** argv) {
       copt.maxBounces = 0;
       const bake::CaptureResult capture = bake::captureProbes(embree, sky, std::span(probes).first(accuracyProbes), copt);
 
-      for (const char* method : {"vir", "cubemap"}) {
+      for (const std::string& method : methods) {
         double lastMsPerProbe = 0.0;
         std::optional<bench::Accuracy> acc;
         for (size_t count : counts) {
@@ -301,7 +382,11 @@ int main(int argc, char** argv) {
           gpu::ProbeAtlas atlas;
           double splat = 0.0, resolve = 0.0;
           const auto t0 = std::chrono::steady_clock::now();
-          if (std::string(method) == "vir") {
+          if (method == "vir_lod") {
+            atlas = vir.run(built.surfels, ps, vlod);
+            splat = atlas.splatMs;
+            resolve = atlas.resolveMs + atlas.fillMs;
+          } else if (method == "vir") {
             atlas = vir.run(built.surfels, ps, vo);
             splat = atlas.splatMs;
             resolve = atlas.resolveMs + atlas.fillMs;
@@ -323,7 +408,10 @@ int main(int argc, char** argv) {
           m.acc = *acc;
           // Over VIR's whole device time, not the splat's stamps: on lavapipe the splat's work shows up in
           // later timestamp intervals (its own interval reads ~0), so only the total is trustworthy there.
-          m.atomicsPerS = std::string(method) == "vir" ? atomicsPerProbe * double(count) / (atlas.gpuMs * 1e-3) : 0.0;
+          m.atomicsPerS = method == "vir"       ? atomicsPerProbe * double(count) / (atlas.gpuMs * 1e-3)
+                          : method == "vir_lod" ? double(atlas.splatAtomics) / (atlas.gpuMs * 1e-3)
+                                                : 0.0;
+          m.splatPairsPerS = double(atlas.splatPairs) / (atlas.gpuMs * 1e-3);
           best[{method, n}] = m;
           spdlog::info("{} N={} probes={}: {:.1f} ms device, {:.1f} ms wall ({:.3f} ms/probe, {:.0f} probes/s); dist "
                        "median {:.2e} p90 {:.4f} off>5% {:.4f}, normal median {:.2f} p90 {:.2f} deg, holes {:.4f}{}",
@@ -338,16 +426,25 @@ int main(int argc, char** argv) {
                     bench::num(acc->distMedianRel), bench::num(acc->distP90Rel), bench::num(acc->fracOff5pct),
                     bench::num(acc->normalMedianDeg), bench::num(acc->normalP90Deg),
                     bench::num(acc->holeFractionOfHits), bench::num(acc->captureDistMedianRel),
-                    bench::num(acc->captureNormalMedianDeg)});
+                    bench::num(acc->captureNormalMedianDeg),
+                    method == "cubemap" ? "0" : bench::num(m.splatPairsPerS),
+                    method == "vir_lod" ? std::to_string(lodNodes) : "0",
+                    method == "vir_lod" ? bench::num(lodBuildMs) : "0"});
+          perCount[{method, n, count}] = m.probesPerS;
         }
       }
     }
     progress.finish();
 
-    // Headline: N = 16 (the default resolution); each method at its largest measured probe count.
+    // Headline: N = 16 (the default resolution), VirPass's default (LOD) path; each method at its largest
+    // measured probe count. The full splat's figures follow as vir_full_*.
     auto& s = o.summary();
-    const auto v16 = best.find({"vir", 16}), c16 = best.find({"cubemap", 16});
-    if (v16 == best.end() || c16 == best.end()) fail("N = 16 was not measured for both methods");
+    const auto v16 = best.find({"vir_lod", 16}), c16 = best.find({"cubemap", 16}), f16 = best.find({"vir", 16});
+    if (v16 == best.end() || c16 == best.end()) {
+      spdlog::warn("N = 16 was not measured for both vir_lod and cubemap: no summary");
+      o.save();
+      return 0;
+    }
     s["vir_over_cubemap_probes_per_s"] = v16->second.probesPerS / c16->second.probesPerS;
     s["vir_probes_per_s"] = v16->second.probesPerS;
     s["cubemap_probes_per_s"] = c16->second.probesPerS;
@@ -370,17 +467,42 @@ int main(int argc, char** argv) {
     s["cubemap_normal_median_deg_vs_capture"] = c16->second.acc.captureNormalMedianDeg;
     s["cubemap_distance_frac_off_5pct"] = c16->second.acc.fracOff5pct;
     s["vir_atomics_per_s"] = v16->second.atomicsPerS;
+    s["vir_splat_pairs_per_s"] = v16->second.splatPairsPerS;
+    s["vir_surfel_probes_per_s"] = v16->second.probesPerS * double(built.surfels.size());
+    s["lod_texels"] = lodTexels;
+    s["lod_block_probes"] = lodBlockProbes;
+    s["lod_nodes"] = lodNodes;
+    s["lod_build_ms"] = lodBuildMs;
+    if (f16 != best.end()) {
+      s["vir_full_over_cubemap_probes_per_s"] = f16->second.probesPerS / c16->second.probesPerS;
+      s["vir_full_probes_per_s"] = f16->second.probesPerS;
+      s["vir_full_distance_p90_rel_error"] = f16->second.acc.distP90Rel;
+      s["vir_full_atomics_fraction_of_ceiling"] = ceiling > 0.0 ? f16->second.atomicsPerS / ceiling : 0.0;
+    }
     s["atomics64_ceiling_per_s"] = ceiling;
     nlohmann::ordered_json byRes = nlohmann::ordered_json::object();
     for (int n : resolutions) {
-      const auto v = best.find({"vir", n}), c = best.find({"cubemap", n});
-      if (v != best.end() && c != best.end())
+      const auto v = best.find({"vir_lod", n}), c = best.find({"cubemap", n}), f = best.find({"vir", n});
+      if (v != best.end() && c != best.end()) {
         byRes[std::to_string(n)] = {{"ratio", v->second.probesPerS / c->second.probesPerS},
                                     {"vir_probes_per_s", v->second.probesPerS},
                                     {"cubemap_probes_per_s", c->second.probesPerS},
                                     {"vir_probes", v->second.probes},
-                                    {"cubemap_probes", c->second.probes}};
+                                    {"cubemap_probes", c->second.probes},
+                                    {"vir_dist_p90_rel_error", v->second.acc.distP90Rel},
+                                    {"cubemap_dist_p90_rel_error", c->second.acc.distP90Rel},
+                                    {"vir_hole_fraction", v->second.acc.holeFractionOfHits},
+                                    {"vir_atomics_fraction_of_ceiling", ceiling > 0.0 ? v->second.atomicsPerS / ceiling : 0.0}};
+        if (f != best.end()) byRes[std::to_string(n)]["vir_full_ratio"] = f->second.probesPerS / c->second.probesPerS;
+      }
+      for (size_t count : counts) {
+        const auto vc = perCount.find({"vir_lod", n, count}), cc = perCount.find({"cubemap", n, count});
+        if (vc != perCount.end() && cc != perCount.end())
+          table.push_back({{"resolution", n}, {"probes", count}, {"vir_probes_per_s", vc->second},
+                           {"cubemap_probes_per_s", cc->second}, {"ratio", vc->second / cc->second}});
+      }
     }
+    s["ratio_by_resolution_and_probes"] = table;
     s["ratio_by_resolution"] = byRes;
     s["cell"] = {cx, cz};
     s["surfels"] = built.surfels.size();

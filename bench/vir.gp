@@ -1,5 +1,5 @@
 # Charts for `scripts/bench.sh vir`: VIR vs cubemap rasterization on the same device and cell.
-# results.csv columns: 1 method, 2 resolution, 3 probes, 7 ms_per_probe, 8 probes_per_s,
+# results.csv columns: 1 method (vir_lod: VirPass default, LOD cut; vir: full splat; cubemap), 2 resolution, 3 probes, 7 ms_per_probe, 8 probes_per_s,
 # 15 dist_p90_rel_error, 16 dist_frac_off_5pct, 19 hole_fraction.
 set datafile separator ','
 set terminal pngcairo size 1100,460 font ',10' noenhanced
@@ -7,12 +7,14 @@ set key left top
 
 # Throughput: probes/s vs probe count, per octahedral size N.
 set output dir.'/vir_throughput.png'
-set title 'probe generation throughput on '.device.' (solid: VIR, dashed: cubemap baseline)'
+set title 'probe generation throughput on '.device.' (thick: VIR LOD, dotted: VIR full splat, dashed: cubemap baseline)'
 set xlabel 'probes per run'
 set ylabel 'probes per second'
 set logscale xy
 plot for [n in '8 16 32 64'] dir.'/results.csv' every ::1 \
-       using ((strcol(1) eq 'vir' && $2 == n+0) ? $3 : 1/0):8 with linespoints lw 2 lc (n+0 == 8 ? 1 : n+0 == 16 ? 2 : n+0 == 32 ? 3 : 4) pt 7 title 'VIR N='.n, \
+       using ((strcol(1) eq 'vir_lod' && $2 == n+0) ? $3 : 1/0):8 with linespoints lw 3 lc (n+0 == 8 ? 1 : n+0 == 16 ? 2 : n+0 == 32 ? 3 : 4) pt 9 title 'VIR LOD N='.n, \
+     for [n in '8 16 32 64'] dir.'/results.csv' every ::1 \
+       using ((strcol(1) eq 'vir' && $2 == n+0) ? $3 : 1/0):8 with linespoints lw 1 dt 3 lc (n+0 == 8 ? 1 : n+0 == 16 ? 2 : n+0 == 32 ? 3 : 4) pt 7 title 'VIR full N='.n, \
      for [n in '8 16 32 64'] dir.'/results.csv' every ::1 \
        using ((strcol(1) eq 'cubemap' && $2 == n+0) ? $3 : 1/0):8 with linespoints lw 2 dt 2 lc (n+0 == 8 ? 1 : n+0 == 16 ? 2 : n+0 == 32 ? 3 : 4) pt 5 title 'cubemap N='.n
 unset logscale
@@ -31,7 +33,9 @@ do for [panel = 1:3] {
   col = panel == 1 ? 16 : panel == 2 ? 15 : 19
   scale = 100
   set ylabel (panel == 1 ? 'texels with distance off by > 5 % (%)' : panel == 2 ? 'distance p90 relative error (%)' : 'holes among texels that hit geometry (%)')
-  plot dir.'/results.csv' every ::1 using (strcol(1) eq 'vir' ? $7 : 1/0):(column(col)*scale) with points pt 7 ps 1.3 lc 1 title 'VIR', \
+  plot dir.'/results.csv' every ::1 using (strcol(1) eq 'vir_lod' ? $7 : 1/0):(column(col)*scale) with points pt 9 ps 1.5 lc 3 title 'VIR LOD', \
+       '' every ::1 using (strcol(1) eq 'vir_lod' ? $7 : 1/0):(column(col)*scale):(sprintf('%d', $2)) with labels offset 0,1 notitle, \
+       '' every ::1 using (strcol(1) eq 'vir' ? $7 : 1/0):(column(col)*scale) with points pt 7 ps 1.3 lc 1 title 'VIR full splat', \
        '' every ::1 using (strcol(1) eq 'vir' ? $7 : 1/0):(column(col)*scale):(sprintf('%d', $2)) with labels offset 0,1 notitle, \
        '' every ::1 using (strcol(1) eq 'cubemap' ? $7 : 1/0):(column(col)*scale) with points pt 5 ps 1.3 lc 2 title 'cubemap', \
        '' every ::1 using (strcol(1) eq 'cubemap' ? $7 : 1/0):(column(col)*scale):(sprintf('%d', $2)) with labels offset 0,-1 notitle

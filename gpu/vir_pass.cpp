@@ -1,6 +1,12 @@
 #include "gpu/vir_pass.h"
 
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
 #include <cmath>
+#include <cstring>
 
 #include "core/error.h"
 #include "gpu/timing.h"
@@ -15,13 +21,63 @@ Program requireInt64Atomics(Context& ctx, const char* name) {
   return Program(ctx, name);
 }
 
+// Largest per-axis stretch of the octahedral map (texel-coordinate change per radian, in units of N/2),
+// measured numerically: sqrt(2) where the fold's diagonals meet the equator; with a margin.
+constexpr float kOctStretch = 1.5f;
+constexpr size_t kMaxCutEntries = size_t(1) << 24;  // per batch of blocks (64 MiB of node indices)
+
 }  // namespace
 
 VirPass::VirPass(Context& ctx)
     : ctx_(ctx),
       splat_(requireInt64Atomics(ctx, "vir_splat")),
       resolve_(ctx, "vir_resolve"),
-      holefill_(ctx, "vir_holefill") {}
+      holefill_(ctx, "vir_holefill"),
+      lodRadiance_(ctx, "vir_lod_radiance"),
+      lodCut_(ctx, "vir_lod_cut"),
+      lodSplat_(ctx, "vir_lod_splat"),
+      lodResolve_(ctx, "vir_lod_resolve") {}
+
+void VirPass::grow(Buffer& buffer, size_t bytes) {
+  bytes = std::max<size_t>(bytes, 16);
+  if (buffer.handle() == VK_NULL_HANDLE || buffer.size() < bytes) buffer = createStorageBuffer(ctx_, bytes);
+}
+
+double VirPass::prepareSurfels(std::span<const shared::Surfel> surfels, const VirOptions& o) {
+  const bool same = cachedSurfels_.size() == surfels.size() &&
+                    std::memcmp(cachedSurfels_.data(), surfels.data(), surfels.size_bytes()) == 0;
+  if (!same) {
+    cachedSurfels_.assign(surfels.begin(), surfels.end());
+    cachedUploaded_ = false;
+    cachedLodScale_ = -1.0f;
+  }
+  if (!o.lod) {
+    if (!cachedUploaded_) {
+      grow(surfelBuf_, surfels.size_bytes());
+      upload<shared::Surfel>(ctx_, surfelBuf_, surfels);
+      cachedUploaded_ = true;
+    }
+    return 0.0;
+  }
+  if (cachedLodScale_ == o.footprintScale) return 0.0;
+  const auto t0 = std::chrono::steady_clock::now();
+  VirLodBuildOptions bo;
+  bo.footprintScale = o.footprintScale;
+  tree_ = buildVirLodTree(surfels, bo);
+  grow(nodeBuf_, tree_.nodes.size() * sizeof(shared::Surfel));
+  grow(linkBuf_, tree_.links.size() * sizeof(shared::VirLodLink));
+  grow(childBuf_, tree_.children.size() * sizeof(uint32_t));
+  grow(nodeRadianceBuf_, tree_.nodes.size() * sizeof(glm::vec4));
+  grow(upBuf_, tree_.up.size() * sizeof(glm::uvec2));
+  grow(frontierBuf_, tree_.frontier.size() * sizeof(uint32_t));
+  upload<glm::uvec2>(ctx_, upBuf_, tree_.up);
+  upload<uint32_t>(ctx_, frontierBuf_, tree_.frontier);
+  upload<shared::Surfel>(ctx_, nodeBuf_, tree_.nodes);
+  upload<shared::VirLodLink>(ctx_, linkBuf_, tree_.links);
+  if (!tree_.children.empty()) upload<uint32_t>(ctx_, childBuf_, tree_.children);
+  cachedLodScale_ = o.footprintScale;
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
 
 ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const glm::vec3> probes,
                         const VirOptions& o, std::span<const glm::vec4> surfelIrradiance) {
@@ -36,35 +92,35 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     fail("VIR: maxFootprintRadius {} outside [0, 8]", o.maxFootprintRadius);
   if (o.fillPasses < 0 || o.fillPasses > VirOptions::kMaxFillPasses)
     fail("VIR: fillPasses {} outside [0, {}]", o.fillPasses, VirOptions::kMaxFillPasses);
+  if (!(std::isfinite(o.lodTexels) && o.lodTexels > 0.0f && o.lodTexels <= 16.0f))
+    fail("VIR: lodTexels {} outside (0, 16]", o.lodTexels);
+  if (o.lodBlockProbes < 1 || o.lodBlockProbes > 64) fail("VIR: lodBlockProbes {} outside [1, 64]", o.lodBlockProbes);
   if (!surfelIrradiance.empty() && surfelIrradiance.size() != surfels.size())
     fail("VIR: {} surfel irradiance values for {} surfels", surfelIrradiance.size(), surfels.size());
   const uint32_t* maxGroups = ctx_.properties.limits.maxComputeWorkGroupCount;
   const uint64_t splatGroupsX = (surfels.size() + 63) / 64;
   const uint64_t mapGroups = (uint64_t(o.resolution) + 7) / 8;
-  if (splatGroupsX > maxGroups[0] || probes.size() > maxGroups[1] || probes.size() > maxGroups[2] ||
-      surfels.size() > 0xFFFFFFFFull || mapGroups > maxGroups[0])
+  if ((!o.lod && (splatGroupsX > maxGroups[0] || probes.size() > maxGroups[1])) || probes.size() > maxGroups[2] ||
+      surfels.size() > 0x7FFFFFFFull || mapGroups > maxGroups[0])
     fail("VIR: {} surfels x {} probes exceeds the device's dispatch limits ({}, {}, {} workgroups)",
          surfels.size(), probes.size(), maxGroups[0], maxGroups[1], maxGroups[2]);
 
+  ProbeAtlas atlas;
+  atlas.lodBuildMs = prepareSurfels(surfels, o);
   const size_t n2 = size_t(o.resolution) * size_t(o.resolution);
   const size_t texels = n2 * probes.size();
   std::vector<glm::vec4> probe4(probes.size());
   for (size_t i = 0; i < probes.size(); ++i) probe4[i] = glm::vec4(probes[i], 1.0f);
-  std::vector<glm::vec4> irradiance(surfels.size(), glm::vec4(0.0f));
-  if (!surfelIrradiance.empty()) irradiance.assign(surfelIrradiance.begin(), surfelIrradiance.end());
-
-  Buffer surfelBuf = createStorageBuffer(ctx_, surfels.size_bytes());
-  Buffer probeBuf = createStorageBuffer(ctx_, probe4.size() * sizeof(glm::vec4));
-  Buffer irrBuf = createStorageBuffer(ctx_, irradiance.size() * sizeof(glm::vec4));
-  Buffer slots = createStorageBuffer(ctx_, texels * sizeof(uint64_t));
-  Buffer distBuf = createStorageBuffer(ctx_, texels * sizeof(glm::vec2));
-  Buffer normalBuf = createStorageBuffer(ctx_, texels * sizeof(glm::vec4));
-  Buffer albedoBuf = createStorageBuffer(ctx_, texels * sizeof(glm::vec4));
-  Buffer radianceBuf = createStorageBuffer(ctx_, texels * sizeof(glm::vec4));
-  Buffer counters = createStorageBuffer(ctx_, (1 + VirOptions::kMaxFillPasses) * sizeof(uint32_t));
-  upload<shared::Surfel>(ctx_, surfelBuf, surfels);
-  upload<glm::vec4>(ctx_, probeBuf, probe4);
-  upload<glm::vec4>(ctx_, irrBuf, irradiance);
+  grow(probeBuf_, probe4.size() * sizeof(glm::vec4));
+  grow(irrBuf_, surfels.size() * sizeof(glm::vec4));
+  grow(slots_, texels * sizeof(uint64_t));
+  grow(distBuf_, texels * sizeof(glm::vec2));
+  grow(normalBuf_, texels * sizeof(glm::vec4));
+  grow(albedoBuf_, texels * sizeof(glm::vec4));
+  grow(radianceBuf_, texels * sizeof(glm::vec4));
+  grow(counters_, (1 + VirOptions::kMaxFillPasses) * sizeof(uint32_t));
+  upload<glm::vec4>(ctx_, probeBuf_, probe4);
+  if (!surfelIrradiance.empty()) upload<glm::vec4>(ctx_, irrBuf_, surfelIrradiance);
 
   shared::VirParams params{};
   params.probeCount = uint32_t(probes.size());
@@ -75,34 +131,129 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   params.footprintScale = o.footprintScale;
   const uint32_t res = params.res, probeCount = params.probeCount;
 
-  GpuTimer timer(ctx_, 5);
-  submitAndWait(ctx_, [&](VkCommandBuffer cmd) {
-    timer.reset(cmd);
-    timer.stamp(cmd, 0);
-    vkCmdFillBuffer(cmd, slots.handle(), 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
-    vkCmdFillBuffer(cmd, counters.handle(), 0, VK_WHOLE_SIZE, 0u);
-    memoryBarrier(cmd);
-    timer.stamp(cmd, 1);
-    dispatch(ctx_, cmd, splat_, {&surfelBuf, &probeBuf, &slots}, params, {params.surfelCount, probeCount, 1});
-    memoryBarrier(cmd);
-    timer.stamp(cmd, 2);
-    dispatch(ctx_, cmd, resolve_,
-             {&slots, &surfelBuf, &irrBuf, &distBuf, &normalBuf, &albedoBuf, &radianceBuf, &counters}, params,
-             {res, res, probeCount});
-    memoryBarrier(cmd);
-    timer.stamp(cmd, 3);
-    for (int pass = 0; pass < o.fillPasses; ++pass) {
-      params.fillPass = uint32_t(pass);
-      dispatch(ctx_, cmd, holefill_, {&distBuf, &normalBuf, &albedoBuf, &radianceBuf, &counters}, params,
-               {res, res, probeCount});
-      memoryBarrier(cmd);
+  // LOD: probe blocks (consecutive probes, bounding spheres) and the cut buffer.
+  shared::VirLodParams lp{};
+  size_t blockCount = 0, batchBlocks = 0;
+  if (o.lod) {
+    const size_t bp = size_t(o.lodBlockProbes);
+    blockCount = (probes.size() + bp - 1) / bp;
+    std::vector<glm::vec4> blocks(blockCount);
+    for (size_t b = 0; b < blockCount; ++b) {
+      const size_t first = b * bp, last = std::min(probes.size(), first + bp);
+      glm::vec3 c(0.0f);
+      for (size_t i = first; i < last; ++i) c += probes[i];
+      c /= float(last - first);
+      float r = 0.0f;
+      for (size_t i = first; i < last; ++i) r = std::max(r, glm::length(probes[i] - c));
+      blocks[b] = glm::vec4(c, r * 1.0001f + 1e-6f);
     }
-    timer.stamp(cmd, 4);
-  });
+    grow(blockBuf_, blocks.size() * sizeof(glm::vec4));
+    upload<glm::vec4>(ctx_, blockBuf_, blocks);
+    if (cutCapacity_ == 0) cutCapacity_ = uint32_t(std::clamp<size_t>(16 * n2, 4096, kMaxCutEntries));
+    grow(cutCountBuf_, blockCount * sizeof(uint32_t));
+    grow(statsBuf_, 4 * sizeof(uint64_t));
+    lp.probeCount = probeCount;
+    lp.res = res;
+    lp.blockProbes = uint32_t(bp);
+    lp.rootNode = tree_.root();
+    lp.maxFootprintRadius = uint32_t(o.maxFootprintRadius);
+    lp.maxRange = o.maxRange;
+    lp.footprintScale = o.footprintScale;
+    lp.lodTexels = o.lodTexels;
+    lp.octStretch = kOctStretch;
+    atlas.lodNodes = tree_.nodes.size();
+  }
 
-  ProbeAtlas atlas;
+  GpuTimer timer(ctx_, 5);
+  for (;;) {
+    if (o.lod) {
+      batchBlocks = std::clamp<size_t>(kMaxCutEntries / cutCapacity_, 1, blockCount);
+      batchBlocks = std::min<size_t>(batchBlocks, std::min(maxGroups[1], maxGroups[2]));
+      grow(cutBuf_, batchBlocks * cutCapacity_ * sizeof(uint32_t));
+      lp.cutCapacity = cutCapacity_;
+      // Splat invocations per probe: about <= 512 cut entries each (llvmpipe's loop limit, see the shader).
+      lp.lanes = std::clamp((cutCapacity_ / 512 + 63) / 64 * 64, 64u, 1024u);
+    }
+    submitAndWait(ctx_, [&](VkCommandBuffer cmd) {
+      timer.reset(cmd);
+      timer.stamp(cmd, 0);
+      vkCmdFillBuffer(cmd, slots_.handle(), 0, texels * sizeof(uint64_t), 0xFFFFFFFFu);
+      vkCmdFillBuffer(cmd, counters_.handle(), 0, VK_WHOLE_SIZE, 0u);
+      if (surfelIrradiance.empty()) vkCmdFillBuffer(cmd, irrBuf_.handle(), 0, VK_WHOLE_SIZE, 0u);
+      if (o.lod) vkCmdFillBuffer(cmd, statsBuf_.handle(), 0, VK_WHOLE_SIZE, 0u);
+      memoryBarrier(cmd);
+      if (o.lod) {
+        // Node radiance, level by level from the leaves (children always sit in lower levels).
+        for (size_t l = 0; l + 1 < tree_.levelStart.size(); ++l) {
+          lp.nodeFirst = tree_.levelStart[l];
+          lp.nodeCount = tree_.levelStart[l + 1] - tree_.levelStart[l];
+          if (lp.nodeCount == 0) continue;
+          lp.leafPass = l == 0 ? 1u : 0u;
+          dispatch(ctx_, cmd, lodRadiance_, {&nodeBuf_, &linkBuf_, &childBuf_, &irrBuf_, &nodeRadianceBuf_}, lp,
+                   {lp.nodeCount, 1, 1});
+          memoryBarrier(cmd);
+        }
+      }
+      timer.stamp(cmd, 1);
+      if (o.lod) {
+        for (size_t b0 = 0; b0 < blockCount; b0 += batchBlocks) {
+          lp.blockFirst = uint32_t(b0);
+          lp.blockCount = uint32_t(std::min(batchBlocks, blockCount - b0));
+          vkCmdFillBuffer(cmd, cutCountBuf_.handle(), 0, VK_WHOLE_SIZE, 0u);
+          memoryBarrier(cmd);
+          lp.nodeCount = uint32_t(tree_.frontier.size());
+          dispatch(ctx_, cmd, lodCut_,
+                   {&nodeBuf_, &linkBuf_, &childBuf_, &upBuf_, &frontierBuf_, &blockBuf_, &cutBuf_, &cutCountBuf_,
+                    &statsBuf_},
+                   lp, {lp.nodeCount, lp.blockCount, 1});
+          memoryBarrier(cmd);
+          dispatch(ctx_, cmd, lodSplat_, {&nodeBuf_, &probeBuf_, &cutBuf_, &cutCountBuf_, &slots_, &statsBuf_}, lp,
+                   {lp.lanes, lp.blockProbes, lp.blockCount});
+          memoryBarrier(cmd);
+        }
+      } else {
+        dispatch(ctx_, cmd, splat_, {&surfelBuf_, &probeBuf_, &slots_}, params, {params.surfelCount, probeCount, 1});
+        memoryBarrier(cmd);
+      }
+      timer.stamp(cmd, 2);
+      if (o.lod)
+        dispatch(ctx_, cmd, lodResolve_,
+                 {&slots_, &nodeBuf_, &nodeRadianceBuf_, &distBuf_, &normalBuf_, &albedoBuf_, &radianceBuf_, &counters_},
+                 params, {res, res, probeCount});
+      else
+        dispatch(ctx_, cmd, resolve_,
+                 {&slots_, &surfelBuf_, &irrBuf_, &distBuf_, &normalBuf_, &albedoBuf_, &radianceBuf_, &counters_},
+                 params, {res, res, probeCount});
+      memoryBarrier(cmd);
+      timer.stamp(cmd, 3);
+      for (int pass = 0; pass < o.fillPasses; ++pass) {
+        params.fillPass = uint32_t(pass);
+        dispatch(ctx_, cmd, holefill_, {&distBuf_, &normalBuf_, &albedoBuf_, &radianceBuf_, &counters_}, params,
+                 {res, res, probeCount});
+        memoryBarrier(cmd);
+      }
+      timer.stamp(cmd, 4);
+    });
+    if (!o.lod) break;
+    std::array<uint64_t, 4> stats{};
+    readback<uint64_t>(ctx_, statsBuf_, stats);
+    if (stats[2] > 0)
+      spdlog::warn("VIR LOD: {} nodes splatted coarser than lodTexels (cut walk stack full)", stats[2]);
+    if (stats[3] == 0) {
+      atlas.splatPairs = stats[0];
+      atlas.splatAtomics = stats[1];
+      break;
+    }
+    if (cutCapacity_ >= kMaxCutEntries)
+      fail("VIR LOD: a probe block's cut has {} nodes, more than {}: use fewer lodBlockProbes or more lodTexels",
+           stats[3], kMaxCutEntries);
+    cutCapacity_ = uint32_t(std::min<uint64_t>(kMaxCutEntries, stats[3] + stats[3] / 4));  // and run again
+  }
+  if (!o.lod) atlas.splatPairs = uint64_t(surfels.size()) * probes.size();
+
   atlas.resolution = o.resolution;
   atlas.probeCount = int(probes.size());
+  atlas.lodRadianceMs = o.lod ? timer.elapsedMs(0, 1) : 0.0;
   atlas.splatMs = timer.elapsedMs(1, 2);
   atlas.resolveMs = timer.elapsedMs(2, 3);
   atlas.fillMs = timer.elapsedMs(3, 4);
@@ -111,12 +262,12 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   atlas.normal.resize(texels);
   atlas.albedo.resize(texels);
   atlas.radiance.resize(texels);
-  readback<glm::vec2>(ctx_, distBuf, atlas.distance);
-  readback<glm::vec4>(ctx_, normalBuf, atlas.normal);
-  readback<glm::vec4>(ctx_, albedoBuf, atlas.albedo);
-  readback<glm::vec4>(ctx_, radianceBuf, atlas.radiance);
+  readback<glm::vec2>(ctx_, distBuf_, atlas.distance);
+  readback<glm::vec4>(ctx_, normalBuf_, atlas.normal);
+  readback<glm::vec4>(ctx_, albedoBuf_, atlas.albedo);
+  readback<glm::vec4>(ctx_, radianceBuf_, atlas.radiance);
   std::vector<uint32_t> count(1 + VirOptions::kMaxFillPasses);
-  readback<uint32_t>(ctx_, counters, count);
+  readback<uint32_t>(ctx_, counters_, count);
   atlas.holeFractionBeforeFill = double(count[0]) / double(texels);
   atlas.holeFractionAfterFill = double(count[size_t(o.fillPasses)]) / double(texels);
   return atlas;

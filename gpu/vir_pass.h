@@ -3,6 +3,20 @@
 // and hole fill (vir_holefill.comp). The depth test is a 64-bit atomicMin on (depth bits << 32 | surfel
 // index), so the device needs shaderBufferInt64Atomics.
 //
+// Two splat paths (VirOptions::lod):
+//   off (default): every surfel into every probe (vir_splat.comp; one invocation per (surfel, probe) pair).
+//   on: a surfel LOD tree (gpu/vir_lod.h, built once per surfel set and kept resident) is cut
+//     per block of consecutive probes at the coarsest nodes whose disc stays below lodTexels texels
+//     (vir_lod_cut.comp), and only the cut is splatted (vir_lod_splat.comp, probe-major). Far surfels
+//     cover a tiny fraction of a texel, so most (surfel, probe) pairs of the full splat only lose the
+//     depth test; the cut keeps ~ texels x depth complexity discs per probe. Merged discs carry the
+//     area-weighted mean radiance of their surfels (vir_lod_radiance.comp, per call, so relighting stays
+//     exact in the mean). Pass consecutive probes close together (grid order) for small blocks.
+//
+// Buffers are resident in the VirPass and grow only (no per-call allocation once the largest run has
+// been seen); the LOD tree and the surfel upload are reused while the surfel array's bytes and the
+// footprintScale stay the same (a memcmp per call).
+//
 // Channels per probe, N x N texels each (octahedral, no border, shared/octahedral.h texel convention):
 //   distance: (r, r^2), r = distance along the texel-centre ray to the nearest surfel disc it hits
 //   normal:   xyz the surfel normal, w the coverage (0 hole, 1 covered, p + 2 filled by dilation pass p)
@@ -16,6 +30,7 @@
 
 #include "gpu/buffer.h"
 #include "gpu/program.h"
+#include "gpu/vir_lod.h"
 #include "shared/surfel.h"
 #include "shared/vir.h"
 
@@ -27,6 +42,9 @@ struct VirOptions {
   float footprintScale = 1.5f;  // disc radius multiplier of the footprint test (see vir_splat.comp)
   int maxFootprintRadius = 6;   // splat window half-size in texels (up to 13 x 13, near surfels only)
   int fillPasses = 2;           // dilation passes, 0..kMaxFillPasses
+  bool lod = false;             // splat a per-probe-block cut of the surfel LOD tree (see above)
+  float lodTexels = 1.0f;       // LOD: a merged disc may stand in for its surfels when <= this many texels wide
+  int lodBlockProbes = 8;       // LOD: consecutive probes sharing one cut, [1, 64]
   static constexpr int kMaxFillPasses = 8;
 };
 
@@ -40,7 +58,12 @@ struct ProbeAtlas {
   double holeFractionBeforeFill = 0.0;  // texels no surfel reached / all texels
   double holeFractionAfterFill = 0.0;   // texels still holes after the fill passes / all texels
   double gpuMs = 0.0;                   // device time of clear + splat + resolve + fill
-  double splatMs = 0.0, resolveMs = 0.0, fillMs = 0.0;
+  double splatMs = 0.0, resolveMs = 0.0, fillMs = 0.0;  // LOD: splatMs includes the cut
+  double lodRadianceMs = 0.0;  // LOD: per-node radiance (leaves + merged discs), inside gpuMs
+  double lodBuildMs = 0.0;     // LOD: CPU build + upload of the tree in this call (0 when reused), not in gpuMs
+  uint64_t lodNodes = 0;       // LOD: nodes in the tree (leaves + merged)
+  uint64_t splatPairs = 0;     // (disc, probe) pairs the splat visited: surfels x probes without LOD
+  uint64_t splatAtomics = 0;   // LOD: 64-bit atomicMin calls counted on the device; 0 without LOD
 };
 
 class VirPass {
@@ -55,10 +78,26 @@ class VirPass {
                  const VirOptions& options, std::span<const glm::vec4> surfelIrradiance = {});
 
  private:
+  // Uploads surfels and (LOD) builds the tree unless the cached copy matches; returns build ms.
+  double prepareSurfels(std::span<const shared::Surfel> surfels, const VirOptions& options);
+  void grow(Buffer& buffer, size_t bytes);
   Context& ctx_;
   Program splat_;
   Program resolve_;
   Program holefill_;
+  Program lodRadiance_;
+  Program lodCut_;
+  Program lodSplat_;
+  Program lodResolve_;
+  // Resident state, reused across calls.
+  std::vector<shared::Surfel> cachedSurfels_;
+  bool cachedUploaded_ = false;   // surfelBuf_ holds cachedSurfels_
+  float cachedLodScale_ = -1.0f;  // footprintScale of the resident tree; < 0: none
+  VirLodTree tree_;
+  uint32_t cutCapacity_ = 0;  // cut entries per block, grown when a block's cut overflows
+  Buffer surfelBuf_, probeBuf_, irrBuf_, slots_, distBuf_, normalBuf_, albedoBuf_, radianceBuf_, counters_;
+  Buffer nodeBuf_, linkBuf_, childBuf_, upBuf_, frontierBuf_, nodeRadianceBuf_, blockBuf_, cutBuf_, cutCountBuf_,
+      statsBuf_;
 };
 
 }  // namespace lfgi::gpu

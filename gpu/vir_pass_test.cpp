@@ -181,5 +181,86 @@ TEST(VirPass, NearerSurfelWinsAndRadianceIsEmissionPlusAlbedoIrradiance) {
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
 }
 
+// LOD on vs off (VirOptions::lod) on a closed 40 m box at the default surfel density (at N <= 16 many
+// surfels per texel, where the cut replaces them with merged discs): same distances, normals and coverage, radiance
+// within a few % (merged discs carry the area-weighted mean), and far fewer (disc, probe) pairs. A second
+// call with other irradiance reuses the resident tree and relights it.
+TEST(VirPass, LodMatchesFullSplatWithFarFewerPairs) {
+  auto ctx = createContext();
+  VirPass pass(*ctx);
+  const float h = 20.0f;
+  std::vector<shared::Surfel> surfels = inwardBoxSurfels(h, 0.5f);
+  std::vector<glm::vec4> irradiance(surfels.size());
+  for (size_t i = 0; i < surfels.size(); ++i) {
+    const glm::vec3 p(surfels[i].positionRadius);
+    irradiance[i] = glm::vec4(2.0f + std::sin(p.x), 1.0f + 0.1f * p.y, 3.0f * hash01(uint32_t(i)), 0.0f);
+  }
+  const std::vector<glm::vec3> probes = {{0.0f, 0.0f, 0.0f}, {2.0f, 0.0f, 0.0f}, {0.0f, 2.0f, 1.0f},
+                                         {8.0f, -4.0f, 4.0f}, {-12.0f, 10.0f, -14.0f}};
+  for (int n : {8, 16}) {
+    VirOptions full;
+    full.resolution = n;
+    full.maxRange = 100.0f;
+    full.lod = false;
+    VirOptions lod = full;
+    lod.lod = true;
+    lod.lodBlockProbes = 3;
+    const ProbeAtlas a = pass.run(surfels, probes, full, irradiance);
+    const ProbeAtlas b = pass.run(surfels, probes, lod, irradiance);
+    ASSERT_EQ(a.distance.size(), b.distance.size());
+    std::vector<double> distDiff, angle, refErr;
+    double radA = 0.0, radB = 0.0;
+    for (size_t t = 0; t < a.distance.size(); ++t) {
+      if (a.normal[t].w == 0.0f || b.normal[t].w == 0.0f) continue;
+      distDiff.push_back(std::abs(double(b.distance[t].x) - a.distance[t].x) / a.distance[t].x);
+      const float c = std::clamp(glm::dot(glm::vec3(a.normal[t]), glm::vec3(b.normal[t])), -1.0f, 1.0f);
+      angle.push_back(double(std::acos(c)) * 180.0 / std::numbers::pi);
+      radA += a.radiance[t].x + a.radiance[t].y + a.radiance[t].z;
+      radB += b.radiance[t].x + b.radiance[t].y + b.radiance[t].z;
+      const size_t p = t / (size_t(n) * size_t(n)), j = (t / size_t(n)) % size_t(n), i = t % size_t(n);
+      glm::vec3 wall(0.0f);
+      const float ref = boxDistance(probes[p], shared::octTexelDirection(glm::uvec2(i, j), uint32_t(n)), h, &wall);
+      refErr.push_back(std::abs(double(b.distance[t].x) - ref) / ref);
+    }
+    std::sort(distDiff.begin(), distDiff.end());
+    const double p90 = distDiff[distDiff.size() * 9 / 10];
+    std::printf(
+        "VIR LOD vs full, box N=%d: %zu surfels, %llu nodes; pairs %llu vs %llu (%.1fx fewer), %llu atomics; dist "
+        "diff median %.4f p90 %.4f, vs analytic median %.4f; normal median %.2f deg; radiance sum ratio %.4f; holes "
+        "%.4f -> %.4f (full %.4f -> %.4f); splat %.2f vs %.2f ms, LOD build %.1f ms\n",
+        n, surfels.size(), (unsigned long long)b.lodNodes, (unsigned long long)b.splatPairs,
+        (unsigned long long)a.splatPairs, double(a.splatPairs) / double(b.splatPairs),
+        (unsigned long long)b.splatAtomics, median(distDiff), p90, median(refErr), median(angle), radB / radA,
+        b.holeFractionBeforeFill, b.holeFractionAfterFill, a.holeFractionBeforeFill, a.holeFractionAfterFill,
+        b.splatMs, a.splatMs, b.lodBuildMs);
+    EXPECT_LE(median(distDiff), 0.01);
+    EXPECT_LE(p90, 0.05);
+    EXPECT_LE(median(refErr), 0.02);
+    EXPECT_LE(median(angle), 1.0);
+    EXPECT_NEAR(radB / radA, 1.0, 0.03);
+    EXPECT_LE(b.holeFractionAfterFill, 0.01);
+    EXPECT_LE(b.holeFractionBeforeFill, a.holeFractionBeforeFill + 0.02);
+    EXPECT_LT(b.splatPairs * 2, a.splatPairs);  // 2.5x at N = 16: one block spans 15 m of the 40 m box
+    EXPECT_GT(b.splatAtomics, 0u);
+    EXPECT_EQ(a.splatAtomics, 0u);
+  }
+  // Resident tree reused; the radiance follows the new irradiance (E doubled: albedo E / pi doubled).
+  VirOptions lod;
+  lod.maxRange = 100.0f;
+  lod.lod = true;
+  lod.lodBlockProbes = 3;
+  const ProbeAtlas once = pass.run(surfels, probes, lod, irradiance);
+  for (glm::vec4& e : irradiance) e *= 2.0f;
+  const ProbeAtlas twice = pass.run(surfels, probes, lod, irradiance);
+  EXPECT_EQ(twice.lodBuildMs, 0.0);
+  double s1 = 0.0, s2 = 0.0;
+  for (size_t t = 0; t < once.radiance.size(); ++t) {
+    s1 += once.radiance[t].x;
+    s2 += twice.radiance[t].x;
+  }
+  EXPECT_NEAR(s2 / s1, 2.0, 1e-3);
+  EXPECT_EQ(ctx->validationErrors.load(), 0u);
+}
+
 }  // namespace
 }  // namespace lfgi::gpu

@@ -20,6 +20,40 @@ struct VirParams {
 LFGI_CHECK_SIZE(VirParams, 32)
 LFGI_CHECK_OFFSET(VirParams, maxRange, 16)
 
+// Surfel LOD tree topology (gpu/vir_lod.h), one per node, beside the node's disc (a Surfel).
+struct VirLodLink {
+  uint firstChild;  // first entry of this node's children in the child-index buffer
+  uint childCount;  // 0: leaf
+  uint flags;       // LFGI_VIR_LOD_COHERENT: the leaves below lie in the node's plane (may be splatted)
+  uint surfel;      // leaf: index of its surfel in the caller's array (irradiance lookup); inner: ~0u
+};
+LFGI_CHECK_SIZE(VirLodLink, 16)
+
+#define LFGI_VIR_LOD_COHERENT 1u
+#define LFGI_VIR_LOD_STACK 128  // traversal stack entries of one frontier-subtree walk (vir_lod_cut.comp)
+
+// Push constants of the LOD passes (vir_lod_radiance/vir_lod_cut/vir_lod_splat/vir_lod_resolve.comp).
+struct VirLodParams {
+  uint probeCount;          // probes in the whole run
+  uint res;                 // N
+  uint blockProbes;         // probes per block: block b holds probes [b * blockProbes, ...)
+  uint blockFirst;          // first block of this batch
+  uint blockCount;          // blocks in this batch
+  uint cutCapacity;         // cut entries per block
+  uint rootNode;            // LOD tree root
+  uint maxFootprintRadius;  // as VirParams
+  uint nodeFirst;           // radiance pass: nodes [nodeFirst, nodeFirst + nodeCount) of one level
+  uint nodeCount;           // cut pass: the number of frontier subtrees
+  uint leafPass;            // radiance pass: 1 for the leaf level (emission + albedo E / pi)
+  uint lanes;               // splat pass: invocations sharing one probe's cut
+  float maxRange;           // m
+  float footprintScale;     // disc radius multiplier (as VirParams)
+  float lodTexels;          // a node may be splatted when its footprint diameter <= lodTexels texels
+  float octStretch;         // max texels per radian x 2 / N of the octahedral map (splat window bound)
+};
+LFGI_CHECK_SIZE(VirLodParams, 64)
+LFGI_CHECK_OFFSET(VirLodParams, maxRange, 48)
+
 // Coverage generation stored in the w of the normal channel of a resolved map texel.
 #define LFGI_VIR_HOLE 0.0f     // no surfel and no filled value
 #define LFGI_VIR_COVERED 1.0f  // nearest surfel; a texel filled by dilation pass p holds p + 2

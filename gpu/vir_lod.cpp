@@ -1,0 +1,178 @@
+#include "gpu/vir_lod.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "core/error.h"
+
+namespace lfgi::gpu {
+
+namespace {
+
+uint32_t spreadBits10(uint32_t v) {  // 10 bits -> every third bit of 30
+  v &= 0x3FFu;
+  v = (v | (v << 16)) & 0x030000FFu;
+  v = (v | (v << 8)) & 0x0300F00Fu;
+  v = (v | (v << 4)) & 0x030C30C3u;
+  v = (v | (v << 2)) & 0x09249249u;
+  return v;
+}
+
+uint32_t normalClass(glm::vec3 n) {  // dominant axis and sign: 0..5
+  const glm::vec3 a = glm::abs(n);
+  const uint32_t axis = a.x >= a.y && a.x >= a.z ? 0u : (a.y >= a.z ? 1u : 2u);
+  return axis * 2u + (n[int(axis)] < 0.0f ? 1u : 0u);
+}
+
+struct NodeExtra {  // build-time bounds of the leaves below a node
+  float footprintRadius = 0.0f;  // m, covers every leaf's footprint disc
+  float coneRad = 0.0f;          // max angle between the node normal and a leaf normal below
+  float thickness = 0.0f;        // m, max leaf-centre distance from the node plane
+  int depth = 0;
+};
+
+}  // namespace
+
+VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLodBuildOptions& o) {
+  if (surfels.empty()) fail("VIR LOD: empty surfel cloud");
+  if (surfels.size() > (size_t(1) << 31)) fail("VIR LOD: {} surfels exceed 2^31", surfels.size());
+  if (!(std::isfinite(o.footprintScale) && o.footprintScale > 0.0f))
+    fail("VIR LOD: footprintScale {} must be finite and > 0", o.footprintScale);
+  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+  for (size_t i = 0; i < surfels.size(); ++i) {
+    const glm::vec4 p = surfels[i].positionRadius;
+    if (!(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && std::isfinite(p.w) && p.w >= 0.0f))
+      fail("VIR LOD: surfel {} has a non-finite position or a bad radius ({}, {}, {}, r {})", i, p.x, p.y, p.z, p.w);
+    lo = glm::min(lo, glm::vec3(p));
+    hi = glm::max(hi, glm::vec3(p));
+  }
+  const float extent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z, 1e-6f});
+  const float toGrid = 1023.999f / extent;
+
+  // Sort key: normal class above the Morton code, so an octree level never mixes classes below the root.
+  std::vector<std::pair<uint64_t, uint32_t>> keyed(surfels.size());
+  for (size_t i = 0; i < surfels.size(); ++i) {
+    const glm::uvec3 q(glm::clamp((glm::vec3(surfels[i].positionRadius) - lo) * toGrid, glm::vec3(0.0f),
+                                  glm::vec3(1023.0f)));
+    const uint64_t morton = spreadBits10(q.x) | (spreadBits10(q.y) << 1) | (spreadBits10(q.z) << 2);
+    keyed[i] = {(uint64_t(normalClass(glm::vec3(surfels[i].normal))) << 30) | morton, uint32_t(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+
+  VirLodTree tree;
+  tree.leafCount = uint32_t(surfels.size());
+  tree.nodes.reserve(surfels.size() * 3 / 2);
+  tree.links.reserve(surfels.size() * 3 / 2);
+  std::vector<NodeExtra> extra;
+  extra.reserve(surfels.size() * 3 / 2);
+  for (const auto& [key, i] : keyed) {
+    shared::Surfel s = surfels[i];
+    const float r = s.positionRadius.w;
+    s.normal.w = std::numbers::pi_v<float> * r * r;
+    tree.nodes.push_back(s);
+    tree.links.push_back({0u, 0u, LFGI_VIR_LOD_COHERENT, i});
+    extra.push_back({r * o.footprintScale, 0.0f, 0.0f, 0});
+  }
+  tree.levelStart.push_back(0);
+
+  const float maxCone = o.coherentConeDeg * std::numbers::pi_v<float> / 180.0f;
+  // (key, node) of the current level, in key order.
+  std::vector<std::pair<uint64_t, uint32_t>> current(keyed.size());
+  for (size_t i = 0; i < keyed.size(); ++i) current[i] = {keyed[i].first, uint32_t(i)};
+  for (int level = 1; current.size() > 1; ++level) {
+    tree.levelStart.push_back(uint32_t(tree.nodes.size()));
+    const int shift = std::min(3 * level, 63);
+    std::vector<std::pair<uint64_t, uint32_t>> next;
+    for (size_t g = 0; g < current.size();) {
+      size_t end = g + 1;
+      while (end < current.size() && (current[end].first >> shift) == (current[g].first >> shift)) ++end;
+      for (size_t c0 = g; c0 < end; c0 += 8) {  // at most 8 children: a dense leaf cell splits in chunks
+        const size_t c1 = std::min(end, c0 + 8);
+        if (c1 - c0 == 1) {
+          next.push_back(current[c0]);
+          continue;
+        }
+        float area = 0.0f;
+        glm::vec3 centre(0.0f), nsum(0.0f), albedo(0.0f), emission(0.0f);
+        for (size_t c = c0; c < c1; ++c) {
+          const shared::Surfel& ch = tree.nodes[current[c].second];
+          const float a = std::max(ch.normal.w, 1e-20f);
+          area += a;
+          centre += a * glm::vec3(ch.positionRadius);
+          nsum += a * glm::vec3(ch.normal);
+          albedo += a * glm::vec3(ch.albedo);
+          emission += a * glm::vec3(ch.emission);
+        }
+        centre /= area;
+        const float nlen = glm::length(nsum);
+        const glm::vec3 n = nlen > 1e-12f ? nsum / nlen : glm::vec3(tree.nodes[current[c0].second].normal);
+        NodeExtra e;
+        bool coherent = nlen > 1e-12f;
+        const uint32_t first = uint32_t(tree.children.size());
+        for (size_t c = c0; c < c1; ++c) {
+          const uint32_t ci = current[c].second;
+          const shared::Surfel& ch = tree.nodes[ci];
+          const NodeExtra& ce = extra[ci];
+          const glm::vec3 d = glm::vec3(ch.positionRadius) - centre;
+          e.footprintRadius = std::max(e.footprintRadius, glm::length(d) + ce.footprintRadius);
+          const float cosA = std::clamp(glm::dot(n, glm::vec3(ch.normal)), -1.0f, 1.0f);
+          e.coneRad = std::max(e.coneRad, std::acos(cosA) + ce.coneRad);
+          e.thickness = std::max(e.thickness, std::abs(glm::dot(n, d)) + ce.thickness);
+          e.depth = std::max(e.depth, ce.depth + 1);
+          coherent = coherent && (tree.links[ci].flags & LFGI_VIR_LOD_COHERENT) != 0;
+          tree.children.push_back(ci);
+        }
+        coherent = coherent && e.coneRad <= maxCone && e.thickness <= o.coherentThickness * e.footprintRadius;
+        const uint32_t node = uint32_t(tree.nodes.size());
+        tree.nodes.push_back({glm::vec4(centre, e.footprintRadius / o.footprintScale), glm::vec4(n, area),
+                              glm::vec4(albedo / area, 1.0f), glm::vec4(emission / area, 0.0f)});
+        tree.links.push_back({first, uint32_t(c1 - c0), coherent ? LFGI_VIR_LOD_COHERENT : 0u, ~0u});
+        extra.push_back(e);
+        next.push_back({current[c0].first, node});
+      }
+      g = end;
+    }
+    current.swap(next);
+  }
+  tree.levelStart.push_back(uint32_t(tree.nodes.size()));
+  // The root must be the last node: true unless the last level passed a single node up unchanged.
+  if (current.front().second != tree.root()) {
+    const uint32_t r = current.front().second;
+    tree.levelStart.back() = uint32_t(tree.nodes.size());
+    const uint32_t first = uint32_t(tree.children.size());
+    tree.children.push_back(r);
+    tree.nodes.push_back(tree.nodes[r]);
+    tree.links.push_back({first, 1u, 0u, ~0u});  // incoherent: always refined to its one child
+    extra.push_back(extra[r]);
+    ++extra.back().depth;
+    tree.levelStart.push_back(uint32_t(tree.nodes.size()));
+  }
+  tree.maxDepth = extra.back().depth;
+
+  // Frontier of small subtrees (children always precede their parent, so one ascending pass sizes them).
+  std::vector<uint32_t> size(tree.nodes.size(), 1);
+  tree.up.assign(tree.nodes.size(), glm::uvec2(~0u));
+  for (uint32_t i = tree.leafCount; i < tree.nodes.size(); ++i)
+    for (uint32_t c = 0; c < tree.links[i].childCount; ++c) {
+      const uint32_t ch = tree.children[tree.links[i].firstChild + c];
+      size[i] += size[ch];
+      tree.up[ch].x = i;
+    }
+  std::vector<uint32_t> stack{tree.root()};  // depth first, children in order
+  while (!stack.empty()) {
+    const uint32_t i = stack.back();
+    stack.pop_back();
+    if (size[i] <= VirLodTree::kFrontierSubtree || tree.links[i].childCount == 0) {
+      // The first frontier node below each not-yet-designated ancestor emits it.
+      for (uint32_t a = tree.up[i].x; a != ~0u && tree.up[a].y == ~0u; a = tree.up[a].x)
+        tree.up[a].y = uint32_t(tree.frontier.size());
+      tree.frontier.push_back(i);
+      continue;
+    }
+    for (uint32_t c = tree.links[i].childCount; c > 0; --c) stack.push_back(tree.children[tree.links[i].firstChild + c - 1]);
+  }
+  return tree;
+}
+
+}  // namespace lfgi::gpu

@@ -1,0 +1,131 @@
+#include "gpu/vir_lod.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <numbers>
+
+#include "core/error.h"
+
+namespace lfgi::gpu {
+namespace {
+
+// A jittered grid of up-facing surfels on the plane y = h (x, z in [0, size)), albedo varying with x.
+void addFloor(std::vector<shared::Surfel>& out, float size, float spacing, float h, uint32_t seed) {
+  const int cells = int(std::lround(size / spacing));
+  const float radius = spacing / std::sqrt(std::numbers::pi_v<float>);
+  for (uint32_t j = 0; j < uint32_t(cells); ++j)
+    for (uint32_t i = 0; i < uint32_t(cells); ++i) {
+      const float jx = float(((i * 73856093u) ^ (j * 19349663u) ^ seed) % 1000u) / 1000.0f;
+      const float jz = float(((i * 83492791u) ^ (j * 2971215073u) ^ seed) % 1000u) / 1000.0f;
+      const glm::vec3 p((float(i) + jx) * spacing, h, (float(j) + jz) * spacing);
+      out.push_back({glm::vec4(p, radius), glm::vec4(0.0f, 1.0f, 0.0f, 0.0f),
+                     glm::vec4(p.x / size, 0.5f, 0.25f, 1.0f), glm::vec4(0.0f, 0.0f, p.z > size * 0.5f ? 1.0f : 0.0f, 0.0f)});
+    }
+}
+
+// Every surfel is one leaf; inner nodes conserve area and area-weighted albedo/emission, bound their
+// children's footprint discs, sit above their children; the root is last.
+TEST(VirLod, TreeConservesAreaAndBoundsChildren) {
+  std::vector<shared::Surfel> surfels;
+  addFloor(surfels, 16.0f, 0.25f, 0.0f, 1u);
+  addFloor(surfels, 16.0f, 0.25f, 3.0f, 2u);  // a second floor 3 m above: same normal class, other plane
+  const float fs = 1.5f;
+  const VirLodTree tree = buildVirLodTree(surfels, {fs, 18.0f, 0.2f});
+  ASSERT_EQ(tree.leafCount, surfels.size());
+  ASSERT_EQ(tree.links.size(), tree.nodes.size());
+  ASSERT_EQ(tree.levelStart.front(), 0u);
+  ASSERT_EQ(tree.levelStart.back(), tree.nodes.size());
+  std::vector<int> seen(surfels.size(), 0);
+  for (uint32_t i = 0; i < tree.leafCount; ++i) {
+    ASSERT_EQ(tree.links[i].childCount, 0u);
+    ASSERT_LT(tree.links[i].surfel, surfels.size());
+    ++seen[tree.links[i].surfel];
+    EXPECT_EQ(tree.nodes[i].positionRadius, surfels[tree.links[i].surfel].positionRadius);
+  }
+  for (int s : seen) ASSERT_EQ(s, 1);
+  std::vector<int> parents(tree.nodes.size(), 0);
+  size_t coherentInner = 0;
+  for (uint32_t i = tree.leafCount; i < tree.nodes.size(); ++i) {
+    const shared::VirLodLink& l = tree.links[i];
+    ASSERT_GE(l.childCount, 1u);
+    ASSERT_LE(l.childCount, 8u);
+    float area = 0.0f;
+    glm::vec3 albedo(0.0f);
+    for (uint32_t c = 0; c < l.childCount; ++c) {
+      const uint32_t ch = tree.children[l.firstChild + c];
+      ASSERT_LT(ch, i);  // children come first (the radiance pass runs level by level)
+      ++parents[ch];
+      area += tree.nodes[ch].normal.w;
+      albedo += tree.nodes[ch].normal.w * glm::vec3(tree.nodes[ch].albedo);
+      const float dc = glm::length(glm::vec3(tree.nodes[ch].positionRadius - tree.nodes[i].positionRadius));
+      EXPECT_LE(dc + tree.nodes[ch].positionRadius.w * fs, tree.nodes[i].positionRadius.w * fs * 1.0001f + 1e-5f);
+    }
+    EXPECT_NEAR(tree.nodes[i].normal.w, area, 1e-4f * area);
+    EXPECT_NEAR(tree.nodes[i].albedo.x, albedo.x / area, 1e-4f);
+    coherentInner += (l.flags & LFGI_VIR_LOD_COHERENT) ? 1 : 0;
+  }
+  for (uint32_t i = 0; i + 1 < tree.nodes.size(); ++i) ASSERT_EQ(parents[i], 1) << "node " << i;
+  EXPECT_EQ(parents[tree.root()], 0);
+  const float total = 2.0f * 16.0f * 16.0f;  // two 16 m x 16 m floors, disc areas sum to the floor area
+  EXPECT_NEAR(tree.nodes[tree.root()].normal.w, total, 0.02f * total);
+  // The root spans both floors (3 m apart): not one plane, so never splatted. Most inner nodes are.
+  EXPECT_EQ(tree.links[tree.root()].flags & LFGI_VIR_LOD_COHERENT, 0u);
+  EXPECT_GT(coherentInner, (tree.nodes.size() - tree.leafCount) * 9 / 10);
+  EXPECT_LE(tree.maxDepth * 7 + 1, LFGI_VIR_LOD_STACK);
+  std::printf("VIR LOD tree: %zu surfels -> %zu nodes, depth %d, %zu coherent inner nodes\n", surfels.size(),
+              tree.nodes.size(), tree.maxDepth, coherentInner);
+
+  // The frontier splits the tree: every leaf lies below exactly one frontier node (of a small subtree),
+  // and every node above the frontier designates a frontier node below it.
+  std::vector<int> underFrontier(tree.nodes.size(), 0);
+  ASSERT_GT(tree.frontier.size(), 1u);
+  for (size_t fi = 0; fi < tree.frontier.size(); ++fi) {
+    std::vector<uint32_t> st{tree.frontier[fi]};
+    size_t nodes = 0;
+    while (!st.empty()) {
+      const uint32_t x = st.back();
+      st.pop_back();
+      ++underFrontier[x];
+      ++nodes;
+      for (uint32_t c = 0; c < tree.links[x].childCount; ++c) st.push_back(tree.children[tree.links[x].firstChild + c]);
+    }
+    EXPECT_LE(nodes, VirLodTree::kFrontierSubtree);
+    for (uint32_t a = tree.up[tree.frontier[fi]].x; a != ~0u; a = tree.up[a].x) {
+      ASSERT_LT(tree.up[a].y, tree.frontier.size());
+      if (tree.up[a].y == fi) {  // designated: no earlier frontier node below a
+        for (size_t e = 0; e < fi; ++e) {
+          uint32_t x = tree.frontier[e];
+          while (x != ~0u && x != a) x = tree.up[x].x;
+          EXPECT_NE(x, a);
+        }
+      }
+    }
+  }
+  for (uint32_t i = 0; i < tree.leafCount; ++i) ASSERT_EQ(underFrontier[i], 1);
+
+  // Deterministic: the same input gives the same tree.
+  const VirLodTree again = buildVirLodTree(surfels, {fs, 18.0f, 0.2f});
+  ASSERT_EQ(again.children, tree.children);
+  EXPECT_EQ(std::memcmp(again.nodes.data(), tree.nodes.data(), tree.nodes.size() * sizeof(shared::Surfel)), 0);
+}
+
+TEST(VirLod, RejectsBadInput) {
+  EXPECT_THROW(buildVirLodTree({}), Error);
+  std::vector<shared::Surfel> s(2);
+  s[1].positionRadius = glm::vec4(std::nanf(""), 0.0f, 0.0f, 0.1f);
+  EXPECT_THROW(buildVirLodTree(s), Error);
+  s[1].positionRadius = glm::vec4(1.0f, 0.0f, 0.0f, 0.1f);
+  s[0].normal = s[1].normal = glm::vec4(0.0f, 1.0f, 0.0f, 0.0f);
+  const VirLodTree one = buildVirLodTree(std::span(s).first(1));
+  EXPECT_EQ(one.nodes.size(), 1u);
+  EXPECT_EQ(one.root(), 0u);
+  const VirLodTree two = buildVirLodTree(s);
+  EXPECT_EQ(two.nodes.size(), 3u);
+  EXPECT_EQ(two.links[two.root()].childCount, 2u);
+}
+
+}  // namespace
+}  // namespace lfgi::gpu
