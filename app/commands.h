@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace lfgi::app {
@@ -47,6 +48,15 @@ struct WorldExportOptions {
   std::string out;
 };
 int runWorldExportCell(const WorldExportOptions& options);
+
+// `lfgi world edit DIR --add-building ... --add-box ... --clear-region ...` (worlds/world_edits.h).
+struct WorldEditOptions {
+  std::string dir;
+  std::vector<std::pair<std::string, std::string>> edits;  // (flag without "--", value) in command-line order
+};
+// Appends the edits to DIR/world.json atomically; prints the cells whose content changed and the cells
+// whose bake inputs changed.
+int runWorldEdit(const WorldEditOptions& options);
 
 // `lfgi capture` (app/bake_command.cpp): probe capture of world cells or a test scene; resumable, 130
 // when interrupted.

@@ -5,6 +5,7 @@
 
 #include <cstdio>
 #include <string>
+#include <string_view>
 
 #include "app/commands.h"
 #include "core/error.h"
@@ -55,6 +56,19 @@ int main(int argc, char** argv) {
   exportCell->add_option("dir", exportOpt.dir, "World directory")->required();
   exportCell->add_option("--cell", exportOpt.cell, "Cell as X,Z")->required();
   exportCell->add_option("--out", exportOpt.out, "Output .glb file")->required();
+  lfgi::app::WorldEditOptions editOpt;
+  CLI::App* editCmd = world->add_subcommand(
+      "edit", "Append edits to a world (add a building or a box, clear a region); prints the cells whose content changed");
+  editCmd->add_option("dir", editOpt.dir, "World directory")->required();
+  for (const char* kind : {"add-building", "add-box", "clear-region"}) {
+    const char* help = std::string_view(kind) == "add-building" ? "Building on footprint X0,Z0,X1,Z1[,STOREYS] (inside one cell)"
+                       : std::string_view(kind) == "add-box"    ? "Solid box X0,Y0,Z0,X1,Y1,Z1[,CATEGORY] (clipped per cell)"
+                                                                : "Remove buildings and props overlapping X0,Z0,X1,Z1";
+    editCmd->add_option_function<std::string>(std::string("--") + kind,
+                                              [&editOpt, kind](const std::string& v) { editOpt.edits.emplace_back(kind, v); }, help)
+        ->trigger_on_parse()
+        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  }
 
   lfgi::app::CaptureCommandOptions capOpt;
   CLI::App* capture = app.add_subcommand("capture", "Ground-truth probe capture of world cells or a test scene (resumable)");
@@ -194,6 +208,7 @@ int main(int argc, char** argv) {
     if (*gen) return lfgi::app::runWorldGenerate(genOpt);
     if (*info) return lfgi::app::runWorldInfo(infoOpt);
     if (*exportCell) return lfgi::app::runWorldExportCell(exportOpt);
+    if (*editCmd) return lfgi::app::runWorldEdit(editOpt);
     if (*capture) return lfgi::app::runCapture(capOpt);
     if (*reference) return lfgi::app::runReference(refOpt);
     if (*virCmd) return lfgi::app::runVir(virOpt);

@@ -1,4 +1,5 @@
-// `lfgi world generate | info | export-cell`: the synthetic world as cells on disk (worlds/world_cells.h).
+// `lfgi world generate | info | export-cell | edit`: the synthetic world as cells on disk
+// (worlds/world_cells.h) and its hand edits (worlds/world_edits.h).
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
@@ -24,8 +25,10 @@ int runWorldGenerate(const WorldGenerateOptions& opt) {
   params.seed = opt.seed;
   params.sizeM = opt.sizeM;
   params.cellM = opt.cellM;
-  worlds::SyntheticWorld world(params);  // validates
+  (void)worlds::SyntheticWorld(params);  // validates
   worlds::writeWorldManifest(opt.outDir, params);
+  params = worlds::readWorldManifest(opt.outDir);  // an existing manifest's edits apply to the cells
+  const worlds::SyntheticWorld world(params);
   std::vector<worlds::CellCoord> todo;
   if (opt.all) {
     for (int z = 0; z < world.cellsZ(); ++z)
@@ -148,6 +151,59 @@ int runWorldInfo(const WorldInfoOptions& opt) {
   std::printf("\ntriangles by kind ");
   for (auto& [k, v] : categories) std::printf("%s %zu  ", k.c_str(), v);
   std::printf("\n");
+  return 0;
+}
+
+int runWorldEdit(const WorldEditOptions& opt) {
+  std::vector<worlds::WorldEdit> edits;
+  for (const auto& [flag, text] : opt.edits) {
+    worlds::WorldEditKind kind = worlds::WorldEditKind::kAddBox;
+    if (flag == "add-building") kind = worlds::WorldEditKind::kAddBuilding;
+    else if (flag == "clear-region") kind = worlds::WorldEditKind::kClearRegion;
+    else if (flag != "add-box") fail("world edit: unknown edit flag --{}", flag);
+    edits.push_back(worlds::parseWorldEdit(kind, text));
+  }
+  if (edits.empty()) fail("world edit {}: nothing to do (give --add-building, --add-box or --clear-region)", opt.dir);
+  const worlds::SyntheticWorld before(worlds::readWorldManifest(opt.dir));
+  const worlds::SyntheticWorld after(worlds::appendWorldEdits(opt.dir, edits));
+  // Cells whose content changed: compare the content hashes of every cell the new edits overlap.
+  std::vector<worlds::CellCoord> candidates, changed;
+  for (const worlds::WorldEdit& e : edits)
+    for (const worlds::CellCoord c : after.editCells(e))
+      if (std::find(candidates.begin(), candidates.end(), c) == candidates.end()) candidates.push_back(c);
+  std::sort(candidates.begin(), candidates.end(), [](auto a, auto b) { return a.z != b.z ? a.z < b.z : a.x < b.x; });
+  for (const worlds::CellCoord c : candidates)
+    if (before.generateCell(c).contentHash() != after.generateCell(c).contentHash()) changed.push_back(c);
+  // Bake inputs: a cell's capture scene is its 3 x 3 block (bake/world_bake.h), and probe placement reads
+  // the neighbours' solids, so every in-world cell next to a changed one is stale too.
+  std::vector<worlds::CellCoord> stale;
+  for (int z = 0; z < after.cellsZ(); ++z)
+    for (int x = 0; x < after.cellsX(); ++x)
+      for (const worlds::CellCoord c : changed)
+        if (std::abs(c.x - x) <= 1 && std::abs(c.z - z) <= 1) {
+          stale.push_back({x, z});
+          break;
+        }
+  auto list = [](const std::vector<worlds::CellCoord>& cells) {
+    std::string s;
+    for (const worlds::CellCoord c : cells) s += fmt::format(" {},{}", c.x, c.z);
+    return s.empty() ? std::string(" none") : s;
+  };
+  // Generated cell directories (lfgi world generate) of stale cells are out of date: drop their finished
+  // marker so the next `lfgi world generate --all` rebuilds them.
+  size_t regenerate = 0;
+  for (const worlds::CellCoord c : stale) {
+    std::error_code ec;
+    if (std::filesystem::remove(worlds::cellJsonPath(opt.dir, c), ec)) ++regenerate;
+  }
+  std::printf("world edit: %zu edit(s) appended to %s (%zu in all)\n", edits.size(),
+              (std::filesystem::path(opt.dir) / "world.json").string().c_str(), after.params().edits.size());
+  std::printf("content changed in %zu cells:%s\n", changed.size(), list(changed).c_str());
+  std::printf("bake inputs changed in %zu cells (changed cells and their in-world neighbours):%s\n", stale.size(),
+              list(stale).c_str());
+  if (regenerate > 0)
+    std::printf("%zu generated cells are out of date; rerun `lfgi world generate --out %s --all ...` to rebuild them\n",
+                regenerate, opt.dir.c_str());
   return 0;
 }
 
