@@ -4,6 +4,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <mutex>
 #include <sstream>
@@ -302,6 +303,10 @@ std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::Cell
       m.insertMeta(o.field, openvdb::Vec3IMetadata(v));
     } else if (p && p->typeName() == kBlobType)
       putBlob(m, o.field.c_str(), std::vector<uint8_t>(o.text.begin(), o.text.end()));
+    else if (p && !o.text.empty() && p->typeName() == openvdb::FloatMetadata::staticTypeName())  // "nan", "-1.5"
+      m.insertMeta(o.field, openvdb::FloatMetadata(std::strtof(o.text.c_str(), nullptr)));
+    else if (p && !o.text.empty() && p->typeName() == openvdb::DoubleMetadata::staticTypeName())
+      m.insertMeta(o.field, openvdb::DoubleMetadata(std::strtod(o.text.c_str(), nullptr)));
     else
       m.insertMeta(o.field, openvdb::Int64Metadata(o.intValue));
   }

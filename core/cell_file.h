@@ -131,8 +131,9 @@ class ContentHasher {
 namespace detail {
 // Test seam: encodes like encodeCellFile, then replaces integer/string file metadata fields before the
 // checksum is computed, to build files that are intact but semantically wrong (bad version, huge
-// counts). Integer fields take `intValue`; string fields, vec3i fields ("X,Y,Z") and blobs (raw bytes)
-// take `text`; an unknown field is added as int64.
+// counts, NaN). Integer fields take `intValue`; string fields, vec3i fields ("X,Y,Z"), float/double
+// fields ("nan", "inf", "-1"; empty text: the field becomes int64) and blobs (raw bytes) take `text`; an
+// unknown field is added as int64.
 struct CellFileOverride {
   std::string field;
   int64_t intValue = 0;

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <random>
 #include <thread>
 
@@ -310,6 +311,75 @@ TEST(CellFile, IntactButWrongFilesNameTheProblem) {
   bytes.resize(bytes.size() - 24);
   EXPECT_NE(errorOf(bytes).find("trailer is missing"), std::string::npos) << errorOf(bytes);
   EXPECT_NE(errorOf({}).find("too short"), std::string::npos);
+}
+
+// NaN and Inf (issue 10) in every kind of float the file holds: metadata fields, weight tensors (f32
+// biases, int8 scales, FP16 elements) and latent scales. The blobs are rebuilt in the writer's layout
+// with one value replaced, so the file is intact (checksum valid) and only the value is wrong.
+TEST(CellFile, NonFiniteValuesAreRejectedByName) {
+  const CellFile c = makeCell(Variant::Int8Latents8);
+  const std::pair<detail::CellFileOverride, std::string> fields[] = {
+      {{"exposure", 0, "nan"}, "field 'exposure' is nan (must be finite)"},
+      {{"range", 0, "inf"}, "field 'range' is inf (must be finite)"},
+      {{"exposure", 0, "-2"}, "exposure -2 must be finite and > 0"},
+      {{"error_achieved", 0, "nan"}, "field 'error_achieved' is nan"},
+      {{"training_seconds", 0, "-inf"}, "field 'training_seconds' is -inf"},
+      {{"error_target", 0, "-1"}, "errorTarget = -1 must be finite and >= 0"},
+  };
+  for (const auto& [o, expect] : fields) {
+    const std::string e = errorOf(detail::encodeCellFileWithOverrides(c, std::span(&o, 1)), "nan.vdb");
+    EXPECT_EQ(e.rfind("nan.vdb: ", 0), 0u) << e;
+    EXPECT_NE(e.find(expect), std::string::npos) << o.field << ": '" << e << "'";
+  }
+  auto append = [](std::string& out, const auto& values) {
+    out.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(values[0]));
+  };
+  auto weightsBlob = [&](const QuantizedWeights& w) {
+    std::string out;
+    for (const QuantizedTensor& t : w.tensors) {
+      append(out, t.f32);
+      append(out, t.f16);
+      append(out, t.scales);
+      append(out, t.codes);
+    }
+    return out;
+  };
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  // The unmodified rebuilt blob is accepted: the layout above is the writer's.
+  ASSERT_EQ(errorOf(detail::encodeCellFileWithOverrides(
+                c, std::vector<detail::CellFileOverride>{{"generator_weights", 0, weightsBlob(c.generator->weights)}})),
+            "");
+  QuantizedWeights w = c.generator->weights;
+  ASSERT_EQ(w.tensors[1].encoding, TensorEncoding::Float32);  // linear bias
+  w.tensors[1].f32[2] = nan;
+  std::string e = errorOf(detail::encodeCellFileWithOverrides(
+      c, std::vector<detail::CellFileOverride>{{"generator_weights", 0, weightsBlob(w)}}), "nan.vdb");
+  EXPECT_EQ(e.rfind("nan.vdb: ", 0), 0u) << e;
+  EXPECT_NE(e.find("finite"), std::string::npos) << e;
+  w = c.generator->weights;
+  ASSERT_EQ(w.tensors[0].encoding, TensorEncoding::Int8PerChannel);
+  w.tensors[0].scales[1] = std::numeric_limits<float>::infinity();
+  e = errorOf(detail::encodeCellFileWithOverrides(
+      c, std::vector<detail::CellFileOverride>{{"generator_weights", 0, weightsBlob(w)}}), "nan.vdb");
+  EXPECT_NE(e.find("scale 1 is inf"), std::string::npos) << e;
+  // FP16 elements: the Fp16Latents4 variant stores FP16 weights.
+  const CellFile h = makeCell(Variant::Fp16Latents4);
+  w = h.generator->weights;
+  ASSERT_EQ(w.tensors[0].encoding, TensorEncoding::Float16);
+  w.tensors[0].f16[3] = 0x7e00;  // NaN
+  e = errorOf(detail::encodeCellFileWithOverrides(
+      h, std::vector<detail::CellFileOverride>{{"generator_weights", 0, weightsBlob(w)}}), "nan.vdb");
+  EXPECT_NE(e.find("FP16 element 3 is Inf or NaN"), std::string::npos) << e;
+  // Latent scales: 8-bit latents are scales then one code per value.
+  QuantizedLatents l = c.generator->latents;
+  l.scales[0] = nan;
+  std::string latents;
+  append(latents, l.scales);
+  append(latents, l.codes);
+  e = errorOf(detail::encodeCellFileWithOverrides(c, std::vector<detail::CellFileOverride>{{"latents", 0, latents}}),
+              "nan.vdb");
+  EXPECT_EQ(e.rfind("nan.vdb: ", 0), 0u) << e;
+  EXPECT_NE(e.find("scale 0 is nan"), std::string::npos) << e;
 }
 
 TEST(CellFile, WriterRejectsInconsistentCells) {
