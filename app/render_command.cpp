@@ -7,10 +7,16 @@
 // --grid probe grid; world cells over the cells' own placed probes, for the cell --cell and its 8
 // neighbours so borders shade from both sides: only the probes around surfaces the camera sees, or with
 // --probe-radius R those within R m of the camera).
-// --probes vir is not wired yet (gpu/vir_pass + relight belong to another module; they will produce
-// ProbeFields for ShadingRenderer::setProbes in the same way).
+// --probes vir: the same probes (scene grid, or the world cells' probes chosen as above) from GPU relight +
+// VIR of the surfels (bake/probe_sources.h virProbeField, --vir-frames frames; scenes: surfels sampled
+// from the mesh at --surfel-spacing, world cells: the 3 x 3 cells' own surfels).
+// --probes codec (world cells only): probes decoded from the baked cell files (bake/probe_sources.h
+// codecProbeField): --cell-file for the centre cell (default WORLD/baked/cells/cell_X_Z.vdb, as `lfgi bake`
+// writes), the neighbours' files from the same folder when present.
+// --exposure EV fixes the PNG exposure (time-of-day sweeps); default: the median luminance maps to 0.18.
+// --ao-radius R: ray-traced ambient occlusion from the G-buffer (bake/shading_view.h) on indirect diffuse.
 //
-// Output (--out X.exr): X.exr (R/G/B, direct, indirect_diffuse, indirect_specular, indirect, weight),
+// Output (--out X.exr): X.exr (R/G/B, direct, indirect_diffuse, indirect_specular, indirect, weight, ao),
 // X.png; with --compare: X_reference.exr (R/G/B, direct, indirect), X_reference.png,
 // X_indirect.png and X_reference_indirect.png (same exposure), X_error.png (indirect heat map).
 #include <fmt/format.h>
@@ -28,13 +34,16 @@
 #include "app/cli_args.h"
 #include "app/commands.h"
 #include "bake/embree_scene.h"
+#include "bake/probe_sources.h"
 #include "bake/shading_inputs.h"
 #include "bake/shading_view.h"
+#include "core/cell_file.h"
 #include "core/error.h"
 #include "core/image.h"
 #include "core/progress.h"
 #include "gpu/context.h"
 #include "worlds/gltf_io.h"
+#include "worlds/surfels.h"
 #include "worlds/world_cells.h"
 
 namespace lfgi::app {
@@ -63,9 +72,11 @@ fs::path withSuffix(const fs::path& exr, const std::string& suffix, const std::s
 
 int runRender(const RenderCommandOptions& opt) {
   if (opt.world.empty() == opt.scene.empty()) fail("give exactly one of --world DIR (with --cell) or --scene NAME_OR_FILE");
-  if (opt.probes == "vir" || opt.probes == "codec")
-    fail("--probes {}: not available yet in lfgi render (use --probes capture)", opt.probes);
-  if (opt.probes != "capture") fail("--probes '{}': expected capture, vir or codec", opt.probes);
+  if (opt.probes != "capture" && opt.probes != "vir" && opt.probes != "codec")
+    fail("--probes '{}': expected capture, vir or codec", opt.probes);
+  if (opt.probes == "codec" && opt.world.empty())
+    fail("--probes codec: cell files exist for world cells only (give --world DIR --cell X,Z)");
+  if (!opt.cellFile.empty() && opt.probes != "codec") fail("--cell-file is for --probes codec");
   if (fs::path(opt.out).extension() != ".exr") fail("--out {}: expected a .exr file name", opt.out);
   const std::vector<float> cam = parseNumbers("--camera", opt.camera, 6, "px,py,pz,tx,ty,tz");
   bake::PinholeCamera camera;
@@ -98,6 +109,14 @@ int runRender(const RenderCommandOptions& opt) {
   if (opt.threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(opt.threads));
   InterruptGuard guard;
 
+  auto ctx = gpu::createContext();
+  bake::VirProbeOptions vo;
+  vo.resolution = opt.resolution;
+  vo.frames = opt.virFrames;
+  auto reportVir = [&](const bake::VirProbeStats& st, const std::string& where) {
+    spdlog::info("{}: VIR probes: {} probes from {} surfels, {} frames, {:.2f} s ({:.1f} ms device)", where, st.probes,
+                 st.surfels, vo.frames, st.seconds, st.gpuMs);
+  };
   worlds::TriangleMesh mesh;
   std::vector<ProbeField> fields;
   std::string what;
@@ -131,10 +150,26 @@ int runRender(const RenderCommandOptions& opt) {
       }
     }
     const ProbeGrid grid = worlds::presetProbeGrid(preset, mesh.bounds());
-    const bake::EmbreeScene scene(mesh, preset.name);
-    spdlog::info("{}: {} triangles, capturing {}x{}x{} probes ({}x{} maps, {} spp)", preset.name, mesh.triangleCount(),
-                 grid.dims.x, grid.dims.y, grid.dims.z, co.resolution, co.resolution, co.samplesPerTexel);
-    fields.push_back(bake::captureGridField(scene, sky, grid, {}, {}, co, true));
+    if (opt.probes == "vir") {
+      const worlds::Aabb box = mesh.bounds();
+      const float spacing =
+          opt.surfelSpacing > 0.0f ? opt.surfelSpacing : std::max(glm::length(box.max - box.min) / 150.0f, 1e-3f);
+      const std::vector<worlds::Surfel> surfels =
+          worlds::sampleSurfels(bake::meshWithBackFaces(mesh), {spacing, opt.seed});
+      vo.maxRange = 2.0f * glm::length(box.max - box.min);
+      spdlog::info("{}: {} triangles, VIR of {} surfels ({:.3f} m) into {}x{}x{} probes ({}x{} maps)", preset.name,
+                   mesh.triangleCount(), surfels.size(), spacing, grid.dims.x, grid.dims.y, grid.dims.z, vo.resolution,
+                   vo.resolution);
+      bake::VirProbeStats st;
+      fields.push_back(bake::virProbeField(*ctx, surfels, grid, {}, {}, sky, vo, &st));
+      reportVir(st, preset.name);
+    } else {
+      const bake::EmbreeScene scene(mesh, preset.name);
+      spdlog::info("{}: {} triangles, capturing {}x{}x{} probes ({}x{} maps, {} spp)", preset.name,
+                   mesh.triangleCount(), grid.dims.x, grid.dims.y, grid.dims.z, co.resolution, co.resolution,
+                   co.samplesPerTexel);
+      fields.push_back(bake::captureGridField(scene, sky, grid, {}, {}, co, true));
+    }
     what = preset.name;
   } else {
     if (opt.cell.empty()) fail("--world {}: give the cell with --cell X,Z", opt.world);
@@ -186,7 +221,53 @@ int runRender(const RenderCommandOptions& opt) {
           }
         }
     }
-    for (size_t k = 0; k < built.size(); ++k) {
+    std::vector<worlds::Surfel> surfels;
+    if (opt.probes == "vir")
+      for (const worlds::BuiltCell& b : built) surfels.insert(surfels.end(), b.surfels.begin(), b.surfels.end());
+    vo.maxRange = float(world.cellSizeM());
+    if (opt.probes == "codec") {
+      // Every cell whose file exists (the centre's must); all fields share one map size: the first network
+      // model's, else --resolution (SH L1 cells take any size).
+      std::vector<std::pair<size_t, CellFile>> files;
+      std::vector<fs::path> paths;
+      for (size_t k = 0; k < built.size(); ++k) {
+        const worlds::CellCoord cc = built[k].layout.cell;
+        const bool centre = cc.x == c.x && cc.z == c.z;
+        const fs::path path = centre && !opt.cellFile.empty()
+                                  ? fs::path(opt.cellFile)
+                                  : fs::path(opt.world) / "baked" / "cells" / fmt::format("cell_{}_{}.vdb", cc.x, cc.z);
+        if (!fs::is_regular_file(path)) {
+          if (centre)
+            fail("--probes codec: no cell file {} (bake it with `lfgi bake --world {} --cells {},{}` or give --cell-file)",
+                 path.string(), opt.world, cc.x, cc.z);
+          spdlog::info("cell {},{}: no cell file {}, its probes are not used", cc.x, cc.z, path.string());
+          continue;
+        }
+        CellFile cf = readCellFile(path);
+        if (cf.cellX != cc.x || cf.cellZ != cc.z || cf.grid.dims != built[k].probes.grid.dims)
+          fail("{}: holds cell {},{} ({}x{}x{} probes), expected cell {},{} ({}x{}x{})", path.string(), cf.cellX,
+               cf.cellZ, cf.grid.dims.x, cf.grid.dims.y, cf.grid.dims.z, cc.x, cc.z, built[k].probes.grid.dims.x,
+               built[k].probes.grid.dims.y, built[k].probes.grid.dims.z);
+        files.emplace_back(k, std::move(cf));
+        paths.push_back(path);
+      }
+      int res = opt.resolution;
+      for (const auto& [k, cf] : files)
+        if (cf.generator) {
+          res = cf.generator->weights.arch.outputResolution();
+          break;
+        }
+      for (size_t j = 0; j < files.size(); ++j) {
+        const CellFile& cf = files[j].second;
+        if (cf.generator && cf.generator->weights.arch.outputResolution() != res)
+          fail("{}: decodes {}x{} maps but another cell file decodes {}x{}", paths[j].string(),
+               cf.generator->weights.arch.outputResolution(), cf.generator->weights.arch.outputResolution(), res, res);
+        fields.push_back(bake::codecProbeField(cf, paths[j].string(), scene, sky, res));
+        spdlog::info("cell {},{}: decoded {} probes from {} ({})", cf.cellX, cf.cellZ, cf.activeProbeCount(),
+                     paths[j].string(), cf.stats.model);
+      }
+    }
+    for (size_t k = 0; k < built.size() && opt.probes != "codec"; ++k) {
       worlds::BuiltCell& b = built[k];
       size_t n = 0;
       for (size_t i = 0; i < active[k].size(); ++i) {
@@ -194,6 +275,13 @@ int runRender(const RenderCommandOptions& opt) {
         n += active[k][i];
       }
       if (n == 0) continue;
+      if (opt.probes == "vir") {
+        spdlog::info("cell {},{}: VIR of {} of {} probes", b.layout.cell.x, b.layout.cell.z, n, active[k].size());
+        bake::VirProbeStats st;
+        fields.push_back(bake::virProbeField(*ctx, surfels, b.probes.grid, b.probes.offsets, active[k], sky, vo, &st));
+        reportVir(st, fmt::format("cell {},{}", b.layout.cell.x, b.layout.cell.z));
+        continue;
+      }
       spdlog::info("cell {},{}: capturing {} of {} probes", b.layout.cell.x, b.layout.cell.z, n, active[k].size());
       fields.push_back(bake::captureGridField(scene, sky, b.probes.grid, b.probes.offsets, active[k], co, true));
     }
@@ -201,19 +289,21 @@ int runRender(const RenderCommandOptions& opt) {
     what = fmt::format("world {} cells around {}", opt.world, opt.cell);
   }
 
-  auto ctx = gpu::createContext();
   bake::ShadingRenderer renderer(*ctx, mesh);
   std::vector<const ProbeField*> ptrs;
   for (const ProbeField& f : fields) ptrs.push_back(&f);
   renderer.setProbes(ptrs, opt.specularLevels);
   gpu::ShadingOptions so;
   so.chebyshev = !opt.noChebyshev;
+  so.aoRadius = opt.aoRadius;
   const bake::ShadedView view = renderer.render(sky, camera, width, height, so);
   const fs::path exr(opt.out);
   if (!exr.parent_path().empty()) fs::create_directories(exr.parent_path());
   writeExr(exr, view.image);
-  const float exposure = std::log2(0.18f / medianLuminance(view.image, ""));
+  const float exposure =
+      std::isnan(opt.exposure) ? std::log2(0.18f / medianLuminance(view.image, "")) : opt.exposure;
   writePng(withSuffix(exr, "", ".png"), view.image, exposure);
+  spdlog::info("PNG exposure {:.3f} EV ({})", exposure, std::isnan(opt.exposure) ? "auto" : "--exposure");
   spdlog::info("render {}x{} of {} on {}: G-buffer {:.2f} ms, shading {:.2f} ms -> {}", width, height, what,
                ctx->info.name, view.gbufferMs, view.shadeMs, exr.string());
   if (!opt.compare) return 0;
@@ -249,8 +339,8 @@ int runRender(const RenderCommandOptions& opt) {
   }
   const double total = bake::layerRelativeRms(view.image, "", ref.image, "", &mask);
   const double indirect = bake::layerRelativeRms(view.image, "indirect.", ref.image, "indirect.", &mask);
-  std::printf("relative RMS vs path-traced reference (%d spp, %zu pixels shaded from probes): total %.4f, indirect %.4f\n",
-              opt.referenceSpp, shaded, total, indirect);
+  std::printf("relative RMS vs path-traced reference (%d spp, %zu pixels shaded from %s probes): total %.4f, indirect %.4f\n",
+              opt.referenceSpp, shaded, opt.probes.c_str(), total, indirect);
   spdlog::info("reference {:.2f} s -> {}, error map {}", ref.seconds, withSuffix(exr, "_reference", ".exr").string(),
                withSuffix(exr, "_error", ".png").string());
   return 0;

@@ -56,7 +56,7 @@ ShadedView ShadingRenderer::render(const worlds::SkyModel& sky, const PinholeCam
   v.image = Image(width, height,
                   {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect_diffuse.R", "indirect_diffuse.G",
                    "indirect_diffuse.B", "indirect_specular.R", "indirect_specular.G", "indirect_specular.B",
-                   "indirect.R", "indirect.G", "indirect.B", "weight"});
+                   "indirect.R", "indirect.G", "indirect.B", "weight", "ao"});
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
       const size_t p = size_t(y) * size_t(width) + size_t(x);
@@ -69,6 +69,7 @@ ShadedView ShadingRenderer::render(const worlds::SkyModel& sky, const PinholeCam
         px[12 + c] = h.diffuse[p][int(c)] + h.specular[p][int(c)];
       }
       px[15] = h.diffuse[p].w;
+      px[16] = h.specular[p].w;
     }
   }
   return v;

@@ -4,7 +4,8 @@
 //
 // Image channels of render(): R/G/B (total), direct.R/G/B, indirect_diffuse.R/G/B,
 // indirect_specular.R/G/B, indirect.R/G/B (diffuse + specular: compare with renderShadingReference's
-// indirect layer), weight (sum of probe weights; 0 where no probe contributed).
+// indirect layer), weight (sum of probe weights; 0 where no probe contributed), ao (ambient occlusion
+// applied to indirect diffuse, gpu::ShadingOptions::aoRadius; 1 when off).
 #pragma once
 
 #include <memory>

@@ -2,11 +2,17 @@
 // path-traced reference, vs probe spacing and octahedral resolution, and the device time of the shading
 // pass (error against cost). Scenes: the Cornell box (ceiling light only, midnight overcast sky) swept
 // over probe grids and map resolutions; Sponza at noon at one coarse grid; the leak-test house of the
-// default world (sealed / lit indirect ratio).
+// default world (sealed / lit indirect ratio). Probe sources compared on the same view (error vs cost):
+// the Cornell box at 2 x 2 x 2 and 4 x 4 x 4 from capture and from VIR (bake/probe_sources.h: GPU relight of
+// surfels, 4 frames), and a synthetic-world cell (seed 3, 64 m world, 32 m cells, cell 1,0 and its
+// neighbours' geometry) from capture, VIR and codec (the cell baked into a cell file first, then decoded).
 //
 // Columns: scene, grid (NX x NY x NZ), spacing_m (smallest axis), resolution (radiance/distance maps;
-// irradiance maps are half of it, >= 4), probes, capture_s, shade_ms (probe shading pass, device
-// timestamps, at the timing size), shade_ms_per_mpixel, gbuffer_ms, indirect_rel_rms, total_rel_rms.
+// irradiance maps are half of it, >= 4), probes, capture_s (seconds to produce the probes: capture, VIR
+// frames, or decode; the bake of a codec cell is reported in the log and summary), shade_ms (probe shading
+// pass, device timestamps, at the timing size), shade_ms_per_mpixel, gbuffer_ms, indirect_rel_rms,
+// total_rel_rms, probe_source (capture | vir | codec).
+// --sources runs only the probe-source comparison (Cornell + world cell).
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
@@ -14,6 +20,8 @@
 #include <cmath>
 
 #include "bake/embree_scene.h"
+#include "bake/probe_sources.h"
+#include "bake/world_bake.h"
 #include "bake/shading_inputs.h"
 #include "bake/shading_view.h"
 #include "bench/bench_output.h"
@@ -47,25 +55,28 @@ int main(int argc, char** argv) {
   CLI::App app{"lfgi benchmark: shading from light-field probes vs path-traced reference"};
   std::string out = "out/bench/shading";
   bool quick = false;
+  bool sourcesOnly = false;
   std::string scenesDir = "../shared/scenes";
   app.add_option("--out", out, "Output directory");
   app.add_option("--scenes-dir", scenesDir, "Folder of the scene presets");
   app.add_flag("--quick", quick, "Smaller images and sweeps");
+  app.add_flag("--sources", sourcesOnly, "Only the probe-source comparison (capture / vir / codec)");
   CLI11_PARSE(app, argc, argv);
   try {
     bench::BenchOutput o(out, quick);
     auto ctx = gpu::createContext();
     o.setDevice(ctx->info.name);
     o.setColumns({"scene", "grid", "spacing_m", "resolution", "probes", "capture_s", "shade_ms", "shade_ms_per_mpixel",
-                  "gbuffer_ms", "indirect_rel_rms", "total_rel_rms"});
+                  "gbuffer_ms", "indirect_rel_rms", "total_rel_rms", "probe_source"});
     const int refSize = quick ? 32 : 64;
     const int refSpp = quick ? 2048 : 4096;  // the Cornell light is small: the reference needs many samples
     const int timeSize = quick ? 256 : 512;
 
-    // One scene: reference once, then each (grid, resolution) configuration.
+    // One scene: reference once, then each (grid, resolution) configuration, from each probe source.
     auto sweep = [&](const std::string& name, const worlds::TriangleMesh& mesh, const worlds::SkyModel& sky,
                      const bake::PinholeCamera& cam, int refW, int refH, int spp,
-                     const std::vector<std::pair<glm::ivec3, int>>& configs, int captureSpp, float emitterLevel) {
+                     const std::vector<std::pair<glm::ivec3, int>>& configs, int captureSpp, float emitterLevel,
+                     const std::vector<std::string>& sources = {"capture"}) {
       const bake::EmbreeScene scene(mesh, name);
       bake::RenderOptions ro;
       ro.width = refW;
@@ -76,8 +87,13 @@ int main(int argc, char** argv) {
       spdlog::info("{}: reference {}x{} at {} spp in {:.1f} s", name, refW, refH, spp,
                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
       bake::ShadingRenderer renderer(*ctx, mesh);
+      std::vector<worlds::Surfel> surfels;
+      const worlds::Aabb box = mesh.bounds();
+      if (std::find(sources.begin(), sources.end(), "vir") != sources.end())
+        surfels = worlds::sampleSurfels(bake::meshWithBackFaces(mesh), {glm::length(box.max - box.min) / 150.0f, 1});
       std::vector<Row> rows;
-      for (const auto& [dims, res] : configs) {
+      for (const auto& [dims, res] : configs)
+      for (const std::string& source : sources) {
         worlds::ScenePreset preset;
         preset.probeDims = dims;
         const ProbeGrid grid = worlds::presetProbeGrid(preset, mesh.bounds());
@@ -86,7 +102,16 @@ int main(int argc, char** argv) {
         co.irradianceResolution = std::max(4, res / 2);
         co.samplesPerTexel = captureSpp;
         const auto c0 = std::chrono::steady_clock::now();
-        const ProbeField f = bake::captureGridField(scene, sky, grid, {}, {}, co);
+        ProbeField f;
+        if (source == "vir") {
+          bake::VirProbeOptions vo;
+          vo.resolution = res;
+          vo.irradianceResolution = co.irradianceResolution;
+          vo.maxRange = 2.0f * glm::length(box.max - box.min);
+          f = bake::virProbeField(*ctx, surfels, grid, {}, {}, sky, vo);
+        } else {
+          f = bake::captureGridField(scene, sky, grid, {}, {}, co);
+        }
         const double captureS = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
         const ProbeField* fields[] = {&f};
         renderer.setProbes(fields);
@@ -107,9 +132,12 @@ int main(int argc, char** argv) {
         const float spacing = std::min({grid.spacing.x, grid.spacing.y, grid.spacing.z});
         o.addRow({name, fmt::format("{}x{}x{}", dims.x, dims.y, dims.z), bench::num(spacing), std::to_string(res),
                   std::to_string(grid.probeCount()), bench::num(captureS), bench::num(shadeMs),
-                  bench::num(row.shadeMsPerMpix), bench::num(gbufMs), bench::num(row.indirect), bench::num(row.total)});
-        spdlog::info("{} grid {}x{}x{} res {}: indirect rel RMS {:.4f}, total {:.4f}, shade {:.2f} ms ({:.1f} ms/Mpixel)",
-                     name, dims.x, dims.y, dims.z, res, row.indirect, row.total, shadeMs, row.shadeMsPerMpix);
+                  bench::num(row.shadeMsPerMpix), bench::num(gbufMs), bench::num(row.indirect), bench::num(row.total),
+                  source});
+        spdlog::info("{} grid {}x{}x{} res {} {}: indirect rel RMS {:.4f}, total {:.4f}, probes in {:.2f} s, shade "
+                     "{:.2f} ms ({:.1f} ms/Mpixel)",
+                     name, dims.x, dims.y, dims.z, res, source, row.indirect, row.total, captureS, shadeMs,
+                     row.shadeMsPerMpix);
         rows.push_back(row);
       }
       return rows;
@@ -123,15 +151,102 @@ int main(int argc, char** argv) {
     cc.position = glm::vec3(-0.278f, 0.274f, 1.0f);
     cc.target = glm::vec3(-0.278f, 0.274f, -0.28f);
     cc.verticalFovDeg = 40.0f;
+    if (sourcesOnly) {
+      const std::vector<Row> c = sweep("cornell", cornell, night, cc, refSize, refSize, refSpp,
+                                       {{glm::ivec3(2), 16}, {glm::ivec3(4), 16}}, 64, 0.01f, {"capture", "vir"});
+      o.summary()["cornell_indirect_rel_rms_capture_2x2x2"] = c[0].indirect;
+      o.summary()["cornell_indirect_rel_rms_vir_2x2x2"] = c[1].indirect;
+      o.summary()["cornell_indirect_rel_rms_capture_4x4x4"] = c[2].indirect;
+      o.summary()["cornell_indirect_rel_rms_vir_4x4x4"] = c[3].indirect;
+    }
     std::vector<std::pair<glm::ivec3, int>> configs;
     const std::vector<int> grids = quick ? std::vector<int>{2, 3, 4} : std::vector<int>{2, 3, 4, 6, 8};
     const std::vector<int> resolutions = quick ? std::vector<int>{8, 32} : std::vector<int>{8, 32, 64};
     for (int g : grids) configs.push_back({glm::ivec3(g), 16});
     for (int r : resolutions) configs.push_back({glm::ivec3(4), r});
-    const std::vector<Row> c = sweep("cornell", cornell, night, cc, refSize, refSize, refSpp, configs, 64, 0.01f);
+    if (!sourcesOnly) {
+    const std::vector<Row> c = sweep("cornell", cornell, night, cc, refSize, refSize, refSpp, configs, 64, 0.01f,
+                                     {"capture", "vir"});
+    // Rows per configuration: capture, vir.
     o.summary()["cornell_indirect_rel_rms"] = c[0].indirect;  // the paper's 2 x 2 x 2 grid, 16 x 16 maps
     o.summary()["cornell_indirect_rel_rms_grid"] = "2x2x2, 16x16 maps";
+    o.summary()["cornell_indirect_rel_rms_vir"] = c[1].indirect;
     o.summary()["shade_ms_per_mpixel"] = c[0].shadeMsPerMpix;
+    }
+
+    // A world cell from capture, VIR and codec probes.
+    {
+      const worlds::SyntheticWorld world(worlds::WorldParams{3, 64.0, 32.0});
+      const worlds::CellCoord cell{1, 0};
+      bake::WorldBakeSettings bs;
+      bs.resolution = quick ? 8 : 16;
+      bs.spp = quick ? 8 : 16;
+      bs.bounces = 4;
+      bs.keys = "12";
+      bs.maxSteps = quick ? 300 : 1500;
+      bake::CellBakeInputs in = bake::prepareCellBake(world, cell, bs);
+      const worlds::BuiltCell built = in.built;
+      worlds::TriangleMesh mesh = in.sceneMesh;
+      const bake::EmbreeScene scene(mesh, "world cell 1,0 + neighbours");
+      const auto b0 = std::chrono::steady_clock::now();
+      const CellFile cf = bake::bakeCell(world, std::move(in), bs);
+      const double bakeS = std::chrono::duration<double>(std::chrono::steady_clock::now() - b0).count();
+      spdlog::info("world cell 1,0: baked ({}) in {:.1f} s, stored irradiance error {:.4f}", cf.stats.model, bakeS,
+                   cf.stats.errorAchieved);
+      o.summary()["world_cell_bake_s"] = bakeS;
+      o.summary()["world_cell_model"] = cf.stats.model;
+      const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
+      bake::PinholeCamera wc;
+      wc.position = glm::vec3(20.0f, 25.0f, -5.0f);
+      wc.target = glm::vec3(40.0f, 0.0f, 20.0f);
+      wc.verticalFovDeg = 60.0f;
+      const int w = quick ? 48 : 96, h = w * 9 / 16;
+      bake::RenderOptions ro;
+      ro.width = w;
+      ro.height = h;
+      ro.samplesPerPixel = quick ? 256 : 1024;
+      ro.maxBounces = bs.bounces;
+      const bake::RenderResult ref = bake::renderShadingReference(scene, noon, wc, ro);
+      bake::ShadingRenderer renderer(*ctx, mesh);
+      const ProbeGrid& grid = built.probes.grid;
+      std::vector<uint8_t> active(built.probes.flags.size());
+      for (size_t i = 0; i < active.size(); ++i) active[i] = (built.probes.flags[i] & worlds::kProbeDisabledSolid) ? 0 : 1;
+      for (const std::string source : {"capture", "vir", "codec"}) {
+        const auto c0 = std::chrono::steady_clock::now();
+        ProbeField f;
+        if (source == "capture") {
+          bake::CaptureOptions co = bake::worldBakeCaptureOptions(world, bs);
+          co.irradianceResolution = 8;
+          f = bake::captureGridField(scene, noon, grid, built.probes.offsets, active, co);
+        } else if (source == "vir") {
+          bake::VirProbeOptions vo;
+          vo.resolution = bs.resolution;
+          vo.maxRange = 32.0f;
+          f = bake::virProbeField(*ctx, built.surfels, grid, built.probes.offsets, active, noon, vo);
+        } else {
+          f = bake::codecProbeField(cf, "cell 1,0", scene, noon, bs.resolution);
+        }
+        const double sourceS = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
+        const ProbeField* fields[] = {&f};
+        renderer.setProbes(fields);
+        const bake::ShadedView v = renderer.render(noon, wc, w, h);
+        const std::vector<uint8_t> mask = surfaceMask(v.image, ref.image, 1e30f);
+        const double indirect = bake::layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
+        const double total = bake::layerRelativeRms(v.image, "", ref.image, "", &mask);
+        const float spacing = std::min({grid.spacing.x, grid.spacing.y, grid.spacing.z});
+        o.addRow({"world_cell", fmt::format("{}x{}x{}", grid.dims.x, grid.dims.y, grid.dims.z), bench::num(spacing),
+                  std::to_string(f.resolution), std::to_string(grid.probeCount()), bench::num(sourceS),
+                  bench::num(v.shadeMs), bench::num(v.shadeMs / (double(w) * double(h) * 1e-6)),
+                  bench::num(v.gbufferMs), bench::num(indirect), bench::num(total), source});
+        o.summary()["world_cell_indirect_rel_rms_" + source] = indirect;
+        spdlog::info("world cell 1,0 {}: indirect rel RMS {:.4f}, total {:.4f}, probes in {:.2f} s", source, indirect,
+                     total, sourceS);
+      }
+    }
+    if (sourcesOnly) {
+      o.save();
+      return 0;
+    }
 
     // Sponza at noon, one coarse grid (the paper's 18 x 7 x 11 is too slow to capture here with --quick).
     {

@@ -1,6 +1,7 @@
 #include "gpu/probe_shading_pass.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "core/error.h"
 #include "core/octahedral.h"
@@ -124,7 +125,9 @@ void ProbeShadingPass::setView(const shared::SkyParams& sky, const shared::GpuCa
   p.maps.w = (o.chebyshev ? 1u : 0u) | (o.backface ? 2u : 0u) | (o.sunShadows && scene.triangleCount > 0 ? 4u : 0u);
   p.bias = glm::vec4(o.normalBias >= 0.0f ? o.normalBias : 0.045f * minSpacing_,
                      o.viewBias >= 0.0f ? o.viewBias : 0.18f * minSpacing_, o.chebyshevFloor, o.maxDistance);
-  p.weights = glm::vec4(o.direct ? 1.0f : 0.0f, o.diffuse ? 1.0f : 0.0f, o.specular ? 1.0f : 0.0f, 0.0f);
+  if (!(std::isfinite(o.aoRadius) && o.aoRadius >= 0.0f)) fail("shading: aoRadius {} must be finite and >= 0", o.aoRadius);
+  p.weights = glm::vec4(o.direct ? 1.0f : 0.0f, o.diffuse ? 1.0f : 0.0f, o.specular ? 1.0f : 0.0f,
+                        scene.triangleCount > 0 ? o.aoRadius : 0.0f);
   upload<shared::ShadeParams>(ctx_, params_, std::span(&p, 1));
   width_ = width;
   height_ = height;

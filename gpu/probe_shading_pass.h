@@ -11,8 +11,12 @@
 // world point (the neighbour's first probe layer), else clamped into the owning grid. So a border needs
 // the neighbour's field resident; without it shading falls back to clamping (continuous, less accurate).
 //
-// Limits: every field must have the same radiance/distance resolution n and irradiance resolution m; no AO
-// term yet; the specular lookup ignores parallax (probe-centred mirror direction).
+// AO (ShadingOptions::aoRadius): from the G-buffer, not from the probes' distance moments: short cosine rays
+// through the same BVH resolve contact occlusion (corners, under objects) far below the probe spacing,
+// which the probes' moments, sampled at probe centres, cannot. Applied to indirect diffuse only.
+// Limits: every field must have the same radiance/distance resolution n and irradiance resolution m; the
+// specular lookup ignores parallax (probe-centred mirror direction); AO also darkens the part of the
+// occlusion the probes already hold (it is an option, off by default).
 #pragma once
 
 #include <glm/glm.hpp>
@@ -62,11 +66,15 @@ struct ShadingOptions {
   float chebyshevFloor = 0.0f;
   float maxDistance = 1.0e4f;
   bool direct = true, diffuse = true, specular = true;  // layers to compute (others are 0)
+  // Ambient occlusion from the G-buffer: LFGI_SHADE_AO_RAYS cosine-distributed rays of length aoRadius
+  // from each point through the scene BVH; ao = unoccluded fraction (cosine-weighted), multiplies the
+  // indirect diffuse and is written to ShadeOutput::specular.w (1 when off). 0: off.
+  float aoRadius = 0.0f;
 };
 
 struct ShadeOutput {
   int width = 0, height = 0;
-  Buffer direct, diffuse, specular, total;  // vec4 per pixel; diffuse.w = sum of probe weights
+  Buffer direct, diffuse, specular, total;  // vec4 per pixel; diffuse.w = sum of probe weights; specular.w = AO
 };
 ShadeOutput createShadeOutput(Context& ctx, int width, int height);
 

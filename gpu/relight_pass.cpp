@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <numbers>
+#include <tuple>
 
 #include "core/error.h"
 #include "core/octahedral.h"
@@ -34,6 +37,92 @@ void validate(const RelightOptions& o) {
   if (!std::isfinite(o.normalBias)) fail("relight: normalBias {} must be finite", o.normalBias);
   if (!(std::isfinite(o.missDistance) && o.missDistance > 0.0f))
     fail("relight: missDistance {} must be finite and > 0", o.missDistance);
+  if (o.maxEmitterClusters < 1 || o.maxEmitterClusters > 256)
+    fail("relight: maxEmitterClusters {} outside [1, 256]", o.maxEmitterClusters);
+  if (o.maxEmitterSamples < 1 || o.maxEmitterSamples > 65536)
+    fail("relight: maxEmitterSamples {} outside [1, 65536]", o.maxEmitterSamples);
+  if (o.emitterShadowResolution < 4 || o.emitterShadowResolution > 256)
+    fail("relight: emitterShadowResolution {} outside [4, 256]", o.emitterShadowResolution);
+  if (!(std::isfinite(o.emitterBiasSlope) && o.emitterBiasSlope >= 0.0f))
+    fail("relight: emitterBiasSlope {} must be finite and >= 0", o.emitterBiasSlope);
+}
+
+bool emits(const shared::Surfel& s) { return std::max({s.emission.x, s.emission.y, s.emission.z}) > 0.0f; }
+
+// Emitter NEE inputs: clusters (uniform grid over the emitters' bounds x the 6 dominant normal
+// directions, the grid coarsened until at most maxEmitterClusters cells are occupied; the two sides of a
+// double-sided lamp are two clusters), samples sorted by cluster, cluster centres pushed off the emitting
+// surface along the mean normal by two mean radii (so the cluster's own discs face the centre and only
+// cover directions behind the emitter).
+struct EmitterSetup {
+  std::vector<shared::RelightEmitter> samples;
+  std::vector<glm::vec4> centres;
+  float meanRadius = 0.0f;
+};
+
+EmitterSetup setupEmitters(std::span<const shared::Surfel> surfels, const RelightOptions& o) {
+  EmitterSetup e;
+  std::vector<uint32_t> idx;
+  glm::vec3 lo(1e30f), hi(-1e30f);
+  for (size_t i = 0; i < surfels.size(); ++i)
+    if (emits(surfels[i])) {
+      idx.push_back(uint32_t(i));
+      lo = glm::min(lo, glm::vec3(surfels[i].positionRadius));
+      hi = glm::max(hi, glm::vec3(surfels[i].positionRadius));
+    }
+  if (idx.empty()) return e;
+  float cell = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z, 1e-3f}) / 8.0f;
+  std::map<std::tuple<int, int, int, int>, std::vector<uint32_t>> clusters;
+  for (;;) {
+    clusters.clear();
+    for (uint32_t i : idx) {
+      const glm::ivec3 k = glm::ivec3(glm::floor((glm::vec3(surfels[i].positionRadius) - lo) / cell));
+      const glm::vec3 n(surfels[i].normal), an = glm::abs(n);
+      const int axis = an.x >= an.y && an.x >= an.z ? 0 : (an.y >= an.z ? 1 : 2);
+      clusters[{k.x, k.y, k.z, 2 * axis + (n[axis] < 0.0f ? 1 : 0)}].push_back(i);
+    }
+    // A single cell per side is as coarse as the grid gets; the sides stay apart.
+    if (int(clusters.size()) <= o.maxEmitterClusters || cell > 4.0f * std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z, 1e-3f}))
+      break;
+    cell *= 2.0f;
+  }
+  const size_t quota = std::max<size_t>(1, size_t(o.maxEmitterSamples) / clusters.size());
+  for (const auto& [key, members] : clusters) {
+    const uint32_t c = uint32_t(e.centres.size());
+    glm::dvec3 centroid(0.0), normal(0.0);
+    double area = 0.0, radius = 0.0;
+    for (uint32_t i : members) {
+      const double a = std::numbers::pi * double(surfels[i].positionRadius.w) * double(surfels[i].positionRadius.w);
+      centroid += a * glm::dvec3(glm::vec3(surfels[i].positionRadius));
+      normal += a * glm::dvec3(glm::vec3(surfels[i].normal));
+      area += a;
+      radius += double(surfels[i].positionRadius.w);
+    }
+    centroid /= std::max(area, 1e-30);
+    radius /= double(members.size());
+    const double nl = glm::length(normal);
+    const glm::dvec3 offset = nl > 1e-6 * area ? normal / nl * (2.0 * radius) : glm::dvec3(0.0);
+    e.centres.push_back(glm::vec4(glm::vec3(centroid + offset), 0.0f));
+    const size_t stride = (members.size() + quota - 1) / quota;
+    double sampled = 0.0;
+    const size_t first = e.samples.size();
+    for (size_t k = 0; k < members.size(); k += stride) {
+      const shared::Surfel& s = surfels[members[k]];
+      const float a = std::numbers::pi_v<float> * s.positionRadius.w * s.positionRadius.w;
+      sampled += double(a);
+      shared::RelightEmitter em{};
+      em.positionArea = glm::vec4(glm::vec3(s.positionRadius), a);
+      em.normalCluster = glm::vec4(glm::vec3(s.normal), glm::uintBitsToFloat(c));
+      em.radiance = glm::vec4(glm::vec3(s.emission), 0.0f);
+      e.samples.push_back(em);
+    }
+    const float scale = float(area / std::max(sampled, 1e-30));
+    for (size_t k = first; k < e.samples.size(); ++k) e.samples[k].positionArea.w *= scale;
+  }
+  double r = 0.0;
+  for (const shared::Surfel& s : surfels) r += double(s.positionRadius.w);
+  e.meanRadius = float(r / double(surfels.size()));
+  return e;
 }
 
 // Storage buffers of at least 16 bytes (an unused binding still needs a valid buffer).
@@ -47,7 +136,8 @@ RelightPass::RelightPass(Context& ctx)
       surfels_(ctx, "relight_surfels"),
       probeIrradiance_(ctx, "relight_probe_irradiance"),
       probeMoments_(ctx, "relight_probe_moments"),
-      prefilter_(ctx, "relight_prefilter_ggx") {}
+      prefilter_(ctx, "relight_prefilter_ggx"),
+      emitterShadow_(ctx) {}
 
 RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, const RelightProbes& probes,
                                    const shared::SkyParams& sky, const ProbeLighting* previous,
@@ -118,6 +208,35 @@ RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, cons
     result.shadowTexelM = ts;
     result.keyDirection = L;
   }
+  // Emitter NEE: samples, cluster centres and one VIR-splatted octahedral depth map per cluster.
+  const EmitterSetup em = o.emitterNee ? setupEmitters(surfels, o) : EmitterSetup{};
+  std::vector<float> emitterDepth(1, 0.0f);
+  const int emitterRes = o.emitterShadowResolution;
+  if (!em.samples.empty()) {
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (const shared::Surfel& s : surfels) {
+      lo = glm::min(lo, glm::vec3(s.positionRadius));
+      hi = glm::max(hi, glm::vec3(s.positionRadius));
+    }
+    VirOptions vo;
+    vo.resolution = emitterRes;
+    vo.maxRange = 2.0f * glm::length(hi - lo) + 1.0f;
+    std::vector<glm::vec3> centres;
+    for (const glm::vec4& c : em.centres) centres.push_back(glm::vec3(c));
+    const ProbeAtlas maps = emitterShadow_.run(surfels, centres, vo);
+    result.emitterShadowMs = maps.gpuMs;
+    emitterDepth.resize(maps.distance.size());
+    for (size_t t = 0; t < maps.distance.size(); ++t)
+      emitterDepth[t] = maps.normal[t].w == LFGI_VIR_HOLE ? 1e30f : maps.distance[t].x;
+    // Receiver pushed one mean radius along its normal; depth bias one mean radius + slope x texel angle
+    // (an octahedral texel spans ~sqrt(4 pi) / N rad) x distance.
+    frame.emitters = glm::uvec4(uint32_t(em.samples.size()), uint32_t(em.centres.size()), uint32_t(emitterRes), 0u);
+    frame.emitterBias = glm::vec4(em.meanRadius, em.meanRadius,
+                                  o.emitterBiasSlope * std::sqrt(4.0f * std::numbers::pi_v<float>) / float(emitterRes), 0.0f);
+    result.emitterClusters = int(em.centres.size());
+    result.emitterSamples = int(em.samples.size());
+  }
+
   const glm::vec3 sp = probes.grid.spacing;
   const float normalBias = o.normalBias >= 0.0f ? o.normalBias : 0.2f * std::min({sp.x, sp.y, sp.z});
   frame.gridOrigin = glm::vec4(probes.grid.origin, 0.0f);
@@ -136,7 +255,7 @@ RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, cons
   params.irradianceRes = bounce ? uint32_t(previous->irradianceResolution) : 1u;
   params.distanceRes = bounce ? uint32_t(previous->distanceResolution) : 1u;
   params.flags = (keyOn ? LFGI_RELIGHT_SUN : 0u) | (bounce ? LFGI_RELIGHT_BOUNCE : 0u) |
-                 (o.chebyshev ? LFGI_RELIGHT_CHEBYSHEV : 0u);
+                 (o.chebyshev ? LFGI_RELIGHT_CHEBYSHEV : 0u) | (em.samples.empty() ? 0u : LFGI_RELIGHT_EMITTERS);
   params.footprintScale = o.shadowFootprintScale;
   params.missDistance = o.missDistance;
 
@@ -147,6 +266,14 @@ RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, cons
   Buffer irrBuf = storage(ctx_, bounce ? previous->irradiance.size() * sizeof(glm::vec4) : 0);
   Buffer momBuf = storage(ctx_, bounce ? previous->moments.size() * sizeof(glm::vec2) : 0);
   Buffer outBuf = storage(ctx_, surfels.size() * sizeof(glm::vec4));
+  Buffer emitterBuf = storage(ctx_, em.samples.size() * sizeof(shared::RelightEmitter));
+  Buffer centreBuf = storage(ctx_, em.centres.size() * sizeof(glm::vec4));
+  Buffer emitterDepthBuf = storage(ctx_, emitterDepth.size() * sizeof(float));
+  if (!em.samples.empty()) {
+    upload<shared::RelightEmitter>(ctx_, emitterBuf, em.samples);
+    upload<glm::vec4>(ctx_, centreBuf, em.centres);
+    upload<float>(ctx_, emitterDepthBuf, emitterDepth);
+  }
   upload<shared::Surfel>(ctx_, surfelBuf, surfels);
   upload<shared::RelightFrame>(ctx_, frameBuf, std::span(&frame, 1));
   upload<glm::vec4>(ctx_, probeBuf, probe4);
@@ -164,8 +291,10 @@ RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, cons
     if (keyOn) dispatch(ctx_, cmd, shadowSplat_, {&surfelBuf, &frameBuf, &slots}, params, {params.surfelCount, 1, 1});
     memoryBarrier(cmd);
     timer.stamp(cmd, 1);
-    dispatch(ctx_, cmd, surfels_, {&surfelBuf, &frameBuf, &slots, &probeBuf, &irrBuf, &momBuf, &outBuf}, params,
-             {params.surfelCount, 1, 1});
+    dispatch(ctx_, cmd, surfels_,
+             {&surfelBuf, &frameBuf, &slots, &probeBuf, &irrBuf, &momBuf, &outBuf, &emitterBuf, &centreBuf,
+              &emitterDepthBuf},
+             params, {params.surfelCount, 1, 1});
     memoryBarrier(cmd);
     timer.stamp(cmd, 2);
   });
@@ -265,10 +394,34 @@ std::vector<glm::vec4> RelightPass::prefilterGgx(std::span<const glm::vec4> radi
 RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const shared::Surfel> surfels,
                            const RelightProbes& probes, const shared::SkyParams& sky, const VirOptions& virOptions,
                            const RelightOptions& options, CellLighting& state) {
-  const ProbeLighting* previous = state.frames > 0 ? &state.probes : nullptr;
+  const bool nee = options.emitterNee && std::any_of(surfels.begin(), surfels.end(), emits);
+  const ProbeLighting* previous = nullptr;
+  if (state.frames > 0) previous = nee && !state.reflected.irradiance.empty() ? &state.reflected : &state.probes;
   RelightResult result = relight.relight(surfels, probes, sky, previous, options);
-  state.atlas = vir.run(surfels, probes.positions, virOptions, result.irradiance);
-  state.probes = relight.convolve(state.atlas, sky, options);
+  if (!nee) {
+    state.atlas = vir.run(surfels, probes.positions, virOptions, result.irradiance);
+    state.probes = relight.convolve(state.atlas, sky, options);
+    state.reflected = {};
+  } else {
+    std::vector<shared::Surfel> dark(surfels.begin(), surfels.end()), lamps;
+    for (shared::Surfel& s : dark)
+      if (emits(s)) {
+        lamps.push_back(s);
+        s.emission = glm::vec4(0.0f);
+      }
+    state.atlas = vir.run(dark, probes.positions, virOptions, result.irradiance);
+    state.reflected = relight.convolve(state.atlas, sky, options);
+    // The emitters alone: where one of them is the nearest surface of a texel (same distance as in the
+    // full splat), its emission joins that texel's reflected radiance.
+    const ProbeAtlas lit = vir.run(lamps, probes.positions, virOptions);
+    ProbeAtlas& a = state.atlas;
+    for (size_t t = 0; t < a.radiance.size(); ++t)
+      if (lit.normal[t].w == LFGI_VIR_COVERED && a.normal[t].w != LFGI_VIR_HOLE &&
+          lit.distance[t].x <= a.distance[t].x * 1.001f + 1e-5f)
+        a.radiance[t] += glm::vec4(glm::vec3(lit.radiance[t]), 0.0f);
+    a.gpuMs += lit.gpuMs;
+    state.probes = relight.convolve(a, sky, options);
+  }
   state.surfelIrradiance = result.irradiance;
   ++state.frames;
   return result;

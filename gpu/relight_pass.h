@@ -8,6 +8,16 @@
 //     from the VIR distance moments): the sky as the probes see it (occluded), plus every bounce so far.
 //     There is no separate unoccluded sky term: a probe texel no surfel covered sees the sky, so sky
 //     light reaches surfels one frame late and occluded by what the probes see.
+//   - emitter next-event estimation (options.emitterNee, when some surfel emits): direct light from the
+//     emissive surfels (the Cornell lamp, lit windows). Emitters are grouped into at most
+//     maxEmitterClusters clusters (a uniform grid over their bounds x the 6 dominant normal directions,
+//     coarsened until few enough; never fewer than the normal directions present); each
+//     cluster gets one octahedral depth map VIR-splatted from its centre (VirPass::run with the cluster
+//     centre as the only probe: an omnidirectional shadow map, hard shadows from the centre point), and
+//     at most maxEmitterSamples emitter surfels in all (every k-th of a cluster, its area scaled up) are
+//     summed per receiving surfel (relight_surfels.comp). The probes' own view of the emitters stays
+//     VIR's (texels that see an emitter surfel), but the gather then reads maps without emission
+//     (CellLighting::reflected) so the emitters' direct light reaches surfels once.
 // then VirPass::run re-splats with that irradiance (radiance = emission + albedo E / pi) and convolve()
 // turns the new radiance maps into the probe irradiance + distance moments of the next frame. Multi-
 // bounce therefore converges over frames: after k frames a closed furnace holds
@@ -61,6 +71,11 @@ struct RelightOptions {
   bool filledTexelsSeeSky = true;     // ... and so do texels only the VIR hole fill covered (see
                                       // relight_probe_irradiance.comp; false: a gap between surfels
                                       // never lets the sky in, but silhouettes swallow sky texels)
+  bool emitterNee = true;             // emitter next-event estimation (see the top of this file)
+  int maxEmitterClusters = 16;        // [1, 256] (exceeded only by the count of distinct normal directions)
+  int maxEmitterSamples = 256;        // [1, 65536] over all clusters
+  int emitterShadowResolution = 32;   // octahedral depth map per cluster, [4, 256]
+  float emitterBiasSlope = 1.5f;      // depth bias in texel angles x distance (>= 0)
 };
 
 // Per-probe maps derived from one VIR atlas: the next frame's relight input.
@@ -78,13 +93,17 @@ struct RelightResult {
   int shadowResolution = 0;
   float shadowTexelM = 0.0f;
   glm::vec3 keyDirection{0.0f};  // towards the shadowed disc; 0 when neither disc is up
+  int emitterClusters = 0, emitterSamples = 0;  // emitter NEE (0: none)
   double shadowMs = 0.0, lightMs = 0.0;
+  double emitterShadowMs = 0.0;  // VIR splat of the clusters' depth maps
 };
 
 // Everything a cell keeps between frames.
 struct CellLighting {
   ProbeAtlas atlas;                     // last VIR atlas (radiance holds the last relit radiance)
   ProbeLighting probes;                 // derived from atlas
+  ProbeLighting reflected;              // with emitter NEE: the same maps without emission (the gather's
+                                        // input); empty when no surfel emits or NEE is off
   std::vector<glm::vec4> surfelIrradiance;
   int frames = 0;
 };
@@ -119,11 +138,16 @@ class RelightPass {
   Program probeIrradiance_;
   Program probeMoments_;
   Program prefilter_;
+  VirPass emitterShadow_;
 };
 
 // One frame for one cell: relight (with state.probes from the last frame) -> VirPass::run with the new
 // surfel irradiance -> convolve; updates state and returns the relight result. probes.positions are the
 // VIR probe positions (disabled probes are splatted too and simply never read).
+// With emitter NEE and emissive surfels: relight gathers from state.reflected; VIR runs on the surfels
+// with their emission zeroed (-> state.reflected) and once more on the emitters alone, whose radiance is
+// added to the texels where an emitter is the nearest surface (same distance): state.atlas / state.probes
+// hold emission + reflection as without NEE.
 RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const shared::Surfel> surfels,
                            const RelightProbes& probes, const shared::SkyParams& sky, const VirOptions& virOptions,
                            const RelightOptions& options, CellLighting& state);

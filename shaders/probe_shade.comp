@@ -8,7 +8,8 @@
 // Indirect diffuse = diffuse BRDF x bilinear octahedral irradiance; indirect specular = GGX-prefiltered
 // radiance at the mirror direction (roughness levels interpolated) x split-sum environment BRDF (Karis
 // 2014 analytic fit); direct = emission + sun/moon with a shadow ray through the same BVH; escaped rays
-// show the sky and the discs.
+// show the sky and the discs. Optional ambient occlusion (params.weights.w = radius) from short rays
+// through the BVH multiplies the indirect diffuse.
 #extension GL_GOOGLE_include_directive : require
 #include "shared/octahedral.h"
 #include "shared/shading.h"
@@ -177,6 +178,27 @@ vec3 discLight(vec4 dir, vec4 irr, vec3 p, vec3 n, vec3 v, vec3 albedo, float ro
   return f * irr.rgb * nl;
 }
 
+// Ambient occlusion: the cosine-weighted fraction of the hemisphere with no geometry within radius,
+// from LFGI_SHADE_AO_RAYS rays (Malley: stratified radii on the unit disc lifted to the hemisphere, golden-
+// angle azimuths rotated per pixel by the R2 sequence so neighbouring pixels sample different directions).
+float ambientOcclusion(vec3 p, vec3 n, uvec2 pix) {
+  float radius = params.weights.w;
+  vec3 t = normalize(abs(n.y) < 0.99 ? cross(n, vec3(0.0, 1.0, 0.0)) : cross(n, vec3(1.0, 0.0, 0.0)));
+  vec3 b = cross(n, t);
+  float scale = max(max(abs(p.x), abs(p.y)), abs(p.z));
+  vec3 o = p + n * (5e-4 + 4e-6 * scale);
+  float rot = fract(float(pix.x) * 0.7548776662 + float(pix.y) * 0.5698402910);
+  float open = 0.0;
+  for (uint k = 0u; k < LFGI_SHADE_AO_RAYS; ++k) {
+    float u = (float(k) + 0.5) / float(LFGI_SHADE_AO_RAYS);
+    float phi = 2.0 * kPi * fract(float(k) * 0.6180339887 + rot);
+    float r = sqrt(u);
+    vec3 d = t * (r * cos(phi)) + b * (r * sin(phi)) + n * sqrt(max(1.0 - u, 0.0));
+    if (!traceOccluded(o, d, 0.0, radius)) open += 1.0;
+  }
+  return open / float(LFGI_SHADE_AO_RAYS);
+}
+
 void main() {
   uvec2 id = gl_GlobalInvocationID.xy;
   uvec2 size = params.size.xy;
@@ -188,6 +210,7 @@ void main() {
   vec4 ge = gEmission[pixel];
   vec3 direct = vec3(0.0), diffuse = vec3(0.0), spec = vec3(0.0);
   float weightSum = 0.0;
+  float ao = 1.0;
   if (gp.w < 0.0) {
     vec3 d = normalize(gp.xyz);
     direct = skyRadiance(params.sky, d) + sunDiscRadiance(params.sky, d) + moonDiscRadiance(params.sky, d);
@@ -245,8 +268,9 @@ void main() {
       if (wantSpec) specSum += w * sampleSpecular(probe, r, rough);
       weightSum += w;
     }
+    if (params.weights.w > 0.0) ao = ambientOcclusion(p, n, id);
     if (weightSum > 0.0) {
-      diffuse = diffuseBrdf(albedo, rough, metal) * irrSum / weightSum;
+      diffuse = diffuseBrdf(albedo, rough, metal) * irrSum / weightSum * ao;
       if (wantSpec) {
         vec3 f0 = mix(vec3(0.04), albedo, metal);
         spec = envBrdfApprox(f0, rough, max(dot(n, v), 1e-4)) * specSum / weightSum;
@@ -257,6 +281,6 @@ void main() {
   diffuse *= params.weights.y;
   outDirect[pixel] = vec4(direct, 1.0);
   outDiffuse[pixel] = vec4(diffuse, weightSum);
-  outSpecular[pixel] = vec4(spec, 0.0);
+  outSpecular[pixel] = vec4(spec, ao);
   outTotal[pixel] = vec4(direct + diffuse + spec, 1.0);
 }

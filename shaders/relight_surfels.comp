@@ -12,6 +12,14 @@
 //   depth(surfel) <= stored depth + bias, bias = biasConstant + biasSlope x texel x min(tan(theta), 10),
 // theta the angle between the normal and the light (a plane's depth changes by texel x tan(theta) across
 // one texel). Points outside the map or on empty texels are lit.
+// Emitter next-event estimation (LFGI_RELIGHT_EMITTERS): direct light from emissive surfels (a lamp, lit
+// windows) as a sum over emitter samples, each a disc of area A and radiance L:
+//   E += L A cos(receiver) cos(emitter) / (d^2 + A / pi)  x  visibility(cluster)
+// (the A / pi term makes one sample exact on the axis of a disc, pi L R^2 / (R^2 + d^2), and keeps the near
+// field finite). Visibility: one octahedral depth map per emitter cluster, VIR-splatted from the cluster's
+// centre (gpu/relight_pass.h); 2 x 2 taps, each lit iff the receiver's distance <= stored + bias. With
+// emitters on, the probe gather reads probe maps *without* emission (relightFrame keeps both), so the
+// emitters' direct light is counted once, here, and not again through the probes.
 // Output: rgb = E, w = key visibility (0 or 1; 0 when the surfel faces away from the light).
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #include "shared/octahedral.h"
@@ -27,6 +35,9 @@ layout(std430, set = 0, binding = 3) readonly buffer ProbePositions { vec4 probe
 layout(std430, set = 0, binding = 4) readonly buffer ProbeIrradiance { vec4 probeIrradiance[]; };
 layout(std430, set = 0, binding = 5) readonly buffer ProbeMoments { vec2 probeMoments[]; };
 layout(std430, set = 0, binding = 6) writeonly buffer Irradiance { vec4 irradiance[]; };
+layout(std430, set = 0, binding = 7) readonly buffer Emitters { RelightEmitter emitters[]; };
+layout(std430, set = 0, binding = 8) readonly buffer EmitterCentres { vec4 emitterCentres[]; };
+layout(std430, set = 0, binding = 9) readonly buffer EmitterShadow { float emitterShadow[]; };
 
 layout(push_constant) uniform Push { RelightParams params; };
 
@@ -119,6 +130,48 @@ vec3 probeLighting(vec3 p, vec3 n) {
   return sum / wsum * min(1.0, wsum / (kVisibleFloor * wsumOpen));
 }
 
+float emitterVisibility(uint cluster, vec3 p, vec3 n) {
+  vec3 v = p + n * frame.emitterBias.x - emitterCentres[cluster].xyz;
+  float r = length(v);
+  if (r < 1e-6) return 1.0;
+  int res = int(frame.emitters.z);
+  ivec2 t[4];
+  vec4 w;
+  octBilinear(v / r, res, t, w);
+  uint base = cluster * uint(res * res);
+  float bias = frame.emitterBias.y + frame.emitterBias.z * r;
+  vec4 lit = vec4(r <= emitterShadow[base + uint(t[0].y * res + t[0].x)] + bias ? 1.0 : 0.0,
+                  r <= emitterShadow[base + uint(t[1].y * res + t[1].x)] + bias ? 1.0 : 0.0,
+                  r <= emitterShadow[base + uint(t[2].y * res + t[2].x)] + bias ? 1.0 : 0.0,
+                  r <= emitterShadow[base + uint(t[3].y * res + t[3].x)] + bias ? 1.0 : 0.0);
+  return dot(lit, w);
+}
+
+// Samples are sorted by cluster, so the visibility lookup runs once per cluster that can light p.
+vec3 emitterLight(vec3 p, vec3 n) {
+  const float kPi = 3.14159265358979;
+  vec3 e = vec3(0.0);
+  uint lastCluster = 0xFFFFFFFFu;
+  float vis = 0.0;
+  for (uint j = 0u; j < frame.emitters.x; ++j) {
+    vec3 d = emitters[j].positionArea.xyz - p;
+    float d2 = dot(d, d);
+    float inv = inversesqrt(max(d2, 1e-20));
+    float cr = dot(n, d) * inv;
+    float ce = -dot(emitters[j].normalCluster.xyz, d) * inv;
+    if (cr <= 0.0 || ce <= 0.0) continue;
+    uint cluster = floatBitsToUint(emitters[j].normalCluster.w);
+    if (cluster != lastCluster) {
+      vis = emitterVisibility(cluster, p, n);
+      lastCluster = cluster;
+    }
+    if (vis <= 0.0) continue;
+    float area = emitters[j].positionArea.w;
+    e += emitters[j].radiance.rgb * (area * cr * ce / (d2 + area / kPi) * vis);
+  }
+  return e;
+}
+
 void main() {
   uint s = gl_GlobalInvocationID.x;
   if (s >= params.surfelCount) return;
@@ -146,6 +199,7 @@ void main() {
     }
     e += frame.keyIrradiance.rgb * (nl * visible);
   }
+  if ((params.flags & LFGI_RELIGHT_EMITTERS) != 0u) e += emitterLight(p, n);
   if ((params.flags & LFGI_RELIGHT_BOUNCE) != 0u && params.probeCount > 0u) e += probeLighting(p, n);
   irradiance[s] = vec4(e, visible);
 }

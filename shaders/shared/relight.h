@@ -22,8 +22,11 @@ struct RelightFrame {
   vec4 gridOrigin;       // xyz: probe (0, 0, 0) of the grid (before relocation), core/probe_grid.h order
   vec4 gridSpacing;      // xyz: metres between probes; w: normal bias for the Chebyshev test (m)
   ivec4 gridDims;        // xyz: probes per axis; w: probe count
+  uvec4 emitters;        // x: emitter samples, y: emitter clusters, z: cluster shadow map resolution; w: 0
+  vec4 emitterBias;      // x: normal offset of the receiver (m); y: constant depth bias (m); z: depth bias
+                         //    per metre of distance (slope x texel angle); w: unused
 };
-LFGI_CHECK_SIZE(RelightFrame, 384)
+LFGI_CHECK_SIZE(RelightFrame, 416)
 LFGI_CHECK_OFFSET(RelightFrame, keyDirection, 256)
 LFGI_CHECK_OFFSET(RelightFrame, gridDims, 368)
 
@@ -32,6 +35,16 @@ LFGI_CHECK_OFFSET(RelightFrame, gridDims, 368)
 #define LFGI_RELIGHT_CHEBYSHEV 4u  // weight probes by Chebyshev visibility from their distance moments
 #define LFGI_RELIGHT_SKY 8u        // probe convolution: texels no surfel covered see the sky (no disc)
 #define LFGI_RELIGHT_FILLED_SKY 16u  // probe convolution: texels only the hole fill covered count as uncovered
+#define LFGI_RELIGHT_EMITTERS 32u    // add emitter next-event estimation (RelightEmitter samples)
+
+// One emitter sample for next-event estimation: a disc standing for `area` of emissive surface (the
+// sampled surfel's own area scaled up when its cluster has more surfels than samples).
+struct RelightEmitter {
+  vec4 positionArea;   // xyz: disc centre (m); w: area it stands for (m^2)
+  vec4 normalCluster;  // xyz: unit emitting normal; w: uintBitsToFloat(cluster index)
+  vec4 radiance;       // rgb: emitted radiance; w: unused
+};
+LFGI_CHECK_SIZE(RelightEmitter, 48)
 
 struct RelightParams {
   uint surfelCount;

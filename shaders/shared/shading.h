@@ -71,9 +71,12 @@ struct ShadeParams {
   uvec4 maps;     // x: irradiance res m, y: distance/radiance res n, z: specular levels L (>= 1), w: flags
                   //    (bit 0: Chebyshev visibility, bit 1: backface weight, bit 2: sun shadow rays)
   vec4 bias;      // x: normal bias (m), y: view bias (m), z: Chebyshev floor, w: max ray distance
-  vec4 weights;   // x: 1 to shade direct light; y: 1 indirect diffuse; z: 1 indirect specular; w: unused
+  vec4 weights;   // x: 1 to shade direct light; y: 1 indirect diffuse; z: 1 indirect specular; w: AO radius (m, 0 off)
 };
 LFGI_CHECK_SIZE(ShadeParams, 256 + 64 + 64)
+
+// Ambient-occlusion rays per pixel (probe_shade.comp).
+#define LFGI_SHADE_AO_RAYS 16u
 
 LFGI_INLINE uint shadeBorderedRes(uint n) {
   return n + 2u;
