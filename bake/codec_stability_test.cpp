@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 
 #include "bake/embree_scene.h"
 #include "bake/generator_training.h"
@@ -77,6 +78,22 @@ TEST(CodecStability, UnseenLightingDecodesFinite) {
       }
     }
   EXPECT_EQ(decoded, 21 * int(P));
+}
+
+TEST(CodecStability, OverflowingNetworkOutputDecodesFinite) {
+  // A collapsed model (learning rate 1e3 in bench/stability) emits raw radiance channels far above 88,
+  // where expm1 overflows float: the decoder clamps as training does (y <= 20), and NaN decodes as 0.
+  const int n = 4;
+  std::vector<float> raw(size_t(kGeneratorChannels) * n * n, 0.5f), rad(size_t(n * n) * 3);
+  raw[0] = 1e4f;
+  raw[1] = std::numeric_limits<float>::infinity();
+  raw[2] = std::numeric_limits<float>::quiet_NaN();
+  decodeChannels(raw, n, GeneratorOutputScale{2.0f, 64.0f}, rad, {}, {}, {});
+  for (float v : rad) ASSERT_TRUE(std::isfinite(v));
+  EXPECT_FLOAT_EQ(rad[0], 2.0f * std::expm1(20.0f));
+  EXPECT_FLOAT_EQ(rad[3], 2.0f * std::expm1(20.0f));  // texel 1 of channel 0 (texel-major output)
+  EXPECT_EQ(rad[6], 0.0f);                            // texel 2: NaN -> 0
+  EXPECT_FLOAT_EQ(rad[9], 2.0f * std::expm1(0.5f));   // an ordinary output is untouched
 }
 
 TEST(CodecStability, Fp16KeepsSunAndA1e5DarkerInteriorFinite) {

@@ -171,7 +171,12 @@ void decodeChannels(std::span<const float> raw, int resolution, const GeneratorO
   const float range2 = scale.range * scale.range;
   for (size_t t = 0; t < T; ++t) {
     if (!radiance.empty())
-      for (int c = 0; c < 3; ++c) radiance[t * 3 + size_t(c)] = scale.exposure * std::expm1(std::max(ch(c, t), 0.0f));
+      for (int c = 0; c < 3; ++c) {
+        // Clamped to [0, 20] as training measures it (e^20 ~ 5e8 x exposure): an overflowing or NaN output
+        // (a collapsed model, lighting far outside the keys) decodes finite instead of Inf/NaN.
+        const float y = ch(c, t);
+        radiance[t * 3 + size_t(c)] = scale.exposure * std::expm1(y > 0.0f ? std::min(y, 20.0f) : 0.0f);
+      }
     if (!distance.empty()) {
       distance[t * 2 + 0] = ch(3, t) * scale.range;
       distance[t * 2 + 1] = std::max(ch(4, t), 0.0f) * range2;

@@ -15,7 +15,7 @@
 //   w[i][o][ky][kx] over oy = 2*iy - 1 + ky, ox = 2*ix - 1 + kx (terms outside the output are dropped).
 //
 // Output channels (kGeneratorChannels = 11) and their encodings (decodeChannels() inverts them):
-//   0..2  radiance rgb        y = log1p(L / exposure)      ->  L = exposure * expm1(max(y, 0))
+//   0..2  radiance rgb        y = log1p(L / exposure)      ->  L = exposure * expm1(clamp(y, 0, 20)) (NaN -> 0)
 //   3..4  distance moments    y = (r / range, r^2 / range^2) -> r = y * range, r^2 = max(y, 0) * range^2
 //   5..7  normal xyz          y = n                         ->  n = normalize(y) (0 if |y| ~ 0)
 //   8..10 albedo rgb          y = a                         ->  a = clamp(y, 0, 1)
