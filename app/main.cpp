@@ -127,7 +127,7 @@ int main(int argc, char** argv) {
   renderCmd->add_option("--size", renderOpt.size, "Image size WIDTHxHEIGHT")->capture_default_str();
   renderCmd->add_option("--time", renderOpt.timeOfDay, "Time of day, hours")->check(CLI::Range(0.0, 24.0))->capture_default_str();
   renderCmd->add_option("--overcast", renderOpt.overcast, "Weather, 0 clear .. 1 overcast")->check(CLI::Range(0.0, 1.0))->capture_default_str();
-  renderCmd->add_option("--probes", renderOpt.probes, "Probe source: capture (vir, codec: not yet)")->capture_default_str();
+  renderCmd->add_option("--probes", renderOpt.probes, "Probe source: capture (Embree), vir (GPU relight + VIR of surfels) or codec (baked cell files)")->capture_default_str();
   renderCmd->add_option("--resolution", renderOpt.resolution, "Probe octahedral map resolution")->check(CLI::Range(2, 128))->capture_default_str();
   renderCmd->add_option("--spp", renderOpt.spp, "Capture samples per texel")->check(CLI::Range(1, 65536))->capture_default_str();
   renderCmd->add_option("--bounces", renderOpt.bounces, "Maximum bounces (capture and reference)")->check(CLI::Range(0, 256))->capture_default_str();
@@ -139,6 +139,11 @@ int main(int argc, char** argv) {
   renderCmd->add_option("--seed", renderOpt.seed, "Random seed")->capture_default_str();
   renderCmd->add_option("--out", renderOpt.out, "Output .exr (PNGs are written beside it)")->required();
   renderCmd->add_option("--threads", renderOpt.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 256));
+  renderCmd->add_option("--cell-file", renderOpt.cellFile, "--probes codec: cell file of --cell (default WORLD/baked/cells/cell_X_Z.vdb)");
+  renderCmd->add_option("--vir-frames", renderOpt.virFrames, "--probes vir: relight frames (1: direct light, each more: one bounce)")->check(CLI::Range(1, 64))->capture_default_str();
+  renderCmd->add_option("--surfel-spacing", renderOpt.surfelSpacing, "--probes vir on a scene: surfel spacing in m (0: extent / 150)")->check(CLI::Range(0.0, 100.0));
+  renderCmd->add_option("--exposure", renderOpt.exposure, "Fixed PNG exposure in EV (default: auto, median luminance -> 0.18)")->check(CLI::Range(-40.0, 40.0));
+  renderCmd->add_option("--ao-radius", renderOpt.aoRadius, "Ray-traced ambient occlusion radius in m on indirect diffuse (0: off)")->check(CLI::Range(0.0, 1e4));
 
   lfgi::app::WorldBakeOptions bakeOpt;
   CLI::App* bakeCmd = app.add_subcommand("bake", "Bake world cells into cell files: capture, smallest model meeting the error target, int8, OpenVDB (resumable, skips unchanged cells)");
