@@ -139,7 +139,7 @@ struct RenderCommandOptions {
   int threads = 0;
   std::string cellFile;        // --probes codec: the centre cell's file (default WORLD/baked/cells/cell_X_Z.vdb)
   int virFrames = 4;           // --probes vir: relight frames (1 = direct light only, each more one bounce)
-  float surfelSpacing = 0.0f;  // --probes vir on a scene: surfel spacing (m); 0: scene extent / 150
+  float surfelSpacing = 0.0f;  // --probes vir on a scene: surfel spacing (m); 0: bounding-box diagonal / 64
   float exposure = std::numeric_limits<float>::quiet_NaN();  // EV of the PNG; NaN: auto (median -> 0.18)
   float aoRadius = 0.0f;       // m; > 0: ray-traced AO from the G-buffer on indirect diffuse + "ao" layer
 };

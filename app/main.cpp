@@ -141,7 +141,7 @@ int main(int argc, char** argv) {
   renderCmd->add_option("--threads", renderOpt.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, 256));
   renderCmd->add_option("--cell-file", renderOpt.cellFile, "--probes codec: cell file of --cell (default WORLD/baked/cells/cell_X_Z.vdb)");
   renderCmd->add_option("--vir-frames", renderOpt.virFrames, "--probes vir: relight frames (1: direct light, each more: one bounce)")->check(CLI::Range(1, 64))->capture_default_str();
-  renderCmd->add_option("--surfel-spacing", renderOpt.surfelSpacing, "--probes vir on a scene: surfel spacing in m (0: extent / 150)")->check(CLI::Range(0.0, 100.0));
+  renderCmd->add_option("--surfel-spacing", renderOpt.surfelSpacing, "--probes vir on a scene: surfel spacing in m (0: bounding-box diagonal / 64)")->check(CLI::Range(0.0, 100.0));
   renderCmd->add_option("--exposure", renderOpt.exposure, "Fixed PNG exposure in EV (default: auto, median luminance -> 0.18)")->check(CLI::Range(-40.0, 40.0));
   renderCmd->add_option("--ao-radius", renderOpt.aoRadius, "Ray-traced ambient occlusion radius in m on indirect diffuse (0: off)")->check(CLI::Range(0.0, 1e4));
 

@@ -153,7 +153,7 @@ int runRender(const RenderCommandOptions& opt) {
     if (opt.probes == "vir") {
       const worlds::Aabb box = mesh.bounds();
       const float spacing =
-          opt.surfelSpacing > 0.0f ? opt.surfelSpacing : std::max(glm::length(box.max - box.min) / 150.0f, 1e-3f);
+          opt.surfelSpacing > 0.0f ? opt.surfelSpacing : std::max(glm::length(box.max - box.min) / 64.0f, 1e-3f);
       const std::vector<worlds::Surfel> surfels =
           worlds::sampleSurfels(bake::meshWithBackFaces(mesh), {spacing, opt.seed});
       vo.maxRange = 2.0f * glm::length(box.max - box.min);

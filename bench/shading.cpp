@@ -90,7 +90,7 @@ int main(int argc, char** argv) {
       std::vector<worlds::Surfel> surfels;
       const worlds::Aabb box = mesh.bounds();
       if (std::find(sources.begin(), sources.end(), "vir") != sources.end())
-        surfels = worlds::sampleSurfels(bake::meshWithBackFaces(mesh), {glm::length(box.max - box.min) / 150.0f, 1});
+        surfels = worlds::sampleSurfels(bake::meshWithBackFaces(mesh), {glm::length(box.max - box.min) / 64.0f, 1});
       std::vector<Row> rows;
       for (const auto& [dims, res] : configs)
       for (const std::string& source : sources) {
