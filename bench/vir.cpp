@@ -11,6 +11,10 @@
 // whose time, projected from the previous count at the same N, exceeds the budget is skipped and listed
 // in summary.json ("skipped"): that happens on lavapipe, where the baseline rasterizes on the CPU.
 //
+// Headline (summary.json): vir_lod vs cubemap; the full splat's ratio is vir_full_over_cubemap_probes_per_s;
+// ratio_by_resolution_and_probes lists every (N, probes) both measured. --lod-stats prints the LOD tree's
+// levels and one probe's CPU-replayed cut; --methods runs a subset.
+//
 // Accuracy, per method and N, on the first K probes: per texel against Embree's closest hit along the
 // texel-centre ray (bake/embree_scene.h, one ray per texel): distance median relative error, normal
 // median angle (front-face hits), hole fraction (texels whose ray hits geometry but the method has no
@@ -212,8 +216,7 @@ int main(int argc, char** argv) {
   app.add_option("--lod-block-probes", lodBlockProbes, "vir_lod: VirOptions::lodBlockProbes");
   std::string methodsArg = "all";
   bool lodStats = false;
-  float statThickness = gpu::VirLodBuildOptions{}.coherentThickness, statCone = gpu::VirLodBuildOptions{}.coherentConeDeg;
-  app.add_option("--lod-stats-thickness", statThickness, "--lod-stats: VirLodBuildOptions::coherentThickness");
+  float statCone = gpu::VirLodBuildOptions{}.coherentConeDeg;
   app.add_option("--lod-stats-cone", statCone, "--lod-stats: VirLodBuildOptions::coherentConeDeg");
   app.add_flag("--lod-stats", lodStats, "Print the surfel LOD tree's statistics and one probe's cut, then exit");
   app.add_option("--methods", methodsArg, "Comma-separated subset of vir_lod,vir,cubemap (default all; the "
@@ -251,7 +254,6 @@ int main(int argc, char** argv) {
 
     if (lodStats) {  // tree diagnostics: per depth-from-leaves level, how many nodes may be splatted
       gpu::VirLodBuildOptions bo;
-      bo.coherentThickness = statThickness;
       bo.coherentConeDeg = statCone;
       const gpu::VirLodTree tree = gpu::buildVirLodTree(built.surfels, bo);
       std::vector<int> height(tree.nodes.size(), 0);
@@ -282,7 +284,8 @@ int main(int argc, char** argv) {
           if (l.childCount == 0) {
             ++leaves;
             leavesUnderIncoherent += (tree.up[i].x != ~0u && !(tree.links[tree.up[i].x].flags & LFGI_VIR_LOD_COHERENT));
-          } else if (coherent && r * float(n) <= d) {
+          } else if (coherent && r * float(n) <= lodTexels * d &&
+                     tree.nodes[i].emission.w <= gpu::VirOptions{}.lodDepthTolerance * d) {
             ++inner;
           } else {
             for (uint32_t c = 0; c < l.childCount; ++c) st.push_back(tree.children[l.firstChild + c]);

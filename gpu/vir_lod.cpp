@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "core/error.h"
+#include "shared/octahedral.h"
 
 namespace lfgi::gpu {
 
@@ -50,13 +52,23 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
   const float extent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z, 1e-6f});
   const float toGrid = 1023.999f / extent;
 
-  // Sort key: normal class above the Morton code, so an octree level never mixes classes below the root.
+  // Sort key: normal class, then plane offset dot(n, p) in 4096 buckets, then the Morton code: an octree
+  // level only merges surfels of one class and (below the 10 Morton levels) one plane, so parallel walls
+  // a few metres apart, which the cut could never splat as one rectangle, are never mixed below the top.
+  float offLo = std::numeric_limits<float>::max(), offHi = -std::numeric_limits<float>::max();
+  for (const shared::Surfel& sf : surfels) {
+    const float off = glm::dot(glm::vec3(sf.normal), glm::vec3(sf.positionRadius));
+    offLo = std::min(offLo, off);
+    offHi = std::max(offHi, off);
+  }
+  const float toBucket = 4095.999f / std::max(offHi - offLo, 1e-6f);
   std::vector<std::pair<uint64_t, uint32_t>> keyed(surfels.size());
   for (size_t i = 0; i < surfels.size(); ++i) {
-    const glm::uvec3 q(glm::clamp((glm::vec3(surfels[i].positionRadius) - lo) * toGrid, glm::vec3(0.0f),
-                                  glm::vec3(1023.0f)));
+    const glm::vec3 p(surfels[i].positionRadius), nrm(surfels[i].normal);
+    const glm::uvec3 q(glm::clamp((p - lo) * toGrid, glm::vec3(0.0f), glm::vec3(1023.0f)));
     const uint64_t morton = spreadBits10(q.x) | (spreadBits10(q.y) << 1) | (spreadBits10(q.z) << 2);
-    keyed[i] = {(uint64_t(normalClass(glm::vec3(surfels[i].normal))) << 30) | morton, uint32_t(i)};
+    const uint64_t bucket = uint64_t(std::clamp((glm::dot(nrm, p) - offLo) * toBucket, 0.0f, 4095.0f));
+    keyed[i] = {(uint64_t(normalClass(nrm)) << 42) | (bucket << 30) | morton, uint32_t(i)};
   }
   std::sort(keyed.begin(), keyed.end());
 
@@ -72,6 +84,7 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     s.normal.w = std::numbers::pi_v<float> * r * r;
     tree.nodes.push_back(s);
     tree.links.push_back({0u, 0u, LFGI_VIR_LOD_COHERENT, i});
+    tree.rects.push_back(glm::vec4(0.0f, 0.0f, -1.0f, -1.0f));
     extra.push_back({r * o.footprintScale, 0.0f, 0.0f, 0});
   }
   tree.levelStart.push_back(0);
@@ -107,15 +120,30 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
         centre /= area;
         const float nlen = glm::length(nsum);
         const glm::vec3 n = nlen > 1e-12f ? nsum / nlen : glm::vec3(tree.nodes[current[c0].second].normal);
+        // Rectangle frame: a world axis projected into the plane (walls: up; floors and roofs: +x), so the
+        // axis-aligned walls and roofs of the synthetic city get tight rectangles.
+        const glm::vec3 axis = std::abs(n.y) >= 0.5f ? glm::vec3(1.0f, 0.0f, 0.0f) : glm::vec3(0.0f, 1.0f, 0.0f);
+        const glm::vec3 t1 = glm::normalize(axis - glm::dot(axis, n) * n), t2 = glm::cross(n, t1);
         NodeExtra e;
         bool coherent = nlen > 1e-12f;
+        glm::vec2 lo2(std::numeric_limits<float>::max()), hi2(-std::numeric_limits<float>::max());
         const uint32_t first = uint32_t(tree.children.size());
         for (size_t c = c0; c < c1; ++c) {
           const uint32_t ci = current[c].second;
           const shared::Surfel& ch = tree.nodes[ci];
           const NodeExtra& ce = extra[ci];
           const glm::vec3 d = glm::vec3(ch.positionRadius) - centre;
-          e.footprintRadius = std::max(e.footprintRadius, glm::length(d) + ce.footprintRadius);
+          const glm::vec2 uv(glm::dot(d, t1), glm::dot(d, t2));
+          glm::vec2 half(ce.footprintRadius);  // a leaf disc (or its projection) lies within +-r
+          const glm::vec4 cr = tree.rects[ci];
+          if (cr.z >= 0.0f) {  // a child rectangle: its half axes projected onto t1, t2
+            const glm::vec3 ct1 = shared::octDecode(glm::vec2(cr.x, cr.y));
+            const glm::vec3 ct2 = glm::cross(glm::vec3(ch.normal), ct1);
+            half = glm::vec2(cr.z * std::abs(glm::dot(ct1, t1)) + cr.w * std::abs(glm::dot(ct2, t1)),
+                             cr.z * std::abs(glm::dot(ct1, t2)) + cr.w * std::abs(glm::dot(ct2, t2)));
+          }
+          lo2 = glm::min(lo2, uv - half);
+          hi2 = glm::max(hi2, uv + half);
           const float cosA = std::clamp(glm::dot(n, glm::vec3(ch.normal)), -1.0f, 1.0f);
           e.coneRad = std::max(e.coneRad, std::acos(cosA) + ce.coneRad);
           e.thickness = std::max(e.thickness, std::abs(glm::dot(n, d)) + ce.thickness);
@@ -123,10 +151,14 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
           coherent = coherent && (tree.links[ci].flags & LFGI_VIR_LOD_COHERENT) != 0;
           tree.children.push_back(ci);
         }
-        coherent = coherent && e.coneRad <= maxCone && e.thickness <= o.coherentThickness * e.footprintRadius;
+        coherent = coherent && e.coneRad <= maxCone;
+        const glm::vec2 mid = 0.5f * (lo2 + hi2), ext = 0.5f * (hi2 - lo2);
+        const glm::vec3 rectCentre = centre + mid.x * t1 + mid.y * t2;
+        e.footprintRadius = glm::length(ext);  // the rectangle's corners: bounds its angular extent
         const uint32_t node = uint32_t(tree.nodes.size());
-        tree.nodes.push_back({glm::vec4(centre, e.footprintRadius / o.footprintScale), glm::vec4(n, area),
-                              glm::vec4(albedo / area, 1.0f), glm::vec4(emission / area, 0.0f)});
+        tree.nodes.push_back({glm::vec4(rectCentre, e.footprintRadius / o.footprintScale), glm::vec4(n, area),
+                              glm::vec4(albedo / area, 1.0f), glm::vec4(emission / area, e.thickness)});
+        tree.rects.push_back(glm::vec4(shared::octEncode(t1), ext.x, ext.y));
         tree.links.push_back({first, uint32_t(c1 - c0), coherent ? LFGI_VIR_LOD_COHERENT : 0u, ~0u});
         extra.push_back(e);
         next.push_back({current[c0].first, node});
@@ -144,6 +176,7 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     tree.children.push_back(r);
     tree.nodes.push_back(tree.nodes[r]);
     tree.links.push_back({first, 1u, 0u, ~0u});  // incoherent: always refined to its one child
+    tree.rects.push_back(tree.rects[r]);
     extra.push_back(extra[r]);
     ++extra.back().depth;
     tree.levelStart.push_back(uint32_t(tree.nodes.size()));

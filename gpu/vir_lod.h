@@ -5,16 +5,19 @@
 // Bleeding"; Bunnell 2005): per-probe work then scales with the map's texels x depth complexity, not
 // with the cell's surfel count. Pure CPU (no Vulkan): built once per surfel set, uploaded by VirPass.
 //
-// Construction (deterministic): surfels sorted by (dominant normal axis, 30-bit Morton code of the
-// position in the cloud's bounding cube); level l groups the previous level's nodes that share the key
-// with its 3 l low bits dropped (an octree per normal class, at most 8 children per node; a group of one
-// is passed up unchanged), until one root remains. An inner node's disc: area-weighted centroid, normal,
-// albedo and emission; area = sum of the children's; radius = the bounding radius of the children's
-// footprint discs (max |c_i - c| + r_i x footprintScale) divided by footprintScale, so the splat's
-// `radius x footprintScale` covers every child disc. Nodes whose children are not one plane (normal cone
-// > coherentConeDeg or thickness > coherentThickness x footprint radius) are flagged incoherent and
-// always refined: merging a building corner or two floors into one disc would put a surface where there
-// is none.
+// Construction (deterministic): surfels sorted by (dominant normal axis, plane offset dot(n, p) in 4096
+// buckets, 30-bit Morton code of the position in the cloud's bounding cube); level l groups the previous
+// level's nodes that share the key with its 3 l low bits dropped (an octree per normal class and plane,
+// at most 8 children per node; a group of one is passed up unchanged), until one root remains. An inner node is a rectangle in the plane through the
+// area-weighted centroid with the area-weighted normal: the bounding box, in a frame whose first axis is a
+// world axis projected into the plane, of its children's footprints (leaf discs of radius r x
+// footprintScale, child rectangles), so it covers every surfel footprint below it, and its edges follow
+// the axis-aligned walls of the city (a bounding disc overhung building edges by ~0.2 of its size and put
+// surfaces in front of the sky). Albedo and emission are area-weighted, area the children's sum; radius =
+// the rectangle's half diagonal / footprintScale (bounds its angular size); emission.a = thickness, the
+// largest distance of a leaf centre from the plane (the cut only splats a node whose thickness is small
+// next to its distance). Nodes whose normal cone exceeds coherentConeDeg are flagged incoherent and
+// always refined: a building corner merged into one rectangle would put a surface where there is none.
 #pragma once
 
 #include <cstdint>
@@ -29,7 +32,6 @@ namespace lfgi::gpu {
 struct VirLodBuildOptions {
   float footprintScale = 1.5f;     // as VirOptions::footprintScale (inner radii are stored divided by it)
   float coherentConeDeg = 18.0f;   // max angle between an inner node's normal and any leaf normal below it
-  float coherentThickness = 0.2f;  // max plane deviation of the leaves below, x the node's footprint radius
 };
 
 struct VirLodTree {
@@ -37,6 +39,9 @@ struct VirLodTree {
   // level; the root is the last node. Inner node radius: footprint radius / footprintScale; normal.w: area.
   std::vector<shared::Surfel> nodes;
   std::vector<shared::VirLodLink> links;  // one per node
+  // One per node: inner (octEncode(t1).xy, half extent along t1, along t2 = cross(normal, t1)), centred
+  // at the node position; leaves (0, 0, -1, -1): a disc of radius r x footprintScale.
+  std::vector<glm::vec4> rects;
   std::vector<uint32_t> children;         // node indices, referenced by links[i].firstChild/childCount
   std::vector<uint32_t> levelStart;       // level l = nodes [levelStart[l], levelStart[l + 1]); level 0: leaves
   uint32_t leafCount = 0;

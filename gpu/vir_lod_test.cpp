@@ -8,6 +8,7 @@
 #include <numbers>
 
 #include "core/error.h"
+#include "shared/octahedral.h"
 
 namespace lfgi::gpu {
 namespace {
@@ -33,7 +34,7 @@ TEST(VirLod, TreeConservesAreaAndBoundsChildren) {
   addFloor(surfels, 16.0f, 0.25f, 0.0f, 1u);
   addFloor(surfels, 16.0f, 0.25f, 3.0f, 2u);  // a second floor 3 m above: same normal class, other plane
   const float fs = 1.5f;
-  const VirLodTree tree = buildVirLodTree(surfels, {fs, 18.0f, 0.2f});
+  const VirLodTree tree = buildVirLodTree(surfels, {fs, 18.0f});
   ASSERT_EQ(tree.leafCount, surfels.size());
   ASSERT_EQ(tree.links.size(), tree.nodes.size());
   ASSERT_EQ(tree.levelStart.front(), 0u);
@@ -60,8 +61,19 @@ TEST(VirLod, TreeConservesAreaAndBoundsChildren) {
       ++parents[ch];
       area += tree.nodes[ch].normal.w;
       albedo += tree.nodes[ch].normal.w * glm::vec3(tree.nodes[ch].albedo);
-      const float dc = glm::length(glm::vec3(tree.nodes[ch].positionRadius - tree.nodes[i].positionRadius));
-      EXPECT_LE(dc + tree.nodes[ch].positionRadius.w * fs, tree.nodes[i].positionRadius.w * fs * 1.0001f + 1e-5f);
+      // The child's footprint lies in the parent's rectangle (coplanar floors: exact containment).
+      const glm::vec4 rect = tree.rects[i];
+      ASSERT_GE(rect.z, 0.0f);
+      const glm::vec3 t1 = shared::octDecode(glm::vec2(rect.x, rect.y));
+      const glm::vec3 t2 = glm::cross(glm::vec3(tree.nodes[i].normal), t1);
+      const glm::vec3 dc = glm::vec3(tree.nodes[ch].positionRadius - tree.nodes[i].positionRadius);
+      const float rc = tree.rects[ch].z >= 0.0f ? 0.0f : tree.nodes[ch].positionRadius.w * fs;
+      const float ec1 = tree.rects[ch].z >= 0.0f ? tree.rects[ch].z : 0.0f, ec2 = tree.rects[ch].z >= 0.0f ? tree.rects[ch].w : 0.0f;
+      if (tree.nodes[i].emission.w < 1e-3f) {  // one floor below this node
+        EXPECT_LE(std::abs(glm::dot(dc, t1)) + rc + ec1, rect.z * 1.0001f + 1e-4f);
+        EXPECT_LE(std::abs(glm::dot(dc, t2)) + rc + ec2, rect.w * 1.0001f + 1e-4f);
+      }
+      EXPECT_NEAR(tree.nodes[i].positionRadius.w * fs, std::sqrt(rect.z * rect.z + rect.w * rect.w), 1e-4f);
     }
     EXPECT_NEAR(tree.nodes[i].normal.w, area, 1e-4f * area);
     EXPECT_NEAR(tree.nodes[i].albedo.x, albedo.x / area, 1e-4f);
@@ -71,9 +83,10 @@ TEST(VirLod, TreeConservesAreaAndBoundsChildren) {
   EXPECT_EQ(parents[tree.root()], 0);
   const float total = 2.0f * 16.0f * 16.0f;  // two 16 m x 16 m floors, disc areas sum to the floor area
   EXPECT_NEAR(tree.nodes[tree.root()].normal.w, total, 0.02f * total);
-  // The root spans both floors (3 m apart): not one plane, so never splatted. Most inner nodes are.
-  EXPECT_EQ(tree.links[tree.root()].flags & LFGI_VIR_LOD_COHERENT, 0u);
-  EXPECT_GT(coherentInner, (tree.nodes.size() - tree.leafCount) * 9 / 10);
+  // The root spans both floors (3 m apart): thickness 1.5 m about the mid plane, so the cut splats it
+  // only from > 150 m (lodDepthTolerance 0.01). Every inner node has one normal (coherent).
+  EXPECT_NEAR(tree.nodes[tree.root()].emission.w, 1.5f, 0.05f);
+  EXPECT_EQ(coherentInner, tree.nodes.size() - tree.leafCount);
   EXPECT_LE(tree.maxDepth * 7 + 1, LFGI_VIR_LOD_STACK);
   std::printf("VIR LOD tree: %zu surfels -> %zu nodes, depth %d, %zu coherent inner nodes\n", surfels.size(),
               tree.nodes.size(), tree.maxDepth, coherentInner);
@@ -107,7 +120,7 @@ TEST(VirLod, TreeConservesAreaAndBoundsChildren) {
   for (uint32_t i = 0; i < tree.leafCount; ++i) ASSERT_EQ(underFrontier[i], 1);
 
   // Deterministic: the same input gives the same tree.
-  const VirLodTree again = buildVirLodTree(surfels, {fs, 18.0f, 0.2f});
+  const VirLodTree again = buildVirLodTree(surfels, {fs, 18.0f});
   ASSERT_EQ(again.children, tree.children);
   EXPECT_EQ(std::memcmp(again.nodes.data(), tree.nodes.data(), tree.nodes.size() * sizeof(shared::Surfel)), 0);
 }

@@ -21,9 +21,6 @@ Program requireInt64Atomics(Context& ctx, const char* name) {
   return Program(ctx, name);
 }
 
-// Largest per-axis stretch of the octahedral map (texel-coordinate change per radian, in units of N/2),
-// measured numerically: sqrt(2) where the fold's diagonals meet the equator; with a margin.
-constexpr float kOctStretch = 1.5f;
 constexpr size_t kMaxCutEntries = size_t(1) << 24;  // per batch of blocks (64 MiB of node indices)
 
 }  // namespace
@@ -69,6 +66,8 @@ double VirPass::prepareSurfels(std::span<const shared::Surfel> surfels, const Vi
   grow(childBuf_, tree_.children.size() * sizeof(uint32_t));
   grow(nodeRadianceBuf_, tree_.nodes.size() * sizeof(glm::vec4));
   grow(upBuf_, tree_.up.size() * sizeof(glm::uvec2));
+  grow(rectBuf_, tree_.rects.size() * sizeof(glm::vec4));
+  upload<glm::vec4>(ctx_, rectBuf_, tree_.rects);
   grow(frontierBuf_, tree_.frontier.size() * sizeof(uint32_t));
   upload<glm::uvec2>(ctx_, upBuf_, tree_.up);
   upload<uint32_t>(ctx_, frontierBuf_, tree_.frontier);
@@ -94,6 +93,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     fail("VIR: fillPasses {} outside [0, {}]", o.fillPasses, VirOptions::kMaxFillPasses);
   if (!(std::isfinite(o.lodTexels) && o.lodTexels > 0.0f && o.lodTexels <= 16.0f))
     fail("VIR: lodTexels {} outside (0, 16]", o.lodTexels);
+  if (!(std::isfinite(o.lodDepthTolerance) && o.lodDepthTolerance >= 0.0f && o.lodDepthTolerance <= 1.0f))
+    fail("VIR: lodDepthTolerance {} outside [0, 1]", o.lodDepthTolerance);
   if (o.lodBlockProbes < 1 || o.lodBlockProbes > 64) fail("VIR: lodBlockProbes {} outside [1, 64]", o.lodBlockProbes);
   if (!surfelIrradiance.empty() && surfelIrradiance.size() != surfels.size())
     fail("VIR: {} surfel irradiance values for {} surfels", surfelIrradiance.size(), surfels.size());
@@ -160,7 +161,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     lp.maxRange = o.maxRange;
     lp.footprintScale = o.footprintScale;
     lp.lodTexels = o.lodTexels;
-    lp.octStretch = kOctStretch;
+    lp.depthTolerance = o.lodDepthTolerance;
     atlas.lodNodes = tree_.nodes.size();
   }
 
@@ -207,7 +208,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
                     &statsBuf_},
                    lp, {lp.nodeCount, lp.blockCount, 1});
           memoryBarrier(cmd);
-          dispatch(ctx_, cmd, lodSplat_, {&nodeBuf_, &probeBuf_, &cutBuf_, &cutCountBuf_, &slots_, &statsBuf_}, lp,
+          dispatch(ctx_, cmd, lodSplat_, {&nodeBuf_, &probeBuf_, &cutBuf_, &cutCountBuf_, &slots_, &statsBuf_, &rectBuf_}, lp,
                    {lp.lanes, lp.blockProbes, lp.blockCount});
           memoryBarrier(cmd);
         }

@@ -4,8 +4,8 @@
 // index), so the device needs shaderBufferInt64Atomics.
 //
 // Two splat paths (VirOptions::lod):
-//   off (default): every surfel into every probe (vir_splat.comp; one invocation per (surfel, probe) pair).
-//   on: a surfel LOD tree (gpu/vir_lod.h, built once per surfel set and kept resident) is cut
+//   off: every surfel into every probe (vir_splat.comp; one invocation per (surfel, probe) pair).
+//   on (default): a surfel LOD tree (gpu/vir_lod.h, built once per surfel set and kept resident) is cut
 //     per block of consecutive probes at the coarsest nodes whose disc stays below lodTexels texels
 //     (vir_lod_cut.comp), and only the cut is splatted (vir_lod_splat.comp, probe-major). Far surfels
 //     cover a tiny fraction of a texel, so most (surfel, probe) pairs of the full splat only lose the
@@ -42,9 +42,10 @@ struct VirOptions {
   float footprintScale = 1.5f;  // disc radius multiplier of the footprint test (see vir_splat.comp)
   int maxFootprintRadius = 6;   // splat window half-size in texels (up to 13 x 13, near surfels only)
   int fillPasses = 2;           // dilation passes, 0..kMaxFillPasses
-  bool lod = false;             // splat a per-probe-block cut of the surfel LOD tree (see above)
-  float lodTexels = 1.0f;       // LOD: a merged disc may stand in for its surfels when <= this many texels wide
+  bool lod = true;              // splat a per-probe-block cut of the surfel LOD tree (see above)
+  float lodTexels = 4.0f;       // LOD: a merged node may stand in for its surfels when <= this many texels wide
   int lodBlockProbes = 8;       // LOD: consecutive probes sharing one cut, [1, 64]
+  float lodDepthTolerance = 0.01f;  // LOD: merged node thickness <= this x distance (relative depth error)
   static constexpr int kMaxFillPasses = 8;
 };
 
@@ -96,7 +97,7 @@ class VirPass {
   VirLodTree tree_;
   uint32_t cutCapacity_ = 0;  // cut entries per block, grown when a block's cut overflows
   Buffer surfelBuf_, probeBuf_, irrBuf_, slots_, distBuf_, normalBuf_, albedoBuf_, radianceBuf_, counters_;
-  Buffer nodeBuf_, linkBuf_, childBuf_, upBuf_, frontierBuf_, nodeRadianceBuf_, blockBuf_, cutBuf_, cutCountBuf_,
+  Buffer nodeBuf_, linkBuf_, childBuf_, upBuf_, rectBuf_, frontierBuf_, nodeRadianceBuf_, blockBuf_, cutBuf_, cutCountBuf_,
       statsBuf_;
 };
 

@@ -240,7 +240,7 @@ TEST(VirPass, LodMatchesFullSplatWithFarFewerPairs) {
     EXPECT_NEAR(radB / radA, 1.0, 0.03);
     EXPECT_LE(b.holeFractionAfterFill, 0.01);
     EXPECT_LE(b.holeFractionBeforeFill, a.holeFractionBeforeFill + 0.02);
-    EXPECT_LT(b.splatPairs * 2, a.splatPairs);  // 2.5x at N = 16: one block spans 15 m of the 40 m box
+    EXPECT_LT(b.splatPairs * 4, a.splatPairs);  // measured 44x (N = 8), 14x (N = 16) with lodTexels 4
     EXPECT_GT(b.splatAtomics, 0u);
     EXPECT_EQ(a.splatAtomics, 0u);
   }

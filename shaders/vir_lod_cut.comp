@@ -3,8 +3,9 @@
 // surfel LOD tree (gpu/vir_lod.h): walking down from the root, stop at the first node whose footprint
 // disc is at most lodTexels texels wide seen from the nearest point of the block's sphere (radius R at
 // distance d: 2 R / d <= lodTexels x 2 / N, the angle of a texel where the octahedral map is least
-// stretched), or at a leaf; incoherent nodes (not one plane) are always refined and subtrees farther
-// than maxRange from every probe are dropped. vir_lod_splat.comp splats the cut into each probe of the
+// stretched) and whose thickness (leaf distance from its plane) is <= depthTolerance x d, or at a leaf;
+// incoherent nodes (normal cone too wide) are always refined and subtrees farther than maxRange from
+// every probe are dropped. vir_lod_splat.comp splats the cut into each probe of the
 // block.
 //
 // The walk is split into one invocation per (frontier subtree, block): the frontier (VirLodTree::frontier)
@@ -48,7 +49,9 @@ int classify(uint s) {
   float dmin = length(pr.xyz - blk.xyz) - blk.w;
   if (dmin - r > params.maxRange) return kDrop;
   VirLodLink link = links[s];
-  if (link.childCount == 0u || ((link.flags & LFGI_VIR_LOD_COHERENT) != 0u && r * texelsPerMetre <= dmin))
+  if (link.childCount == 0u) return kAccept;
+  if ((link.flags & LFGI_VIR_LOD_COHERENT) != 0u && r * texelsPerMetre <= dmin &&
+      nodes[s].emission.w <= params.depthTolerance * dmin)
     return kAccept;
   return kRefine;
 }

@@ -9,9 +9,11 @@
 // `lanes` grows with the cut so no invocation loops much more than ~1000 times (llvmpipe ends an
 // invocation's loops after 65535 iterations in total).
 //
+// Footprint: a leaf is a disc (radius x footprintScale, as vir_splat.comp), a merged node the rectangle of
+// VirLodTree::rects (tight on the city's axis-aligned walls; its half diagonal is the node radius).
 // Window: cut nodes are about one texel wide, so instead of vir_splat.comp's square window around the
 // containing texel, only the texels whose centres lie within the disc's angular radius of its projected
-// centre (in texel units x octStretch, the octahedral map's largest per-axis stretch) are tested: 1-4
+// centre (in texel units x LFGI_VIR_OCT_STRETCH, the octahedral map's largest per-axis stretch) are tested: 1-4
 // ray/disc tests per node instead of 9. Near leaves keep the window cap maxFootprintRadius.
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_atomic_int64 : require
@@ -27,6 +29,7 @@ layout(std430, set = 0, binding = 2) readonly buffer Cut { uint cut[]; };
 layout(std430, set = 0, binding = 3) readonly buffer CutCount { uint cutCount[]; };
 layout(std430, set = 0, binding = 4) buffer Slots { uint64_t slots[]; };
 layout(std430, set = 0, binding = 5) buffer Stats { uint64_t stats[]; };
+layout(std430, set = 0, binding = 6) readonly buffer Rects { vec4 rects[]; };  // gpu/vir_lod.h VirLodTree::rects
 
 layout(push_constant) uniform Push { VirLodParams params; };
 
@@ -71,7 +74,11 @@ void main() {
     if (facing <= 0.0) continue;
     float r = pr.w * params.footprintScale;
     vec2 tc = (octEncode(toS) * 0.5 + vec2(0.5)) * float(n);  // continuous texel coordinates
-    float rho = asin(min(r / d, 1.0)) * halfN * params.octStretch;
+    float rho = asin(min(r / d, 1.0)) * halfN * LFGI_VIR_OCT_STRETCH;
+    vec4 rect = rects[s];
+    bool isRect = rect.z >= 0.0;
+    vec3 t1 = isRect ? octDecode(rect.xy) : vec3(0.0);
+    vec3 t2 = cross(nrm, t1);
     ivec2 c = ivec2(floor(tc));
     ivec2 lo = max(ivec2(ceil(tc - vec2(0.5 + rho))), c - ivec2(kmax));
     ivec2 hi = min(ivec2(floor(tc + vec2(rho - 0.5))), c + ivec2(kmax));
@@ -84,7 +91,8 @@ void main() {
         if (denom <= 1e-6) continue;
         float depth = facing / denom;
         vec3 h = o + depth * td - pr.xyz;
-        if (dot(h, h) <= r * r) {
+        bool hit = isRect ? (abs(dot(h, t1)) <= rect.z && abs(dot(h, t2)) <= rect.w) : dot(h, h) <= r * r;
+        if (hit) {
           atomicMin(slots[base + uint(t.y) * params.res + uint(t.x)], (uint64_t(floatBitsToUint(depth)) << 32) | low);
           ++atomics;
         }

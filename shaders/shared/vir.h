@@ -30,6 +30,9 @@ struct VirLodLink {
 LFGI_CHECK_SIZE(VirLodLink, 16)
 
 #define LFGI_VIR_LOD_COHERENT 1u
+// Largest per-axis stretch of the octahedral map, texel coordinates per radian in units of N / 2 (measured
+// numerically: sqrt(2) where the fold's diagonals meet the equator), with a margin: bounds splat windows.
+#define LFGI_VIR_OCT_STRETCH 1.5f
 #define LFGI_VIR_LOD_STACK 128  // traversal stack entries of one frontier-subtree walk (vir_lod_cut.comp)
 
 // Push constants of the LOD passes (vir_lod_radiance/vir_lod_cut/vir_lod_splat/vir_lod_resolve.comp).
@@ -49,7 +52,7 @@ struct VirLodParams {
   float maxRange;           // m
   float footprintScale;     // disc radius multiplier (as VirParams)
   float lodTexels;          // a node may be splatted when its footprint diameter <= lodTexels texels
-  float octStretch;         // max texels per radian x 2 / N of the octahedral map (splat window bound)
+  float depthTolerance;     // cut: a merged node's thickness must be <= depthTolerance x its distance
 };
 LFGI_CHECK_SIZE(VirLodParams, 64)
 LFGI_CHECK_OFFSET(VirLodParams, maxRange, 48)
