@@ -59,4 +59,21 @@ report="$out/report.md"
   echo
   echo "Open profile/trace.json in https://ui.perfetto.dev; profile/summary.html is the one-page summary."
 } >> "$report"
+# Failure modes (issue 10, bench/stability): streaming pops/seams/burst, one leak configuration, generator
+# fallback; ~1 min. The whole suite: scripts/bench.sh stability [--quick].
+"$root/build/bin/lfgi_bench_stability" --quick --sections streaming,leak,fallback --leak-walls 0.1 --leak-spacings 1 \
+  --out "$out/stability" > "$out/stability.txt" 2>&1
+{
+  echo
+  echo "## Failure modes (lfgi_bench_stability --quick, a subset; the suite: scripts/bench.sh stability)"
+  echo
+  echo "0.1 m wall between a sunlit and a sealed room, 1 m probes; streaming on synthetic cells; a generator that"
+  echo "misses its target (20 steps), collapses (learning rate 1e3) or diverges (1e6). Columns: section, method, wall_m, spacing_m,"
+  echo "probe_setup, chebyshev, time_h, overcast, metric, value."
+  echo
+  echo '```'
+  grep -E '^(leak|streaming|fallback),' "$out/stability/results.csv" |
+    grep -E 'leak_ratio|pop_|seam_|frames_to_recovery|budget_held|missing|chosen|reached|diverged' || true
+  echo '```'
+} >> "$report"
 echo "demo: report at out/demo/report.md"
