@@ -622,12 +622,15 @@ void fallbackSection(Ctx& c, const CellSetup& cs) {
     int steps;
     float lr;
   };
-  for (const Case& k : {Case{"tiny_steps", 20, 3e-3f}, Case{"diverging_lr", 60, 1e3f}}) {
+  // tiny_steps misses the target; lr 1e3 kills the outputs (all radiance 0: error exactly 1, finite, so
+  // not a divergence: rejected on error); lr 1e6 (weights and latents) overflows: detected as divergence.
+  for (const Case& k : {Case{"tiny_steps", 20, 3e-3f}, Case{"collapse_lr1e3", 60, 1e3f}, Case{"diverge_lr1e6", 60, 1e6f}}) {
     bake::ModelSizingOptions so;
     so.irradianceErrorTarget = 0.01;
     so.noNetworkKinds = {bake::CellModelKind::kShL1};
     so.training = generatorOptions(cs.train.resolution(), k.steps);
     so.training.learningRate = k.lr;
+    if (k.lr > 1.0f) so.training.latentLearningRate = k.lr;
     so.candidates = {so.training.arch};
     const bake::CellModelChoice ch = bake::chooseCellModel(cs.train, {}, so);
     const double genErr = ch.attempts.back().irradianceRelativeRms;
