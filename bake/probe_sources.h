@@ -12,9 +12,10 @@
 //   codec    codecProbeField: a baked cell file (core/cell_file.h) decoded on the CPU (core/generator_cpu.h
 //            decodeProbeField) under the frame's conditioning (time of day, overcast); a "no network" cell
 //            gives every probe the cell's SH L1 fallback radiance (the first bake key: no time of day) and
-//            open distance moments (missDistance: Chebyshev never occludes). Irradiance = exact cosine
-//            convolution of the decoded radiance; then subtractDiscLight removes the sun/moon the capture
-//            had deposited (from the irradiance exactly; from the radiance texel, clamped).
+//            open distance moments (missDistance: Chebyshev never occludes). The sun/moon the bake had
+//            deposited in the maps: where a probe sees a disc (Embree shadow ray), the disc's texel and its 8
+//            neighbours get the analytic sky radiance (the decoded spike is blurred, the sky there is known);
+//            irradiance = exact cosine convolution of that radiance.
 #pragma once
 
 #include <cstdint>
@@ -59,7 +60,7 @@ ProbeField virProbeField(gpu::Context& ctx, std::span<const worlds::Surfel> surf
 
 // Probe field of a decoded cell file (see the top of this file). resolution: map size for a "no network"
 // cell (a network cell decodes at its model's size). scene: the capture scene of the cell (its mesh and
-// neighbours'), for the disc visibility of subtractDiscLight. Throws lfgi::Error naming `what` when the
+// neighbours'), for the disc visibility. Throws lfgi::Error naming `what` when the
 // file holds no probes or the model cannot emit a ProbeField.
 ProbeField codecProbeField(const CellFile& cell, const std::string& what, const EmbreeScene& scene,
                            const worlds::SkyModel& sky, int resolution, int irradianceResolution = 8,
