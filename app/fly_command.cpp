@@ -119,8 +119,7 @@ int runFly(const FlyOptions& opt) {
   fo.streaming.memoryBudgetBytes = size_t(opt.budgetMb * 1024.0 * 1024.0);
   fo.streaming.decodeRadius = opt.decodeRadius;
   fo.streaming.keepRadius = opt.decodeRadius * 1.4f;
-  if (fileSource)
-    fo.onRelight = [&](glm::ivec2 cell, ProbeField& field, float hours) { fileSource->relight(cell, field, hours); };
+  // Relight = CellSource::relightInto, run by the manager (IO pool, or inline with --io-threads 0).
   fo.validate();
 
   const std::filesystem::path out = opt.outDir.empty() ? (opt.profile ? "out/profile" : "out/fly") : opt.outDir;
@@ -158,6 +157,8 @@ int runFly(const FlyOptions& opt) {
   j["p95_activate_ms"] = s.p95ActivateMs;
   j["p50_relight_ms"] = s.p50RelightMs;
   j["p95_relight_ms"] = s.p95RelightMs;
+  j["p50_relight_io_ms"] = s.p50RelightIoMs;  // per frame with a completed relight, IO thread (or inline)
+  j["p95_relight_io_ms"] = s.p95RelightIoMs;
   j["p50_shade_ms"] = s.p50ShadeMs;
   j["p95_shade_ms"] = s.p95ShadeMs;
   j["peak_bytes_resident"] = s.peakBytesResident;

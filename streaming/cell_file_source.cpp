@@ -402,4 +402,24 @@ bool CellFileSource::relight(glm::ivec2 cell, ProbeField& field, float timeOfDay
   }
 }
 
+void CellFileSource::relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out,
+                                 float timeOfDayHours) {
+  if (!layout_.contains(cell)) fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, layout_.cells.x, layout_.cells.y);
+  if (!info_[size_t(layout_.linear(cell))].network) {
+    out = current;  // copy-assignment keeps out's capacity when it fits: no allocation once warm
+    return;
+  }
+  const fs::path path = cellPath(cell);
+  const auto t0 = Clock::now();
+  std::error_code ec;
+  if (!fs::exists(path, ec)) fail("{}: no cell file", path.string());
+  const CellFile file = readCellFile(path);
+  checkCellFits(file, cell, worldSeed_, layout_, path);
+  const auto t1 = Clock::now();
+  readUs_.fetch_add(usSince(t0));
+  decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution, options_.shOnlyResolution,
+                  out, path.string());
+  decodeUs_.fetch_add(usSince(t1));
+}
+
 }  // namespace lfgi::streaming

@@ -64,7 +64,12 @@ class CellFileSource final : public CellSource {
   size_t maxCellBytes() const override { return maxCellBytes_; }
   void load(glm::ivec2 cell, ProbeField& out) override;
   void setTimeOfDay(float hours) override { timeOfDay_.store(hours); }
-  // Relight of a resident cell for StreamingManager::onRelight (game thread): a generator cell is
+  // StreamingManager's relight (IO threads, or the game thread with ioThreads = 0): a generator cell is
+  // re-read (every check) and decoded under timeOfDayHours into `out` (the manager's staging field); a
+  // cell without a network does not depend on the time of day: `out` = `current`. Throws lfgi::Error
+  // naming the file (the manager logs it and keeps the old lighting).
+  void relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out, float timeOfDayHours) override;
+  // Synchronous in-place relight (tests, tools): a generator cell is
   // re-read and re-decoded under the new time of day into `field` (same size: no allocation); a cell
   // without a network does not depend on it and is left as is. A file that fails now is logged and the
   // field kept (returns false). The re-read is IO inside the relight stage: caching the quantized model

@@ -249,6 +249,7 @@ TEST(CellFileSource, RelightReDecodesGeneratorCellsUnderTheNewTimeOfDay) {
   source.load({1, 1}, gen);
   source.load({1, 0}, sh);  // no network
   const std::vector<float> morning = gen.irradiance, shBefore = sh.irradiance;
+  const ProbeField morningField = gen;
   const float* data = gen.radiance.data();
   EXPECT_TRUE(source.relight({1, 1}, gen, 16.0f));
   EXPECT_EQ(gen.radiance.data(), data);  // in place
@@ -259,8 +260,20 @@ TEST(CellFileSource, RelightReDecodesGeneratorCellsUnderTheNewTimeOfDay) {
   EXPECT_NE(gen.irradiance, morning);  // the conditioning matters
   EXPECT_TRUE(source.relight({1, 0}, sh, 16.0f));
   EXPECT_EQ(sh.irradiance, shBefore);
+  // relightInto (the manager's asynchronous relight): the staging field equals a fresh load at the new
+  // time of day, the resident field it reads is untouched; an SH-only cell is copied.
+  ProbeField staged, stagedSh;
+  source.relightInto({1, 1}, morningField, staged, 16.0f);
+  EXPECT_EQ(staged.irradiance, fresh.irradiance);
+  EXPECT_EQ(staged.radiance, fresh.radiance);
+  EXPECT_EQ(staged.distance, fresh.distance);
+  EXPECT_EQ(morningField.irradiance, morning);
+  source.relightInto({1, 0}, sh, stagedSh, 16.0f);
+  EXPECT_EQ(stagedSh.irradiance, shBefore);
+  EXPECT_EQ(stagedSh.grid.dims, sh.grid.dims);
   // A file corrupted after the load: the relight fails and the cell keeps its lighting.
   flipByte(cellFile(world, 1, 1), 400);
+  EXPECT_THROW(source.relightInto({1, 1}, gen, staged, 20.0f), Error);
   EXPECT_FALSE(source.relight({1, 1}, gen, 20.0f));
   EXPECT_EQ(gen.irradiance, fresh.irradiance);
 }
@@ -321,7 +334,7 @@ StreamingConfig fileConfig(size_t cellBytes) {
   c.activateBudgetMs = 1e9;
   c.fadeSeconds = 0.0f;
   c.recordEvents = true;
-  c.memoryBudgetBytes = 4 * cellBytes + 17;  // fewer slots than cells
+  c.memoryBudgetBytes = 5 * cellBytes + 17;  // 4 slots (fewer than cells) + 1 relight staging field
   return c;
 }
 

@@ -68,6 +68,18 @@ ShL1 SyntheticCellSource::fallback(glm::ivec2 cell) const {
 }
 
 void SyntheticCellSource::load(glm::ivec2 cell, ProbeField& out) {
+  fill(cell, out, timeOfDay_.load());
+  loads_.fetch_add(1);
+}
+
+void SyntheticCellSource::relightInto(glm::ivec2 cell, const ProbeField& /*current*/, ProbeField& out,
+                                      float timeOfDayHours) {
+  fill(cell, out, timeOfDayHours);
+  relights_.fetch_add(1);
+}
+
+void SyntheticCellSource::fill(glm::ivec2 cell, ProbeField& out, float hours) const {
+  const float scale = timeOfDayScale(hours);
   const WorldLayout& l = options_.layout;
   if (!l.contains(cell)) fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, l.cells.x, l.cells.y);
   if (options_.loadDelayUs > 0) std::this_thread::sleep_for(std::chrono::microseconds(options_.loadDelayUs));
@@ -91,7 +103,7 @@ void SyntheticCellSource::load(glm::ivec2 cell, ProbeField& out) {
   out.irradiance.resize(P * size_t(m * m * 3));
   for (size_t p = 0; p < P; ++p) {
     glm::vec3 pos = out.grid.probePosition(out.grid.probeCoord(int64_t(p)));
-    float B = base(pos);
+    float B = base(pos) * scale;
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < n; ++i) {
         size_t t = p * size_t(n * n) + size_t(j * n + i);
@@ -102,12 +114,11 @@ void SyntheticCellSource::load(glm::ivec2 cell, ProbeField& out) {
       }
     for (int j = 0; j < m; ++j)
       for (int i = 0; i < m; ++i) {
-        glm::vec3 E = exactIrradiance(pos, octTexelDirection(i, j, m));
+        glm::vec3 E = scale * exactIrradiance(pos, octTexelDirection(i, j, m));
         size_t t = p * size_t(m * m) + size_t(j * m + i);
         for (int k = 0; k < 3; ++k) out.irradiance[t * 3 + size_t(k)] = E[k];
       }
   }
-  loads_.fetch_add(1);
 }
 
 }  // namespace lfgi::streaming

@@ -6,8 +6,9 @@
 //
 // Threading contract: layout(), fallback(), maxCellBytes() and setTimeOfDay() are called from the game
 // thread only;
-// load() is called concurrently from the manager's IO threads (several at once, never twice for the
-// same cell at the same time) and must be thread-safe. load() throws lfgi::Error on a bad cell (the
+// load() and relightInto() are called concurrently from the manager's IO threads (several at once, never
+// two for the same cell at the same time) and must be thread-safe; with ioThreads = 0 the manager calls
+// them on the game thread inside update(). load() throws lfgi::Error on a bad cell (the
 // manager logs it, keeps the fallback and never asks for that cell again).
 #pragma once
 
@@ -53,6 +54,16 @@ class CellSource {
   // The lighting loads started from now on decode under (sources whose cells depend on the time of day:
   // the generator's conditioning). StreamingManager::update calls it first every frame. Default: ignored.
   virtual void setTimeOfDay(float /*hours*/) {}
+  // Relight of a resident cell: `out` (a staging field, reusing its capacity) receives the cell's field
+  // under time of day `timeOfDayHours`, the same as a fresh load at that time would give. `current` is the
+  // resident field (read-only: the game thread keeps shading with it meanwhile). Throws lfgi::Error like
+  // load() (the manager logs it and keeps the old lighting). Default: load(cell, out), which decodes under
+  // the time of day last set (setTimeOfDay): right for sources whose cells do not depend on it.
+  virtual void relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out, float timeOfDayHours) {
+    (void)current;
+    (void)timeOfDayHours;
+    load(cell, out);
+  }
 };
 
 // An analytic light field: every cell has the same probe lattice (spacing, layers), and a probe's
@@ -65,7 +76,10 @@ struct SyntheticSourceOptions {
   int layers = 3;              // probe layers from y = 0.5 m
   int resolution = 4;          // radiance / distance maps
   int irradianceResolution = 4;
-  int loadDelayUs = 0;         // simulated IO + decode time per load
+  int loadDelayUs = 0;         // simulated IO + decode time per load (and per relight)
+  // Time-of-day dependence (tests of relight): every value is scaled by 1 + timeOfDayGain * (h - 12) / 12
+  // for the time of day h a load decodes under (setTimeOfDay) or a relight targets. 0: independent.
+  float timeOfDayGain = 0.0f;
   std::set<std::pair<int, int>> corruptCells;  // load() throws for these
 };
 
@@ -76,15 +90,24 @@ class SyntheticCellSource final : public CellSource {
   ShL1 fallback(glm::ivec2 cell) const override;
   size_t maxCellBytes() const override { return cellBytes_; }
   void load(glm::ivec2 cell, ProbeField& out) override;
+  void setTimeOfDay(float hours) override { timeOfDay_.store(hours); }
+  // Fills `out` as load() would at timeOfDayHours (counted in relights(), not loads()).
+  void relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out, float timeOfDayHours) override;
 
-  // The exact field the probes sample: E(p, n).
+  // The exact field the probes sample: E(p, n) (at noon, or with timeOfDayGain = 0).
   static glm::vec3 exactIrradiance(glm::vec3 p, glm::vec3 n);
+  // The time-of-day scale of every value (see timeOfDayGain).
+  float timeOfDayScale(float hours) const { return 1.0f + options_.timeOfDayGain * (hours - 12.0f) / 12.0f; }
   uint64_t loads() const { return loads_.load(); }
+  uint64_t relights() const { return relights_.load(); }
 
  private:
   SyntheticSourceOptions options_;
   size_t cellBytes_ = 0;
-  std::atomic<uint64_t> loads_{0};
+  void fill(glm::ivec2 cell, ProbeField& out, float hours) const;
+
+  std::atomic<uint64_t> loads_{0}, relights_{0};
+  std::atomic<float> timeOfDay_{12.0f};
 };
 
 }  // namespace lfgi::streaming

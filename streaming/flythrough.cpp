@@ -104,7 +104,7 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
   const int frames = std::max(1, int(std::lround(double(o.seconds) * o.fps)));
   const double dt = 1.0 / o.fps;
   FlythroughSummary sum;
-  std::vector<double> frameMs, updateMs, ioMs, activateMs, relightMs, shadeMs;
+  std::vector<double> frameMs, updateMs, ioMs, activateMs, relightMs, shadeMs, relightIoMs;
   long visible = 0, fallback = 0;
   Progress progress("fly-through", size_t(frames), "frames");
   const float pitch = glm::radians(o.pitchDeg);
@@ -191,6 +191,7 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
     ioMs.push_back(fr.stats.ioMs);
     activateMs.push_back(fr.stats.activateMs);
     relightMs.push_back(fr.stats.relightMs);
+    if (fr.stats.relightIoMs > 0.0) relightIoMs.push_back(fr.stats.relightIoMs);
     shadeMs.push_back(fr.shadeMs);
     if (perFrame) perFrame(fr);
     progress.update(size_t(f + 1));
@@ -217,6 +218,10 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
   sum.p95ActivateMs = percentile(activateMs, 0.95);
   sum.p95RelightMs = percentile(relightMs, 0.95);
   sum.p95ShadeMs = percentile(shadeMs, 0.95);
+  if (!relightIoMs.empty()) {
+    sum.p50RelightIoMs = percentile(relightIoMs, 0.5);
+    sum.p95RelightIoMs = percentile(relightIoMs, 0.95);
+  }
   return sum;
 }
 

@@ -31,7 +31,8 @@ struct FlythroughOptions {
   int sampleRaysX = 24, sampleRaysY = 12;  // view rays of the visible-sample grid (90 x 50 deg)
   bool preload = true;           // load everything around the start before the first frame (uncounted)
   StreamingConfig streaming;
-  // StreamingManager::onRelight for the flight (e.g. CellFileSource::relight); empty: relight is a no-op.
+  // StreamingManager::onRelight for the flight: game-thread hook after a relit field is swapped in (the
+  // re-decode itself is the source's relightInto, run by the manager); empty: none.
   std::function<void(glm::ivec2 cell, ProbeField& field, float timeOfDayHours)> onRelight;
   // Throws lfgi::Error naming the bad option.
   void validate() const;
@@ -61,6 +62,8 @@ struct FlythroughSummary {
   double p99IoMs = 0.0, p99ActivateMs = 0.0, p99RelightMs = 0.0, p99ShadeMs = 0.0;
   double p50IoMs = 0.0, p50ActivateMs = 0.0, p50RelightMs = 0.0, p50ShadeMs = 0.0;
   double p95IoMs = 0.0, p95ActivateMs = 0.0, p95RelightMs = 0.0, p95ShadeMs = 0.0;
+  // relightInto time (IO thread, or inline with ioThreads = 0) over the frames where a relight completed.
+  double p50RelightIoMs = 0.0, p95RelightIoMs = 0.0;
   size_t peakBytesResident = 0;
   long cellsRequested = 0, cellsEvicted = 0, cellsRelit = 0, cellsFailed = 0;
 };

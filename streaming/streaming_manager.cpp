@@ -40,6 +40,7 @@ void StreamingConfig::validate() const {
   if (!(activateBudgetMs >= 0.0)) fail("StreamingConfig.activateBudgetMs = {} must be >= 0", activateBudgetMs);
   if (!(fadeSeconds >= 0.0f)) fail("StreamingConfig.fadeSeconds = {} must be >= 0", fadeSeconds);
   if (maxRelightsPerFrame < 0) fail("StreamingConfig.maxRelightsPerFrame = {} must be >= 0", maxRelightsPerFrame);
+  if (maxRelightsInFlight < 1) fail("StreamingConfig.maxRelightsInFlight = {} must be >= 1", maxRelightsInFlight);
 }
 
 StreamingManager::StreamingManager(CellSource& source, const StreamingConfig& config)
@@ -47,10 +48,14 @@ StreamingManager::StreamingManager(CellSource& source, const StreamingConfig& co
   config_.validate();
   const size_t cellBytes = source_.maxCellBytes();
   if (cellBytes == 0) fail("StreamingManager: the cell source reports 0 bytes per cell");
-  const size_t slots = config_.memoryBudgetBytes / cellBytes;
-  if (slots < 1)
-    fail("StreamingConfig.memoryBudgetBytes = {} is smaller than one cell ({} bytes)", config_.memoryBudgetBytes,
-         cellBytes);
+  // Relight staging fields are part of the budget: resident + staging bytes never exceed it.
+  const size_t staging = config_.maxRelightsPerFrame > 0 ? size_t(config_.maxRelightsInFlight) : 0;
+  const size_t total = config_.memoryBudgetBytes / cellBytes;
+  if (total < 1 + staging)
+    fail("StreamingConfig.memoryBudgetBytes = {} is smaller than one cell plus {} relight staging field(s) "
+         "({} bytes each; see maxRelightsInFlight)",
+         config_.memoryBudgetBytes, staging, cellBytes);
+  const size_t slots = total - staging;
   const size_t cells = size_t(layout_.cells.x) * size_t(layout_.cells.y);
   fallback_.resize(cells);
   for (int z = 0; z < layout_.cells.y; ++z)
@@ -58,6 +63,7 @@ StreamingManager::StreamingManager(CellSource& source, const StreamingConfig& co
   cellSlot_.assign(cells, -1);
   failed_.assign(cells, 0);
   slots_.resize(slots);
+  staging_.resize(staging);
   wanted_.reserve(1024);
   for (int i = 0; i < config_.ioThreads; ++i) ioThreads_.emplace_back([this] { ioWorker(); });
 }
@@ -103,6 +109,51 @@ void StreamingManager::runLoad(int s) {
   slot.ioMs = msSince(t0);
 }
 
+void StreamingManager::runRelight(int i) {
+  Staging& st = staging_[size_t(i)];
+  const Slot& slot = slots_[size_t(st.slot)];
+  auto t0 = Clock::now();
+  try {
+    source_.relightInto(slot.cell, slot.field, st.field, st.timeOfDay);
+    if (st.field.bytes() > source_.maxCellBytes())
+      fail("cell {},{}: relit field of {} bytes exceeds the source's slot size {}", slot.cell.x, slot.cell.y,
+           st.field.bytes(), source_.maxCellBytes());
+  } catch (const std::exception& e) {
+    st.error = e.what();
+    if (st.error.empty()) st.error = "unknown error";
+  }
+  st.ioMs = msSince(t0);
+}
+
+// Game thread: the job of staging field i is back.
+void StreamingManager::finishRelight(int i, FrameStats& stats) {
+  Staging& st = staging_[size_t(i)];
+  Slot& slot = slots_[size_t(st.slot)];
+  slot.relight = -1;
+  stats.relightIoMs += st.ioMs;
+  if (st.cancelled) {
+    // Evicted meanwhile (Draining): free the slot now. cellSlot_ was cleared at eviction and may already
+    // name another slot holding a new load of the same cell.
+    slot.state = SlotState::Free;
+    slot.cancelled = false;
+    slot.fade = 0.0f;
+  } else if (!st.error.empty()) {
+    spdlog::warn("streaming: relight of cell {},{} failed, keeping its lighting: {}", slot.cell.x, slot.cell.y,
+                 st.error);
+    slot.litTimeOfDay = st.timeOfDay;  // no retry every frame: the next try waits for the next threshold
+  } else {
+    std::swap(slot.field, st.field);  // the old lighting stays in the staging field for reuse
+    slot.litTimeOfDay = st.timeOfDay;
+    if (onRelight) onRelight(slot.cell, slot.field, st.timeOfDay);
+    ++stats.relit;
+    record(StreamingEventType::Relight, slot.cell);
+  }
+  st.busy = false;
+  st.slot = -1;
+  st.cancelled = false;
+  st.error.clear();
+}
+
 void StreamingManager::ioWorker() {
   for (;;) {
     int s;
@@ -113,7 +164,8 @@ void StreamingManager::ioWorker() {
       s = ioQueue_.front();
       ioQueue_.pop_front();
     }
-    runLoad(s);
+    if (s >= 0) runLoad(s);
+    else runRelight(-1 - s);
     {
       std::lock_guard lock(ioMutex_);
       ioDone_.push_back(s);
@@ -155,6 +207,11 @@ void StreamingManager::startLoad(int s, glm::ivec2 cell, float priority, FrameSt
 void StreamingManager::freeSlot(int s) {
   Slot& slot = slots_[size_t(s)];
   cellSlot_[size_t(layout_.linear(slot.cell))] = -1;
+  if (slot.relight >= 0) {  // a relight reads the field: keep it until the job returns
+    staging_[size_t(slot.relight)].cancelled = true;
+    slot.state = SlotState::Draining;
+    return;
+  }
   slot.state = SlotState::Free;
   slot.cancelled = false;
   slot.fade = 0.0f;
@@ -167,8 +224,14 @@ void StreamingManager::collectFinished(FrameStats& stats) {
     std::lock_guard lock(ioMutex_);
     done.swap(ioDone_);
   }
-  std::sort(done.begin(), done.end());  // deterministic processing order
+  std::sort(done.begin(), done.end());  // deterministic processing order (relights first)
   for (int s : done) {
+    if (s < 0) {
+      auto t0 = Clock::now();
+      finishRelight(-1 - s, stats);
+      stats.relightMs += msSince(t0);
+      continue;
+    }
     Slot& slot = slots_[size_t(s)];
     stats.ioMs += slot.ioMs;
     if (!slot.error.empty()) {
@@ -208,7 +271,7 @@ FrameStats StreamingManager::update(const FrameInput& in) {
   // Drop what is beyond the keep radius of both the camera and its prediction.
   for (size_t s = 0; s < slots_.size(); ++s) {
     Slot& slot = slots_[s];
-    if (slot.state == SlotState::Free) continue;
+    if (slot.state == SlotState::Free || slot.state == SlotState::Draining) continue;
     float d = std::min(layout_.distanceToCell(in.position, slot.cell), layout_.distanceToCell(predicted, slot.cell));
     slot.priority = priorityOf(slot.cell, in, predicted);
     if (d <= config_.keepRadius) continue;
@@ -255,7 +318,8 @@ FrameStats StreamingManager::update(const FrameInput& in) {
       float worst = cand.priority;
       for (size_t s = 0; s < slots_.size(); ++s) {
         const Slot& slot = slots_[s];
-        if ((slot.state == SlotState::Active || slot.state == SlotState::Loaded) && slot.priority > worst) {
+        if ((slot.state == SlotState::Active || slot.state == SlotState::Loaded) && slot.relight < 0 &&
+            slot.priority > worst) {
           worst = slot.priority;
           target = int(s);
         }
@@ -291,24 +355,42 @@ FrameStats StreamingManager::update(const FrameInput& in) {
   }
   stats.activateMs = msSince(ta);
 
-  // Relight stale cells, nearest first, amortised over frames.
+  // Start relights of stale cells, nearest first, amortised over frames and capped in flight.
   auto tr = Clock::now();
   for (int n = 0; n < config_.maxRelightsPerFrame; ++n) {
+    int st = -1;
+    for (size_t i = 0; i < staging_.size() && st < 0; ++i)
+      if (!staging_[i].busy) st = int(i);
+    if (st < 0) break;
     int best = -1;
     for (size_t s = 0; s < slots_.size(); ++s) {
       const Slot& slot = slots_[s];
-      if (slot.state == SlotState::Active && hoursApart(slot.litTimeOfDay, in.timeOfDayHours) > config_.relightThresholdHours &&
+      if (slot.state == SlotState::Active && slot.relight < 0 &&
+          hoursApart(slot.litTimeOfDay, in.timeOfDayHours) > config_.relightThresholdHours &&
           (best < 0 || slot.priority < slots_[size_t(best)].priority))
         best = int(s);
     }
     if (best < 0) break;
-    Slot& slot = slots_[size_t(best)];
-    if (onRelight) onRelight(slot.cell, slot.field, in.timeOfDayHours);
-    slot.litTimeOfDay = in.timeOfDayHours;
-    ++stats.relit;
-    record(StreamingEventType::Relight, slot.cell);
+    Staging& stage = staging_[size_t(st)];
+    stage.busy = true;
+    stage.slot = best;
+    stage.timeOfDay = in.timeOfDayHours;
+    stage.cancelled = false;
+    stage.error.clear();
+    slots_[size_t(best)].relight = st;
+    if (config_.ioThreads == 0) {
+      runRelight(st);
+      finishRelight(st, stats);
+      continue;
+    }
+    {
+      std::lock_guard lock(ioMutex_);
+      ioQueue_.push_back(-1 - st);
+      ++ioOutstanding_;
+    }
+    ioCv_.notify_one();
   }
-  stats.relightMs = msSince(tr);
+  stats.relightMs += msSince(tr);
 
   for (const Slot& slot : slots_) {
     if (slot.state == SlotState::Active) ++stats.resident;
@@ -317,6 +399,12 @@ FrameStats StreamingManager::update(const FrameInput& in) {
     if (slot.state == SlotState::Loading) stats.bytesResident += source_.maxCellBytes();
     else if (slot.state != SlotState::Free) stats.bytesResident += slot.field.bytes();
   }
+  // A staging field in use belongs to its IO thread: count it at the slot size too.
+  for (const Staging& st : staging_)
+    if (st.busy) {
+      ++stats.relighting;
+      stats.bytesResident += source_.maxCellBytes();
+    }
   stats.updateMs = msSince(t0);
   return stats;
 }

@@ -11,8 +11,14 @@
 //      front: resident bytes never exceed the budget, and no frame allocates);
 //   4. activates loaded cells on the game thread (onActivate: GPU upload / GPU decode) within a per-frame
 //      time budget, then cross-fades them in from the fallback over fadeSeconds (no pop);
-//   5. relights resident cells whose lighting is stale (time of day moved by more than a threshold;
-//      onRelight: VIR relight), nearest first, at most maxRelightsPerFrame per frame (amortised).
+//   5. relights resident cells whose lighting is stale (time of day moved by more than a threshold)
+//      asynchronously: nearest (best priority) first, at most maxRelightsPerFrame started per frame and
+//      maxRelightsInFlight at once, CellSource::relightInto decodes the cell at the new time of day on the
+//      IO pool into a staging field while the cell keeps shading with its old lighting; the game thread
+//      swaps the two fields (no copy, no allocation) when the job is done and calls onRelight. A cell
+//      evicted while its relight runs waits in a Draining slot (its field is the job's `current`) until
+//      the job returns, then the result is dropped. The staging fields come out of the memory budget:
+//      slots = floor(budget / maxCellBytes) - maxRelightsInFlight (when relight is on).
 // Every cell's coarse fallback (SH L1, CellSource::fallback) is resident from construction on, so a point
 // inside the world is never without GI. A cell whose load fails is logged, keeps its fallback and is
 // never requested again.
@@ -22,11 +28,15 @@
 // resident cells give the same value at a shared point when their probe lattices match in x and z.
 //
 // Threading contract: construct, update(), sample(), stats() and every accessor on one thread (the
-// game thread). The IO threads only run CellSource::load into slots the game thread handed them and
-// does not touch until they are returned. onActivate / onRelight run on the game thread inside update().
-// With ioThreads = 0 loads run inline in update(), in priority order: the whole sequence of decisions is
-// then a pure function of the inputs (tests use this); with IO threads the decisions of what to request
-// and evict are still deterministic, only arrival frames vary.
+// game thread). The IO threads only run CellSource::load into slots the game thread handed them and does
+// not touch until they are returned, and CellSource::relightInto into staging fields likewise, reading
+// the resident field as `current` (the game thread only reads it meanwhile: sample(); it neither frees,
+// reuses nor swaps that slot until the job is back). onActivate / onRelight run on the game thread inside
+// update() (onRelight after the swap: e.g. a GPU re-upload or a VIR relight of the new field).
+// With ioThreads = 0 loads run inline in update(), in priority order, and relights inline at the point
+// they are started (after activation), swapped at once: the whole sequence of decisions is then a pure
+// function of the inputs (tests use this); with IO threads the decisions of what to request and evict
+// are still deterministic, only arrival frames vary.
 #pragma once
 
 #include <condition_variable>
@@ -56,7 +66,8 @@ struct StreamingConfig {
   int maxActivationsPerFrame = 8;
   float fadeSeconds = 0.5f;
   float relightThresholdHours = 0.25f;
-  int maxRelightsPerFrame = 1;
+  int maxRelightsPerFrame = 1;        // relights started per frame (0: no relight)
+  int maxRelightsInFlight = 1;        // staging fields (each maxCellBytes of the budget)
   bool recordEvents = false;          // keep an event log (tests, profiler)
   // Throws lfgi::Error naming the bad field.
   void validate() const;
@@ -74,9 +85,13 @@ struct FrameStats {
   uint64_t frame = 0;
   int resident = 0;          // active (visible) cells
   int loading = 0;           // queued, loading or loaded-not-yet-active
-  int requested = 0, activated = 0, evicted = 0, relit = 0, failed = 0;  // this frame
+  int requested = 0, activated = 0, evicted = 0, relit = 0, failed = 0;  // this frame (relit: swapped in)
+  int relighting = 0;        // relights started and not yet swapped in / dropped
   size_t bytesResident = 0;  // slots in use x their field bytes (<= memoryBudgetBytes)
   double ioMs = 0.0;         // IO-thread time of loads that completed this frame
+  double relightIoMs = 0.0;  // relightInto time of relights that completed this frame (IO thread or inline)
+  // relightMs: game-thread time of the relight stage (start, inline relightInto when ioThreads = 0, swap,
+  // onRelight).
   double activateMs = 0.0, relightMs = 0.0, updateMs = 0.0;
 };
 
@@ -120,6 +135,7 @@ class StreamingManager {
   bool isResident(glm::ivec2 cell) const;  // active (visible, maybe still fading in)
   float fade(glm::ivec2 cell) const;       // 0 not resident .. 1 fully faded in
   int slotCount() const { return int(slots_.size()); }
+  int stagingCount() const { return int(staging_.size()); }
   const std::vector<StreamingEvent>& events() const { return events_; }
   // Every failed load so far (at most one per cell: a failed cell is never requested again).
   const std::vector<CellFailure>& failures() const { return failures_; }
@@ -128,7 +144,8 @@ class StreamingManager {
   void drainIo();
 
  private:
-  enum class SlotState : uint8_t { Free, Loading, Loaded, Active };
+  // Draining: evicted while a relight reads its field; freed when that job returns.
+  enum class SlotState : uint8_t { Free, Loading, Loaded, Active, Draining };
   struct Slot {
     SlotState state = SlotState::Free;
     glm::ivec2 cell{0};
@@ -137,7 +154,17 @@ class StreamingManager {
     float litTimeOfDay = 0.0f;
     float priority = 0.0f;
     bool cancelled = false;
+    int relight = -1;    // staging index of the relight reading this slot's field, or -1
     std::string error;   // set by the IO thread on failure
+    double ioMs = 0.0;
+  };
+  struct Staging {
+    bool busy = false;
+    int slot = -1;
+    float timeOfDay = 0.0f;
+    bool cancelled = false;  // the slot was evicted: drop the result
+    ProbeField field;
+    std::string error;       // set by the IO thread on failure
     double ioMs = 0.0;
   };
   struct Candidate {
@@ -148,6 +175,8 @@ class StreamingManager {
   float priorityOf(glm::ivec2 cell, const FrameInput& in, glm::vec3 predicted) const;
   void startLoad(int slot, glm::ivec2 cell, float priority, FrameStats& stats);
   void runLoad(int slot);
+  void runRelight(int staging);
+  void finishRelight(int staging, FrameStats& stats);
   void collectFinished(FrameStats& stats);
   void freeSlot(int slot);
   void record(StreamingEventType type, glm::ivec2 cell);
@@ -162,6 +191,7 @@ class StreamingManager {
   std::vector<int32_t> cellSlot_;  // per cell: slot index or -1
   std::vector<uint8_t> failed_;    // per cell
   std::vector<Slot> slots_;
+  std::vector<Staging> staging_;
   std::vector<Candidate> wanted_;  // reused every frame
   std::vector<StreamingEvent> events_;
   std::vector<CellFailure> failures_;
@@ -170,7 +200,7 @@ class StreamingManager {
 
   std::mutex ioMutex_;
   std::condition_variable ioCv_, doneCv_;
-  std::deque<int> ioQueue_;
+  std::deque<int> ioQueue_;  // jobs: slot index s >= 0 (load) or -1 - staging index (relight)
   std::vector<int> ioDone_;
   std::vector<int> doneScratch_;
   int ioOutstanding_ = 0;
