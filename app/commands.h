@@ -196,7 +196,24 @@ struct WorldBakeOptions {
   int maxSteps = 1500;
   int threads = 1;
   uint64_t seed = 1;
+  // Store no timing in the cell file (training seconds 0; the real ones stay in cells/cell_X_Z.json), so
+  // the same inputs give byte-identical files in any process (Slurm vs single-process comparisons).
+  bool reproducible = false;
 };
 int runWorldBake(const WorldBakeOptions& options);
+
+// `lfgi bake-status` (app/bake_status_command.cpp): cells done / stale / missing / failed / corrupt of a
+// world bake against its current inputs (same flags as bake), ETA from the measured cell seconds by kind;
+// --plan: the cost model (bake/bake_records.h) projected to larger worlds on 1 and --nodes nodes.
+struct BakeStatusOptions {
+  WorldBakeOptions bake;  // --world, --out, --cells and the bake settings (the input hash depends on them)
+  bool plan = false;
+  int nodes = 1;
+  std::vector<double> sizesKm2 = {16, 100, 400};
+  std::string planOut = "out/bench/bake";  // plan.csv + plan.json; empty: print only
+  bool listStale = false;
+  bool quiet = false;  // no progress line
+};
+int runBakeStatus(const BakeStatusOptions& options);
 
 }  // namespace lfgi::app

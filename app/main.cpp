@@ -147,19 +147,33 @@ int main(int argc, char** argv) {
 
   lfgi::app::WorldBakeOptions bakeOpt;
   CLI::App* bakeCmd = app.add_subcommand("bake", "Bake world cells into cell files: capture, smallest model meeting the error target, int8, OpenVDB (resumable, skips unchanged cells)");
-  bakeCmd->add_option("--world", bakeOpt.world, "World directory (lfgi world generate)")->required();
-  bakeCmd->add_option("--cells", bakeOpt.cells, "Cells: X,Z or linear index ranges A-B (default: all)");
-  bakeCmd->add_option("--array-index", bakeOpt.arrayIndex, "Slurm job-array task index (with --array-size)")->check(CLI::NonNegativeNumber);
-  bakeCmd->add_option("--array-size", bakeOpt.arraySize, "Split the selected cells into this many contiguous shares")->check(CLI::Range(1, 1000000));
-  bakeCmd->add_option("--out", bakeOpt.outDir, "Output directory (default WORLD/baked)");
-  bakeCmd->add_option("--error-target", bakeOpt.errorTarget, "Irradiance relative RMS target per cell")->check(CLI::Range(0.001, 1.0))->capture_default_str();
-  bakeCmd->add_option("--keys", bakeOpt.keys, "Lighting keys HOURS[:OVERCAST],...")->capture_default_str();
-  bakeCmd->add_option("--resolution", bakeOpt.resolution, "Probe map resolution (8, 16 or 32)")->check(CLI::IsMember({8, 16, 32}))->capture_default_str();
-  bakeCmd->add_option("--spp", bakeOpt.spp, "Capture samples per texel")->check(CLI::Range(1, 65536))->capture_default_str();
-  bakeCmd->add_option("--bounces", bakeOpt.bounces, "Capture bounces")->check(CLI::Range(0, 256))->capture_default_str();
-  bakeCmd->add_option("--max-steps", bakeOpt.maxSteps, "Training steps per candidate model")->check(CLI::Range(1, 1000000))->capture_default_str();
-  bakeCmd->add_option("--threads", bakeOpt.threads, "Training threads")->check(CLI::Range(1, 256))->capture_default_str();
-  bakeCmd->add_option("--seed", bakeOpt.seed, "Seed (capture and training)")->capture_default_str();
+  // The bake flags, shared by bake and bake-status (the input hash depends on every setting).
+  auto addBakeFlags = [](CLI::App* c, lfgi::app::WorldBakeOptions& o) {
+    c->add_option("--world", o.world, "World directory (lfgi world generate)")->required();
+    c->add_option("--cells", o.cells, "Cells: X,Z or linear index ranges A-B (default: all)");
+    c->add_option("--array-index", o.arrayIndex, "Slurm job-array task index (with --array-size)")->check(CLI::NonNegativeNumber);
+    c->add_option("--array-size", o.arraySize, "Split the selected cells into this many contiguous shares")->check(CLI::Range(1, 1000000));
+    c->add_option("--out", o.outDir, "Output directory (default WORLD/baked)");
+    c->add_option("--error-target", o.errorTarget, "Irradiance relative RMS target per cell")->check(CLI::Range(0.001, 1.0))->capture_default_str();
+    c->add_option("--keys", o.keys, "Lighting keys HOURS[:OVERCAST],...")->capture_default_str();
+    c->add_option("--resolution", o.resolution, "Probe map resolution (8, 16 or 32)")->check(CLI::IsMember({8, 16, 32}))->capture_default_str();
+    c->add_option("--spp", o.spp, "Capture samples per texel")->check(CLI::Range(1, 65536))->capture_default_str();
+    c->add_option("--bounces", o.bounces, "Capture bounces")->check(CLI::Range(0, 256))->capture_default_str();
+    c->add_option("--max-steps", o.maxSteps, "Training steps per candidate model")->check(CLI::Range(1, 1000000))->capture_default_str();
+    c->add_option("--threads", o.threads, "Training threads")->check(CLI::Range(1, 256))->capture_default_str();
+    c->add_option("--seed", o.seed, "Seed (capture and training)")->capture_default_str();
+  };
+  addBakeFlags(bakeCmd, bakeOpt);
+  bakeCmd->add_flag("--reproducible", bakeOpt.reproducible, "No timings in the cell files (training seconds 0; real ones in cells/cell_X_Z.json): byte-identical files for the same inputs");
+  lfgi::app::BakeStatusOptions statusOpt;
+  CLI::App* statusCmd = app.add_subcommand("bake-status", "World bake status: cells done / stale / missing / failed / corrupt, ETA; --plan: projected bake hours for larger worlds on N nodes");
+  addBakeFlags(statusCmd, statusOpt.bake);
+  statusCmd->add_flag("--plan", statusOpt.plan, "Cost model: measured seconds per cell by kind x the kind mix of larger worlds / nodes");
+  statusCmd->add_option("--nodes", statusOpt.nodes, "Nodes for the ETA and the plan")->check(CLI::Range(1, 1000000))->capture_default_str();
+  statusCmd->add_option("--size-km2", statusOpt.sizesKm2, "World sizes for --plan, km^2")->check(CLI::Range(1e-4, 1e5))->capture_default_str();
+  statusCmd->add_option("--plan-out", statusOpt.planOut, "Directory for plan.csv + plan.json (empty: print only)")->capture_default_str();
+  statusCmd->add_flag("--list-stale", statusOpt.listStale, "List the stale cells");
+  statusCmd->add_flag("-q,--quiet", statusOpt.quiet, "No progress line");
 
   lfgi::app::FlyOptions flyOpt, profileOpt;
   profileOpt.profile = true;
@@ -222,6 +236,7 @@ int main(int argc, char** argv) {
     if (*renderCmd) return lfgi::app::runRender(renderOpt);
     if (*flyCmd) return lfgi::app::runFly(flyOpt);
     if (*bakeCmd) return lfgi::app::runWorldBake(bakeOpt);
+    if (*statusCmd) return lfgi::app::runBakeStatus(statusOpt);
     if (*profileCmd) return lfgi::app::runFly(profileOpt);
     if (*inspect) return lfgi::app::runInspect(inspectOpt);
     if (*debugCell) return lfgi::app::runDebugWriteCell(debugCellOpt);

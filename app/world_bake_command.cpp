@@ -5,6 +5,10 @@
 // skipped; a corrupt existing file is rebaked. Interruptible
 // between cells (Ctrl-C: exit 130, rerun resumes with the next cell). Slurm: --array-index/--array-size
 // bake one contiguous share of the selected cells.
+// Bookkeeping (bake/bake_records.h): cells/cell_X_Z.json per baked cell (kind, seconds by stage, bytes,
+// host, time), cells/cell_X_Z.failed per failed cell; a failed cell does not stop the others, the exit
+// code is 1 when any failed.
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 
@@ -13,6 +17,7 @@
 
 #include "app/cli_args.h"
 #include "app/world_bake_command.h"
+#include "bake/bake_records.h"
 #include "core/cell_file.h"
 #include "core/error.h"
 #include "core/progress.h"
@@ -83,39 +88,91 @@ int runWorldBake(const WorldBakeOptions& opt) {
   Progress progress("bake", cells.size(), "cells");
   size_t done = 0, skipped = 0, networks = 0;
   size_t bytesTotal = 0;
+  std::vector<worlds::CellCoord> failed;
   for (const worlds::CellCoord c : cells) {
     if (InterruptGuard::interrupted()) {
       std::fprintf(stderr, "bake: interrupted after %zu cells; run the same command again to resume\n", done);
       return 130;
     }
-    const fs::path file = bake::cellFilePath(out, c);
-    bake::CellBakeInputs inputs = bake::prepareCellBake(world, c, settings);
-    std::string why;
-    const bake::CellBakeState state = bake::cellBakeState(file, inputs.inputHash, &why);
-    if (state == bake::CellBakeState::Done) {
-      ++skipped;
-      ++done;
-      progress.update(done);
-      continue;
+    // A failing cell is recorded (cells/cell_X_Z.failed) and the rest are still tried; the exit code is
+    // non-zero at the end, so a Slurm task fails and is retried (scripts/slurm/bake.sbatch).
+    try {
+      using Clock = std::chrono::steady_clock;
+      const auto t0 = Clock::now();
+      const fs::path file = bake::cellFilePath(out, c);
+      bake::CellBakeInputs inputs = bake::prepareCellBake(world, c, settings);
+      const double prepareSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
+      std::string why;
+      const bake::CellBakeState state = bake::cellBakeState(file, inputs.inputHash, &why);
+      if (state == bake::CellBakeState::Done) {
+        bake::clearCellBakeFailure(out, c);
+        ++skipped;
+        ++done;
+        progress.update(done);
+        continue;
+      }
+      if (state == bake::CellBakeState::Stale) spdlog::info("{}: inputs changed, rebaking", file.string());
+      if (state == bake::CellBakeState::Corrupt) spdlog::warn("rebaking: {}", why);
+      const uint64_t inputHash = inputs.inputHash;
+      bake::CellBakeReport report;
+      CellFile cf;
+      try {
+        cf = bake::bakeCell(world, std::move(inputs), settings, &report);
+      } catch (const Error&) {
+        if (!InterruptGuard::interrupted()) throw;
+        // Interrupted mid-cell: that cell is not written (bakeCell throws rather than return a partial model).
+        std::fprintf(stderr, "\nbake: interrupted during cell %d,%d (not written) after %zu cells; run the same command again to resume\n",
+                     c.x, c.z, done);
+        return 130;
+      }
+      if (opt.reproducible) cf.stats.trainingSeconds = 0.0;  // the only run-dependent field of the file
+      writeCellFile(file, cf);
+      CellFileBytes bytes;
+      readCellFile(file, &bytes);  // read back through every check: what we wrote is what a reader accepts
+      bake::CellBakeRecord record;
+      record.cell = c;
+      record.kind = world.cellKind(c);
+      record.inputHash = inputHash;
+      record.probes = report.probes;
+      record.network = report.network;
+      record.model = cf.stats.model;
+      record.prepareSeconds = prepareSeconds;
+      record.captureSeconds = report.captureSeconds;
+      record.trainingSeconds = report.trainingSeconds;
+      record.totalSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
+      record.bytes = bytes.total;
+      record.host = bake::hostName();
+      record.finishedUtc = bake::utcNow();
+      bake::writeCellBakeRecord(out, record);
+      bake::clearCellBakeFailure(out, c);
+      bytesTotal += bytes.total;
+      networks += report.network ? 1 : 0;
+      std::fprintf(stderr, "\ncell %d,%d: %zu probes, %s, irradiance error %.2f %% (target %.1f %%), %zu bytes, %.1f s\n", c.x,
+                   c.z, report.probes, cf.stats.model.c_str(), 100.0 * cf.stats.errorAchieved, 100.0 * opt.errorTarget,
+                   bytes.total, record.totalSeconds);
+    } catch (const std::exception& e) {
+      if (InterruptGuard::interrupted()) {
+        std::fprintf(stderr, "\nbake: interrupted during cell %d,%d (not written) after %zu cells; run the same command again to resume\n",
+                     c.x, c.z, done);
+        return 130;
+      }
+      std::fprintf(stderr, "\ncell %d,%d: failed: %s\n", c.x, c.z, e.what());
+      bake::writeCellBakeFailure(out, c, e.what());
+      failed.push_back(c);
     }
-    if (state == bake::CellBakeState::Stale) spdlog::info("{}: inputs changed, rebaking", file.string());
-    if (state == bake::CellBakeState::Corrupt) spdlog::warn("rebaking: {}", why);
-    bake::CellBakeReport report;
-    const CellFile cf = bake::bakeCell(world, std::move(inputs), settings, &report);
-    writeCellFile(file, cf);
-    CellFileBytes bytes;
-    readCellFile(file, &bytes);  // read back through every check: what we wrote is what a reader accepts
-    bytesTotal += bytes.total;
-    networks += report.network ? 1 : 0;
-    std::fprintf(stderr, "\ncell %d,%d: %zu probes, %s, irradiance error %.2f %% (target %.1f %%), %zu bytes, %.1f s\n", c.x,
-                 c.z, report.probes, cf.stats.model.c_str(), 100.0 * cf.stats.errorAchieved, 100.0 * opt.errorTarget,
-                 bytes.total, report.totalSeconds);
     ++done;
     progress.update(done);
   }
   progress.finish();
-  std::printf("done: %zu cells (%zu already baked, %zu with a network), %zu bytes written, in %s\n", cells.size(), skipped,
-              networks, bytesTotal, (out / "cells").string().c_str());
+  std::printf("done: %zu cells (%zu already baked, %zu with a network, %zu failed), %zu bytes written, in %s\n", cells.size(),
+              skipped, networks, failed.size(), bytesTotal, (out / "cells").string().c_str());
+  if (!failed.empty()) {
+    std::string list;
+    for (const worlds::CellCoord c : failed) list += fmt::format(" {},{}", c.x, c.z);
+    std::fprintf(stderr, "bake: %zu cell(s) failed:%s (errors in %s/cell_X_Z.failed); rerun to retry them\n", failed.size(),
+                 list.c_str(), (out / "cells").string().c_str());
+    return 1;
+  }
   return 0;
 }
 

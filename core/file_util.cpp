@@ -13,6 +13,9 @@ namespace lfgi {
 std::vector<std::byte> readFileBytes(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary | std::ios::ate);
   if (!in) fail("{}: cannot open for reading ({})", path.string(), std::strerror(errno));
+  // An ifstream opens a directory and reports a size of 2^63 - 1 (bad_alloc below), so name it instead.
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) fail("{}: is a directory, not a file", path.string());
   const std::streamoff size = in.tellg();
   if (size < 0) fail("{}: cannot determine file size", path.string());
   std::vector<std::byte> bytes(static_cast<std::size_t>(size));

@@ -13,11 +13,17 @@ fi
 name="$1"
 shift
 "$root/scripts/setup.sh" >/dev/null
-"$root/scripts/build.sh" "$root/build" "lfgi_bench_$name" lfgi_shaders >/dev/null
 out="$root/out/bench/$name"
 mkdir -p "$out"
 export LFGI_COMMIT="$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)"
-"$root/build/bin/lfgi_bench_$name" --out "$out" "$@"
+if [[ -f "$root/bench/$name.sh" ]]; then
+  # A benchmark of the lfgi command line itself (bench/bake.sh: bakes, Slurm-free determinism, cost model).
+  "$root/scripts/build.sh" "$root/build" lfgi lfgi_shaders >/dev/null
+  bash "$root/bench/$name.sh" "$out" "$root/build/bin/lfgi" "$@"
+else
+  "$root/scripts/build.sh" "$root/build" "lfgi_bench_$name" lfgi_shaders >/dev/null
+  "$root/build/bin/lfgi_bench_$name" --out "$out" "$@"
+fi
 if [[ -f "$root/bench/$name.gp" ]]; then
   device=$(sed -n 's/.*"device": "\(.*\)",*/\1/p' "$out/summary.json" | head -1)
   gnuplot -e "dir='$out'; device='$device'" "$root/bench/$name.gp"
