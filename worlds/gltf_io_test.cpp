@@ -605,6 +605,25 @@ TEST(GltfErrors, NodeCycleAndBadReferences) {
                    "scale");
 }
 
+// Wrong versions (issue 10): glTF 1.0 / 3.x JSON, a minVersion above 2.0 and a GLB container other
+// than version 2 are refused by name instead of being read as 2.0.
+TEST(GltfErrors, WrongVersionsAreRefused) {
+  const fs::path dir = tmpDir("versions");
+  for (const auto& [version, minVersion] :
+       {std::pair<std::string, std::string>{"1.0", ""}, {"3.0", ""}, {"2.0", "2.1"}}) {
+    nlohmann::json j = tinyGltf(kTetraPositions, kTetraIndices);
+    j["asset"]["version"] = version;
+    if (!minVersion.empty()) j["asset"]["minVersion"] = minVersion;
+    const fs::path file = dir / ("v" + version + "_" + minVersion + ".gltf");
+    writeText(file, j.dump());
+    expectErrorNames(errorOf([&] { importGltf(file); }), file, minVersion.empty() ? "asset.version '" + version : "asset.minVersion");
+  }
+  std::vector<char> glb = readBytes(kScenes / "cornell_box/CornellBox.glb");
+  glb[4] = 1;
+  writeBytes(dir / "v1.glb", glb.data(), glb.size());
+  expectErrorNames(errorOf([&] { importGltf(dir / "v1.glb"); }), dir / "v1.glb", "container version 1");
+}
+
 // Every outcome of a damaged file must be an lfgi::Error naming the file, or a valid mesh.
 void expectErrorOrValid(const fs::path& file, const std::string& label, size_t& errors) {
   try {

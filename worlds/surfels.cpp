@@ -33,6 +33,10 @@ constexpr float kRadiusUnit = 1e-4f;  // radius stored as uint16 in 0.1 mm units
 constexpr uint32_t kSurfelMagic = 0x4653464cu;  // "LFSF" little-endian
 constexpr uint32_t kSurfelVersion = 1;
 constexpr size_t kHeaderBytes = 12;
+// Decoder limits: a 64 m cell at the finest spacing (0.05 m) holds a few million surfels; the encoder
+// spends ~15 bytes per surfel, so 64 per byte is far beyond any real cloud.
+constexpr uint32_t kMaxSurfels = uint32_t(1) << 24;
+constexpr size_t kMaxSurfelsPerByte = 64;
 
 }  // namespace
 
@@ -108,7 +112,7 @@ double surfelArea(std::span<const Surfel> surfels) {
 std::vector<std::byte> encodeSurfels(std::span<const Surfel> surfels, int positionBits, SurfelCodecStats* stats) {
   if (positionBits < 8 || positionBits > 30) fail("surfel position bits must be in [8, 30] (got {})", positionBits);
   const size_t n = surfels.size();
-  if (n > 0xffffffffull) fail("too many surfels to encode ({})", n);
+  if (n > kMaxSurfels) fail("too many surfels to encode ({}; the decoder's limit is {})", n, kMaxSurfels);
   std::vector<std::byte> bytes(kHeaderBytes);
   const uint32_t header[3] = {kSurfelMagic, kSurfelVersion, uint32_t(n)};
   std::memcpy(bytes.data(), header, kHeaderBytes);
@@ -171,6 +175,25 @@ std::vector<Surfel> decodeSurfels(std::span<const std::byte> bytes, std::string_
     return {};
   }
   if (bytes.size() == kHeaderBytes) fail("{}: surfel data truncated (no Draco stream for {} surfels)", what, count);
+  // Draco trusts the point count in its stream and sizes every attribute buffer by it before reading a
+  // point, so one flipped bit there asks for gigabytes (found by the seeded bit-flip test: the process was
+  // OOM-killed). encodeSurfels always writes the same layout: "DRACO", bitstream 2.x, point cloud (0),
+  // kd-tree (1), flags 0 (no metadata), then the int32 point count at byte 11, which must equal ours; and
+  // the count is capped and bounded by the stream size before Draco allocates anything.
+  const auto* d = reinterpret_cast<const uint8_t*>(bytes.data() + kHeaderBytes);
+  const size_t dracoBytes = bytes.size() - kHeaderBytes;
+  if (dracoBytes < 15 || std::memcmp(d, "DRACO", 5) != 0)
+    fail("{}: corrupt surfel data (no Draco header after the lfgi header)", what);
+  if (d[5] != 2 || d[7] != 0 || d[8] != 1 || d[9] != 0 || d[10] != 0)
+    fail("{}: corrupt surfel data (Draco bitstream {}.{}, geometry {}, method {}, flags {}; expected a 2.x kd-tree "
+         "point cloud without metadata)", what, d[5], d[6], d[7], d[8], int(d[9]) | int(d[10]) << 8);
+  int32_t dracoCount = 0;
+  std::memcpy(&dracoCount, d + 11, 4);
+  if (dracoCount < 0 || uint32_t(dracoCount) != count)
+    fail("{}: surfel data holds {} points, header says {}", what, dracoCount, count);
+  if (count > kMaxSurfels || count > kMaxSurfelsPerByte * dracoBytes)
+    fail("{}: {} surfels in {} bytes of Draco data is corrupt or too many (limits: {}, {} per byte)", what, count,
+         dracoBytes, kMaxSurfels, kMaxSurfelsPerByte);
   draco::DecoderBuffer buffer;
   buffer.Init(reinterpret_cast<const char*>(bytes.data() + kHeaderBytes), bytes.size() - kHeaderBytes);
   draco::Decoder decoder;

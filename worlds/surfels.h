@@ -52,7 +52,8 @@ std::vector<std::byte> encodeSurfels(std::span<const Surfel> surfels, int positi
                                      SurfelCodecStats* stats = nullptr);
 
 // Decodes Draco bytes. `what` names the source (file or cell) in errors. Throws lfgi::Error on truncated
-// or corrupt data or a missing attribute; never returns partial data.
+// or corrupt data or a missing attribute; never returns partial data. At most 2^24 surfels (the encoder
+// refuses more); the Draco stream's own point count is checked against the header before Draco allocates.
 std::vector<Surfel> decodeSurfels(std::span<const std::byte> bytes, std::string_view what);
 
 }  // namespace lfgi::worlds

@@ -513,8 +513,9 @@ std::vector<Rect2> subtractHoles(const Rect2& outer, const std::vector<Rect2>& h
     std::vector<Rect2> next;
     for (const auto& [a, c] : solid) {
       if (c - a < 1e-6) continue;
-      auto it =
-          std::find_if(active.begin(), active.end(), [&](const Rect2& r) { return r.s0 == a && r.s1 == c; });
+      // Init-captures: clang 14 (the fuzz build) cannot capture structured bindings by reference.
+      auto it = std::find_if(active.begin(), active.end(),
+                             [a = a, c = c](const Rect2& r) { return r.s0 == a && r.s1 == c; });
       if (it != active.end()) {
         Rect2 r = *it;
         r.t1 = tb;

@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <cstring>
 
 #include "core/error.h"
@@ -175,31 +176,47 @@ WorldParams readWorldManifest(const std::filesystem::path& dir) {
   if (!std::filesystem::exists(file))
     fail("{}: no world here (create one with `lfgi world generate --out {}`)", file.string(), dir.string());
   std::vector<std::byte> bytes = readFileBytes(file);
-  nlohmann::json j = nlohmann::json::parse(std::string(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
-                                           nullptr, false);
-  if (j.is_discarded() || !j.is_object()) fail("{}: not valid JSON", file.string());
-  if (j.value("format", "") != "lfgi-world") fail("{}: not an lfgi world manifest (format field)", file.string());
-  if (j.value("version", 0) != kWorldFormatVersion)
-    fail("{}: world format version {} (this build reads {})", file.string(), j.value("version", 0), kWorldFormatVersion);
+  return parseWorldManifest(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), file.string());
+}
+
+WorldParams parseWorldManifest(std::string_view text, const std::string& name) {
+  // Every lookup is typed by hand: nlohmann's value()/get() throw their own exception types on a field of
+  // the wrong type, and the contract is an lfgi::Error naming the file.
+  nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.is_object()) fail("{}: not valid JSON", name);
+  const auto format = j.find("format");
+  if (format == j.end() || !format->is_string() || *format != "lfgi-world")
+    fail("{}: not an lfgi world manifest (format field)", name);
+  const auto version = j.find("version");
+  if (version == j.end() || !version->is_number_integer() || *version != kWorldFormatVersion)
+    fail("{}: world format version {} (this build reads {})", name, version == j.end() ? "missing" : version->dump(),
+         kWorldFormatVersion);
+  auto field = [&](const char* key) -> const nlohmann::json& {
+    const auto it = j.find(key);
+    if (it == j.end()) fail("{}: missing field '{}'", name, key);
+    return *it;
+  };
   WorldParams p;
-  try {
-    p.seed = j.at("seed").get<uint64_t>();
-    p.sizeM = j.at("size_m").get<double>();
-    p.cellM = j.at("cell_m").get<double>();
-  } catch (const nlohmann::json::exception& e) {
-    fail("{}: missing or wrong field ({})", file.string(), e.what());
+  const nlohmann::json& seed = field("seed");
+  if (!seed.is_number_unsigned()) fail("{}: field 'seed' is {}, expected an integer in [0, 2^64)", name, seed.dump());
+  p.seed = seed.get<uint64_t>();
+  for (auto [key, out] : {std::pair{"size_m", &p.sizeM}, std::pair{"cell_m", &p.cellM}}) {
+    const nlohmann::json& v = field(key);
+    if (!v.is_number()) fail("{}: field '{}' is {}, expected a number", name, key, v.dump());
+    *out = v.get<double>();
+    if (!std::isfinite(*out)) fail("{}: field '{}' is not finite", name, key);
   }
   if (const auto edits = j.find("edits"); edits != j.end()) {
     try {
       p.edits = worldEditsFromJson(*edits);
     } catch (const Error& e) {
-      fail("{}: {}", file.string(), e.what());
+      fail("{}: {}", name, e.what());
     }
   }
   try {
     p.validate();
   } catch (const Error& e) {
-    fail("{}: {}", file.string(), e.what());
+    fail("{}: {}", name, e.what());
   }
   return p;
 }

@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json_fwd.hpp>
@@ -76,6 +77,8 @@ WorldParams readWorldManifest(const std::filesystem::path& dir);
 // writeWorldManifest keeps an existing manifest's edits (it refuses different non-empty ones), and
 // readWorldManifest reads and validates them ("edits", optional).
 WorldParams appendWorldEdits(const std::filesystem::path& dir, const std::vector<WorldEdit>& edits);
+// The manifest's text -> parameters, with readWorldManifest's checks; errors start with `name`.
+WorldParams parseWorldManifest(std::string_view text, const std::string& name);
 std::filesystem::path cellJsonPath(const std::filesystem::path& dir, CellCoord c);
 bool cellDone(const std::filesystem::path& dir, CellCoord c);
 void writeCell(const std::filesystem::path& dir, const BuiltCell& cell);

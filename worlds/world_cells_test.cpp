@@ -4,6 +4,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include <random>
+#include <utility>
+
 #include "core/error.h"
 #include "core/file_util.h"
 
@@ -112,6 +115,73 @@ TEST(WorldCells, BadManifestsNameTheFile) {
       EXPECT_NE(std::string(e.what()).find("world.json"), std::string::npos) << e.what();
     }
   }
+}
+
+// Bad input (issue 10): every malformed manifest is an lfgi::Error naming the file, never a JSON library
+// exception or a crash: wrong types, wrong version, huge and non-finite numbers, every truncation, bit flips.
+std::string manifestError(std::string_view text) {
+  try {
+    const WorldParams p = parseWorldManifest(text, "w/world.json");
+    p.validate();
+    return {};
+  } catch (const Error& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    return std::string("not an lfgi::Error: ") + e.what();
+  }
+}
+
+TEST(WorldManifest, WrongTypesVersionsAndNumbersNameTheFile) {
+  const std::string good = "{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":64,\"cell_m\":32}";
+  EXPECT_EQ(manifestError(good), "");
+  const std::pair<std::string, std::string> cases[] = {
+      {"{\"format\":5,\"version\":1}", "format field"},
+      {"{\"format\":\"lfgi-world\",\"version\":\"1\"}", "world format version \"1\""},
+      {"{\"format\":\"lfgi-world\",\"version\":2}", "world format version 2 (this build reads 1)"},
+      {"{\"format\":\"lfgi-world\",\"version\":1.5}", "world format version 1.5"},
+      {"{\"format\":\"lfgi-world\"}", "world format version missing"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"size_m\":64,\"cell_m\":32}", "missing field 'seed'"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":-1,\"size_m\":64,\"cell_m\":32}", "field 'seed' is -1"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":1.5,\"size_m\":64,\"cell_m\":32}", "field 'seed' is 1.5"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":\"64\",\"cell_m\":32}", "field 'size_m' is \"64\""},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":1e400,\"cell_m\":32}", "not valid JSON"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":-64,\"cell_m\":32}", "size -64 m"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":1e12,\"cell_m\":64}", "more than 65536"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":64,\"cell_m\":null}", "field 'cell_m' is null"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":64,\"cell_m\":0.001}", "cell size 0.001 m"},
+      {"[1, 2, 3]", "not valid JSON"},
+      {"NaN", "not valid JSON"},
+  };
+  for (const auto& [text, expect] : cases) {
+    const std::string e = manifestError(text);
+    EXPECT_EQ(e.rfind("w/world.json: ", 0), 0u) << text << " -> '" << e << "'";
+    EXPECT_NE(e.find(expect), std::string::npos) << text << " -> '" << e << "'";
+  }
+}
+
+TEST(WorldManifest, EveryTruncationAndRandomCorruptionIsAnError) {
+  const std::string good =
+      "{\n  \"format\": \"lfgi-world\",\n  \"version\": 1,\n  \"generator\": \"synthetic\",\n  \"seed\": 3,\n"
+      "  \"size_m\": 64.0,\n  \"cell_m\": 32.0,\n  \"cells_x\": 2,\n  \"cells_z\": 2\n}\n";
+  ASSERT_EQ(manifestError(good), "");
+  for (size_t len = 0; len + 1 < good.size(); ++len) {  // without the final newline it is still valid
+    const std::string e = manifestError(std::string_view(good).substr(0, len));
+    EXPECT_EQ(e.rfind("w/world.json: ", 0), 0u) << "length " << len << ": '" << e << "'";
+  }
+  std::mt19937 rng(10);
+  size_t rejected = 0, accepted = 0;
+  for (int t = 0; t < 2000; ++t) {
+    std::string bad = good;
+    for (int k = 0; k < 1 + t % 3; ++k) bad[rng() % bad.size()] ^= char(1u << (rng() % 8));
+    const std::string e = manifestError(bad);
+    if (e.empty()) {
+      ++accepted;  // e.g. a flipped bit in "generator" or whitespace: still a valid manifest
+    } else {
+      ++rejected;
+      ASSERT_EQ(e.rfind("w/world.json: ", 0), 0u) << "trial " << t << ": '" << e << "'";
+    }
+  }
+  std::printf("[ measure  ] manifest bit flips: %zu rejected, %zu still valid\n", rejected, accepted);
 }
 
 }  // namespace
