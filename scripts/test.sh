@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds, and runs the whole test suite with CTest; then rebuilds the file
 # readers' and decoders' tests (core: EXR; worlds: Draco surfels, glTF) under AddressSanitizer +
-# UndefinedBehaviorSanitizer and runs them (tests named *Slow* are skipped there).
+# UndefinedBehaviorSanitizer and runs them (tests named *Slow* are skipped there); then, when clang and
+# libFuzzer are installed, fuzzes the cell-file reader, surfel decoder and world manifest parser for a
+# bounded time (scripts/fuzz.sh; LFGI_SKIP_FUZZ=1 skips it, LFGI_FUZZ_SECONDS sets the time).
 # Usage: scripts/test.sh [ctest args...]      (e.g. -L lfgi_core, -R Octahedral, -LE slow)
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -22,4 +24,8 @@ if [[ "${LFGI_SKIP_SANITIZERS:-0}" != "1" ]]; then
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
     ctest --test-dir "$root/build-asan" --output-on-failure -j "$jobs" -L 'lfgi_core|lfgi_worlds' -E Slow
   echo "tests: sanitizer suite took $(( $(date +%s) - start )) s (build included)"
+fi
+
+if [[ "${LFGI_SKIP_FUZZ:-0}" != "1" ]]; then
+  LFGI_JOBS="$jobs" "$root/scripts/fuzz.sh" "$root/build-fuzz-clang"
 fi
