@@ -49,7 +49,7 @@ std::string framesCsv(const std::vector<streaming::FlythroughFrame>& frames) {
 // Charts of the profile: memory and cells per frame, stage time per frame against the budget.
 constexpr const char* kProfileGnuplot = R"(set datafile separator ','
 set terminal pngcairo size 1100,800 font ',10' noenhanced
-set output dir.'/profile.png'
+set output png
 set multiplot layout 3,1 title 'lfgi streaming profile: '.title
 set xlabel 'frame'
 set ylabel 'MB'
@@ -192,13 +192,21 @@ int runFly(const FlyOptions& opt) {
               s.cellsRequested);
   if (opt.profile) {
     trace.save(out / "trace.json");
-    std::string cmd = fmt::format("gnuplot -e \"dir='{}'; title='{} m/s, {} s'; budget_mb={}; activate_budget_ms={}\" - 2>&1",
-                                  out.string(), opt.speed, opt.seconds, opt.budgetMb,
-                                  fo.streaming.activateBudgetMs);
+    // gnuplot writes the chart under a temporary name (file_util.h): a failed or killed run never leaves a
+    // partial profile.png.
     bool charts = false;
-    if (FILE* gp = popen(cmd.c_str(), "w")) {
-      std::fputs(kProfileGnuplot, gp);
-      charts = pclose(gp) == 0;
+    try {
+      writeViaTempFile(out / "profile.png", [&](const std::filesystem::path& tmp) {
+        const std::string cmd =
+            fmt::format("gnuplot -e \"dir='{}'; png='{}'; title='{} m/s, {} s'; budget_mb={}; activate_budget_ms={}\" - 2>&1",
+                        out.string(), tmp.string(), opt.speed, opt.seconds, opt.budgetMb, fo.streaming.activateBudgetMs);
+        FILE* gp = popen(cmd.c_str(), "w");
+        if (!gp) fail("gnuplot: cannot start");
+        std::fputs(kProfileGnuplot, gp);
+        if (pclose(gp) != 0) fail("gnuplot failed");
+      });
+      charts = true;
+    } catch (const Error&) {
     }
     if (!charts) spdlog::warn("gnuplot failed or is missing: no profile.png (install gnuplot-nox)");
     std::string html = fmt::format(

@@ -7,6 +7,7 @@
 #include <string>
 #include <string_view>
 
+#include "app/cli_args.h"
 #include "app/commands.h"
 #include "core/error.h"
 
@@ -209,6 +210,7 @@ int main(int argc, char** argv) {
   debugCell->add_flag("--fp16", debugCellOpt.fp16, "FP16 weights instead of int8");
   debugCell->add_option("--latent-bits", debugCellOpt.latentBits, "8 or 4")->check(CLI::IsMember({4, 8}));
 
+  lfgi::app::requireSaneNumbers(app);  // NaN, Inf, negative unsigned and overflowing values: exit 2
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
+#include <thread>
 
 #include "core/error.h"
 #include "core/progress.h"
@@ -122,6 +123,7 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
     }
     manager.update(in);
   }
+  const auto flightStart = Clock::now();
   for (int f = 0; f < frames; ++f) {
     if (InterruptGuard::interrupted()) {
       sum.interrupted = true;
@@ -196,6 +198,9 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
     if (perFrame) perFrame(fr);
     progress.update(size_t(f + 1));
     ++sum.frames;
+    if (o.realtime)
+      std::this_thread::sleep_until(flightStart + std::chrono::duration_cast<Clock::duration>(
+                                                      std::chrono::duration<double>(double(f + 1) * dt)));
   }
   manager.drainIo();
   progress.finish();

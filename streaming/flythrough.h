@@ -29,6 +29,10 @@ struct FlythroughOptions {
   float todStart = 6.0f, todEnd = 20.0f;  // time-of-day sweep over the flight (hours)
   float shadeDistance = 120.0f;  // m: visible samples farther away use the far-field fallback by design
   int sampleRaysX = 24, sampleRaysY = 12;  // view rays of the visible-sample grid (90 x 50 deg)
+  // Pace frames to 1/fps of wall time (sleep the rest of each frame), so IO-thread loads and relights race
+  // the real clock as in a game; off: frames run back to back (with IO threads, loads arrive late in
+  // simulated time when frames are cheap: a pessimistic model).
+  bool realtime = false;
   bool preload = true;           // load everything around the start before the first frame (uncounted)
   StreamingConfig streaming;
   // StreamingManager::onRelight for the flight: game-thread hook after a relit field is swapped in (the
