@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Time-of-day sweep (issue 9): one view of the default world shaded from light-field probes from dawn to
-# night, as a PNG sequence + an index page + (when ImageMagick's `convert` is installed) an animated GIF.
+# night, as a PNG sequence + an index page + (when ImageMagick's `convert` is installed) an animated GIF
+# (gifsicle and ffmpeg are not installed here; no new package is added for a GIF).
 # Usage: scripts/tod_sweep.sh [OUT_DIR] [HOURS...]
 # Environment: EXPOSURE=EV fixes the exposure of every frame; default: the exposure `lfgi render` picks
 # automatically for the noon frame (rendered first), then used for all frames, so night is dark and dawn
@@ -45,10 +46,15 @@ for h in "${hours[@]}"; do
   echo "**$h h** ![]($name.png)" >> "$index.tmp"
   echo >> "$index.tmp"
 done
-if command -v convert > /dev/null 2>&1; then
-  convert -delay 50 -loop 0 "${frames[@]}" "$out/sweep.gif.tmp.gif" && mv "$out/sweep.gif.tmp.gif" "$out/sweep.gif"
-  echo "![sweep](sweep.gif)" >> "$index.tmp"
-  echo "tod_sweep: $out/sweep.gif"
+# Only a real ImageMagick (this machine's /usr/local/bin/convert is a stand-in that cannot write GIFs).
+if command -v convert > /dev/null 2>&1 && convert -version 2>/dev/null | grep -q ImageMagick; then
+  if convert -delay 50 -loop 0 "${frames[@]}" "$out/sweep.tmp.gif"; then
+    mv "$out/sweep.tmp.gif" "$out/sweep.gif"
+    echo "![sweep](sweep.gif)" >> "$index.tmp"
+    echo "tod_sweep: $out/sweep.gif"
+  fi
+else
+  echo "tod_sweep: no ImageMagick convert: PNG sequence only"
 fi
 mv "$index.tmp" "$index"
 echo "tod_sweep: $index"
