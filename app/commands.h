@@ -157,6 +157,7 @@ struct FlyOptions {
   double budgetMb = 256.0;
   float decodeRadius = 160.0f;
   int ioThreads = 0;          // 0: inline loads, loadsPerFrame per frame (deterministic)
+  bool realtime = false;      // pace frames to 1/fps of wall time (FlythroughOptions::realtime)
   int loadsPerFrame = 2;
   int loadDelayUs = 0;
   int resolution = 8;

@@ -115,6 +115,7 @@ int runFly(const FlyOptions& opt) {
   fo.todStart = opt.todStart;
   fo.todEnd = opt.todEnd;
   fo.streaming.ioThreads = opt.ioThreads;
+  fo.realtime = opt.realtime;
   fo.streaming.maxInlineLoadsPerFrame = opt.loadsPerFrame;
   fo.streaming.memoryBudgetBytes = size_t(opt.budgetMb * 1024.0 * 1024.0);
   fo.streaming.decodeRadius = opt.decodeRadius;

@@ -187,6 +187,7 @@ int main(int argc, char** argv) {
     c->add_option("--budget-mb", o.budgetMb, "Resident light-field memory budget, MB")->check(CLI::Range(0.01, 1e6))->capture_default_str();
     c->add_option("--decode-radius", o.decodeRadius, "Cells nearer than this are loaded, m")->check(CLI::Range(1.0, 1e5))->capture_default_str();
     c->add_option("--io-threads", o.ioThreads, "IO threads (0: inline, --loads-per-frame per frame)")->check(CLI::Range(0, 64))->capture_default_str();
+    c->add_flag("--realtime", o.realtime, "Pace frames to 1/fps of wall time (IO threads race the real clock)");
     c->add_option("--loads-per-frame", o.loadsPerFrame, "IO bandwidth with --io-threads 0, cells per frame")->check(CLI::Range(1, 1024))->capture_default_str();
     c->add_option("--load-delay-us", o.loadDelayUs, "Simulated read + decode time per cell")->check(CLI::Range(0, 10000000))->capture_default_str();
     c->add_option("--resolution", o.resolution, "Probe octahedral resolution of the synthetic cells")->check(CLI::Range(2, 64))->capture_default_str();
