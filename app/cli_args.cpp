@@ -1,9 +1,14 @@
 #include "app/cli_args.h"
 
+#include <CLI/CLI.hpp>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
+#include <limits>
 
 #include "core/error.h"
 
@@ -33,6 +38,46 @@ std::vector<float> parseNumbers(const std::string& flag, const std::string& text
   }
   if (v.size() != count) fail("{} '{}': expected {} ({} numbers), got {}", flag, text, what, count, v.size());
   return v;
+}
+
+void requireSaneNumbers(CLI::App& app) {
+  const CLI::Validator finite(
+      [](std::string& text) -> std::string {
+        char* end = nullptr;
+        const long double v = std::strtold(text.c_str(), &end);
+        if (end != text.c_str() + text.size()) return {};  // not a number: CLI11's own conversion reports it
+        if (!std::isfinite(v)) return "value " + text + " is not a finite number";
+        if (std::fabs(v) > std::numeric_limits<float>::max()) return "value " + text + " is out of range";
+        return {};
+      },
+      "");
+  const CLI::Validator integer(
+      [](std::string& text) -> std::string {
+        if (text.find('-') != std::string::npos && text.find_first_not_of(" \t") == text.find('-'))
+          return "value " + text + " is negative";
+        errno = 0;
+        char* end = nullptr;
+        (void)std::strtoull(text.c_str(), &end, 0);
+        if (end == text.c_str() + text.size() && errno == ERANGE) return "value " + text + " is out of range";
+        return {};
+      },
+      "");
+  const CLI::Validator signedInteger(
+      [](std::string& text) -> std::string {
+        errno = 0;
+        char* end = nullptr;
+        (void)std::strtoll(text.c_str(), &end, 0);
+        if (end == text.c_str() + text.size() && errno == ERANGE) return "value " + text + " is out of range";
+        return {};
+      },
+      "");
+  for (CLI::Option* o : app.get_options()) {
+    const std::string type = o->get_type_name().substr(0, o->get_type_name().find(':'));
+    if (type == "FLOAT") o->check(finite);
+    if (type == "UINT") o->check(integer);
+    if (type == "INT") o->check(signedInteger);
+  }
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) requireSaneNumbers(*sub);
 }
 
 }  // namespace lfgi::app

@@ -8,7 +8,17 @@
 
 #include "worlds/synthetic_world.h"
 
+namespace CLI {
+class App;
+}
+
 namespace lfgi::app {
+
+// Adds to every number option of app and its subcommands (recursively) the checks CLI11 2.1 lacks:
+// floating-point values must be finite and within float range (CLI11 parses "nan" and "inf", and NaN
+// passes its Range validators); unsigned values must not be negative (strtoull turns "-1" into 2^64 - 1);
+// no integer may overflow. A failing value is a usage error (exit 2) naming the flag and the value.
+void requireSaneNumbers(CLI::App& app);
 
 // "X,Z" (two integers) -> cell coordinate; throws lfgi::Error "<flag> '<text>': expected X,Z ...".
 worlds::CellCoord parseCellArg(const std::string& text, std::string_view flag);

@@ -2,8 +2,8 @@
 // bakeCell, written to cells/cell_X_Z.vdb atomically.
 // Idempotent: a cell whose file exists with the same input hash (bake/world_bake.h: world seed, cell, the
 // mesh hashes of the cell and its 8 neighbours, probe grid, flags and offsets, every bake option) is
-// skipped; a corrupt existing file is rebaked. Interruptible
-// between cells (Ctrl-C: exit 130, rerun resumes with the next cell). Slurm: --array-index/--array-size
+// skipped; a corrupt existing file is rebaked. Interruptible (Ctrl-C: exit 130; the cell in flight is
+// dropped, not written half-trained; a rerun resumes with it; tests/interrupt_bake.sh). Slurm: --array-index/--array-size
 // bake one contiguous share of the selected cells.
 // Bookkeeping (bake/bake_records.h): cells/cell_X_Z.json per baked cell (kind, seconds by stage, bytes,
 // host, time), cells/cell_X_Z.failed per failed cell; a failed cell does not stop the others, the exit

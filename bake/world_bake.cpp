@@ -8,6 +8,7 @@
 #include "bake/embree_scene.h"
 #include "core/error.h"
 #include "core/half.h"
+#include "core/progress.h"
 #include "core/sh.h"
 
 namespace lfgi::bake {
@@ -168,6 +169,10 @@ CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const 
         captureTrainingSet(scene, positions, cell.probes.grid.origin, cell.probes.grid.boxMax(), keys, capture, {}, false);
     r.captureSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
     CellModelChoice choice = chooseCellModel(set, flags, sizing);
+    // On Ctrl-C, training stops and chooseCellModel returns the best model so far. Stored under this
+    // cell's input hash, that half-trained model would be skipped by every rerun (and differ from an
+    // uninterrupted bake), so an interrupted cell is an error and nothing is written for it.
+    if (InterruptGuard::interrupted()) fail("bake: cell {},{}: interrupted during training", c.x, c.z);
     cf.fallback = fallbackOf(set);
     cf.stats.errorTarget = settings.errorTarget;
     cf.stats.trainingSeconds = choice.trainingSeconds;
