@@ -357,7 +357,10 @@ FrameStats StreamingManager::update(const FrameInput& in) {
 
   // Start relights of stale cells, nearest first, amortised over frames and capped in flight.
   auto tr = Clock::now();
-  for (int n = 0; n < config_.maxRelightsPerFrame; ++n) {
+  bool loadsInFlight = false;
+  for (const Slot& slot : slots_) loadsInFlight = loadsInFlight || slot.state == SlotState::Loading;
+  const bool yield = config_.ioThreads > 0 && config_.relightsYieldToLoads && loadsInFlight;
+  for (int n = 0; n < config_.maxRelightsPerFrame && !yield; ++n) {
     int st = -1;
     for (size_t i = 0; i < staging_.size() && st < 0; ++i)
       if (!staging_[i].busy) st = int(i);

@@ -68,6 +68,9 @@ struct StreamingConfig {
   float relightThresholdHours = 0.25f;
   int maxRelightsPerFrame = 1;        // relights started per frame (0: no relight)
   int maxRelightsInFlight = 1;        // staging fields (each maxCellBytes of the budget)
+  // IO threads: start no relight while a load is in flight (loads fill holes, relights only refresh;
+  // on 2 IO threads a relight would otherwise halve the load bandwidth of a fast flight).
+  bool relightsYieldToLoads = true;
   bool recordEvents = false;          // keep an event log (tests, profiler)
   // Throws lfgi::Error naming the bad field.
   void validate() const;

@@ -263,6 +263,25 @@ TEST(StreamingRelight, InlineEventLogIsAPureFunctionOfTheInputs) {
   EXPECT_EQ(a, b);
 }
 
+TEST(StreamingRelight, RelightsYieldToLoadsInFlight) {
+  for (bool yield : {true, false}) {
+    SyntheticSourceOptions o = todWorld();
+    o.loadDelayUs = 50000;  // a load started this frame is still in flight at the relight stage
+    SyntheticCellSource source(o);
+    StreamingConfig c = baseConfig(2);
+    c.relightsYieldToLoads = yield;
+    StreamingManager m(source, c);
+    const glm::vec3 p(300.0f, 5.0f, 300.0f);
+    settle(m, p, 8.0f);
+    FrameStats s = m.update(at(p + glm::vec3(64.0f, 0.0f, 0.0f), 14.0f));  // a new column of cells + stale ones
+    ASSERT_GT(s.requested, 0);
+    EXPECT_EQ(s.relighting, yield ? 0 : 1);
+    m.drainIo();
+    settle(m, p + glm::vec3(64.0f, 0.0f, 0.0f), 14.0f);  // the relights come once the loads are in
+    EXPECT_GT(source.relights(), 0u);
+  }
+}
+
 TEST(StreamingRelight, BudgetMustHoldTheStagingFields) {
   SyntheticCellSource source(todWorld());
   StreamingConfig c = baseConfig(0);
