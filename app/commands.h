@@ -198,8 +198,9 @@ struct WorldBakeOptions {
   int threads = 1;
   uint64_t seed = 1;
   // Store no timing in the cell file (training seconds 0; the real ones stay in cells/cell_X_Z.json), so
-  // the same inputs give byte-identical files in any process (Slurm vs single-process comparisons).
-  bool reproducible = false;
+  // the same inputs give byte-identical files in any process (Slurm vs single-process, interrupted vs
+  // uninterrupted bakes). Default on; --record-training-time stores the wall-clock training seconds.
+  bool reproducible = true;
 };
 int runWorldBake(const WorldBakeOptions& options);
 

@@ -165,7 +165,8 @@ int main(int argc, char** argv) {
     c->add_option("--seed", o.seed, "Seed (capture and training)")->capture_default_str();
   };
   addBakeFlags(bakeCmd, bakeOpt);
-  bakeCmd->add_flag("--reproducible", bakeOpt.reproducible, "No timings in the cell files (training seconds 0; real ones in cells/cell_X_Z.json): byte-identical files for the same inputs");
+  bakeCmd->add_flag("--reproducible", bakeOpt.reproducible, "No timings in the cell files (the default; training seconds 0, real ones in cells/cell_X_Z.json): byte-identical files for the same inputs");
+  bakeCmd->add_flag("--record-training-time{false}", bakeOpt.reproducible, "Store the wall-clock training seconds in each cell file (files then differ between runs)");
   lfgi::app::BakeStatusOptions statusOpt;
   CLI::App* statusCmd = app.add_subcommand("bake-status", "World bake status: cells done / stale / missing / failed / corrupt, ETA; --plan: projected bake hours for larger worlds on N nodes");
   addBakeFlags(statusCmd, statusOpt.bake);
