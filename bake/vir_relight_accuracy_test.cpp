@@ -17,6 +17,7 @@
 #include "bake/embree_scene.h"
 #include "bake/path_trace.h"
 #include "bake/probe_capture.h"
+#include "bake/probe_sources.h"
 #include "core/error.h"
 #include "gpu/relight_pass.h"
 #include "shared/octahedral.h"
@@ -34,21 +35,6 @@ double quantile(std::vector<double> v, double q) {
 }
 
 float lum(glm::vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
-
-// A copy of mesh where every double-sided triangle also appears reversed (as a single-sided triangle of
-// the same material), so the surfel sampler puts a disc on each side: VIR culls back-facing discs, and
-// each side must carry its own irradiance.
-worlds::TriangleMesh withBackFaces(const worlds::TriangleMesh& mesh) {
-  worlds::TriangleMesh out = mesh;
-  for (size_t t = 0; t < mesh.triangleCount(); ++t) {
-    if (!mesh.materials[mesh.triangleMaterial[t]].doubleSided) continue;
-    out.indices.push_back(mesh.indices[3 * t]);
-    out.indices.push_back(mesh.indices[3 * t + 2]);
-    out.indices.push_back(mesh.indices[3 * t + 1]);
-    out.triangleMaterial.push_back(mesh.triangleMaterial[t]);
-  }
-  return out;
-}
 
 struct Comparison {
   double probeMedian = 0.0, probeP90 = 0.0, probeRelRms = 0.0;
@@ -187,7 +173,7 @@ TEST(VirRelightAccuracy, CornellBoxMatchesEmbree) {
   }
   // Midnight under full overcast: no disc, the sky ~1e-7 of the light: the ceiling light does everything.
   const worlds::SkyModel sky = worlds::makeSky(worlds::SkyState{0.0f, 45.0f, 172, 3.0f, 1.0f});
-  const std::vector<worlds::Surfel> surfels = worlds::sampleSurfels(withBackFaces(mesh), {0.02f, 1});
+  const std::vector<worlds::Surfel> surfels = worlds::sampleSurfels(meshWithBackFaces(mesh), {0.02f, 1});
   gpu::RelightProbes probes;
   probes.grid = worlds::presetProbeGrid(preset, mesh.bounds());
   for (int64_t i = 0; i < probes.grid.probeCount(); ++i)

@@ -363,8 +363,7 @@ ShL1 CellFileSource::fallback(glm::ivec2 cell) const {
   return fallback_[size_t(layout_.linear(cell))];
 }
 
-void CellFileSource::load(glm::ivec2 cell, ProbeField& out) {
-  if (!layout_.contains(cell)) fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, layout_.cells.x, layout_.cells.y);
+void CellFileSource::readAndDecode(glm::ivec2 cell, float timeOfDayHours, ProbeField& out) {
   const fs::path path = cellPath(cell);
   const auto t0 = Clock::now();
   std::error_code ec;
@@ -373,9 +372,14 @@ void CellFileSource::load(glm::ivec2 cell, ProbeField& out) {
   checkCellFits(file, cell, worldSeed_, layout_, path);
   const auto t1 = Clock::now();
   readUs_.fetch_add(usSince(t0));
-  decodeCellField(file, timeOfDay_.load(), options_.weather, options_.irradianceResolution, options_.shOnlyResolution,
+  decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution, options_.shOnlyResolution,
                   out, path.string());
   decodeUs_.fetch_add(usSince(t1));
+}
+
+void CellFileSource::load(glm::ivec2 cell, ProbeField& out) {
+  if (!layout_.contains(cell)) fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, layout_.cells.x, layout_.cells.y);
+  readAndDecode(cell, timeOfDay_.load(), out);
   loads_.fetch_add(1);
 }
 
@@ -409,17 +413,7 @@ void CellFileSource::relightInto(glm::ivec2 cell, const ProbeField& current, Pro
     out = current;  // copy-assignment keeps out's capacity when it fits: no allocation once warm
     return;
   }
-  const fs::path path = cellPath(cell);
-  const auto t0 = Clock::now();
-  std::error_code ec;
-  if (!fs::exists(path, ec)) fail("{}: no cell file", path.string());
-  const CellFile file = readCellFile(path);
-  checkCellFits(file, cell, worldSeed_, layout_, path);
-  const auto t1 = Clock::now();
-  readUs_.fetch_add(usSince(t0));
-  decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution, options_.shOnlyResolution,
-                  out, path.string());
-  decodeUs_.fetch_add(usSince(t1));
+  readAndDecode(cell, timeOfDayHours, out);
 }
 
 }  // namespace lfgi::streaming

@@ -87,6 +87,9 @@ class CellFileSource final : public CellSource {
   double decodeMsTotal() const { return double(decodeUs_.load()) * 1e-3; }
 
  private:
+  // Reads + validates cell's file and decodes it at timeOfDayHours into out (load and relightInto).
+  void readAndDecode(glm::ivec2 cell, float timeOfDayHours, ProbeField& out);
+
   CellFileSourceOptions options_;
   WorldLayout layout_;
   uint64_t worldSeed_ = 0;
