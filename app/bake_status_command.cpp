@@ -100,7 +100,8 @@ int runBakeStatus(const BakeStatusOptions& opt) {
   if (opt.plan) return runPlan(opt, world, out);
 
   const std::vector<worlds::CellCoord> cells = selectBakeCells(world, opt.bake);
-  const bake::WorldBakeSettings settings = worldBakeSettings(opt.bake);
+  const bake::WorldBakeSettings& settings = opt.bake.settings;
+  settings.validate();
   InterruptGuard guard;
   const std::vector<bake::CellStatusEntry> status = bake::worldBakeStatus(world, cells, settings, out, !opt.quiet);
 

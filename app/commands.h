@@ -8,6 +8,8 @@
 #include <utility>
 #include <vector>
 
+#include "bake/world_bake.h"
+
 namespace lfgi::app {
 
 struct DeviceOptions {
@@ -189,14 +191,7 @@ struct WorldBakeOptions {
   std::vector<std::string> cells;  // "X,Z" or linear index ranges "A-B"; empty: every cell
   int arrayIndex = 0, arraySize = 0;  // arraySize > 0: bake share arrayIndex of arraySize
   std::string outDir;                 // default WORLD/baked
-  double errorTarget = 0.05;
-  std::string keys = "8,12,17.5";     // lighting keys: HOURS[:OVERCAST],...
-  int resolution = 16;
-  int spp = 16;
-  int bounces = 4;
-  int maxSteps = 1500;
-  int threads = 1;
-  uint64_t seed = 1;
+  bake::WorldBakeSettings settings;   // capture + training settings (they enter the input hash)
   // Store no timing in the cell file (training seconds 0; the real ones stay in cells/cell_X_Z.json), so
   // the same inputs give byte-identical files in any process (Slurm vs single-process, interrupted vs
   // uninterrupted bakes). Default on; --record-training-time stores the wall-clock training seconds.

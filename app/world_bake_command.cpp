@@ -57,20 +57,6 @@ std::vector<worlds::CellCoord> selectCells(const worlds::SyntheticWorld& world, 
 
 }  // namespace
 
-bake::WorldBakeSettings worldBakeSettings(const WorldBakeOptions& opt) {
-  bake::WorldBakeSettings s;
-  s.errorTarget = opt.errorTarget;
-  s.keys = opt.keys;
-  s.resolution = opt.resolution;
-  s.spp = opt.spp;
-  s.bounces = opt.bounces;
-  s.maxSteps = opt.maxSteps;
-  s.threads = opt.threads;
-  s.seed = opt.seed;
-  s.validate();
-  return s;
-}
-
 std::vector<worlds::CellCoord> selectBakeCells(const worlds::SyntheticWorld& world, const WorldBakeOptions& opt) {
   std::vector<worlds::CellCoord> cells = selectCells(world, opt.cells);
   if (opt.arraySize > 0) cells = bake::arrayShare(cells, opt.arrayIndex, opt.arraySize);
@@ -80,7 +66,8 @@ std::vector<worlds::CellCoord> selectBakeCells(const worlds::SyntheticWorld& wor
 int runWorldBake(const WorldBakeOptions& opt) {
   const worlds::SyntheticWorld world(worlds::readWorldManifest(opt.world));
   const std::vector<worlds::CellCoord> cells = selectBakeCells(world, opt);
-  const bake::WorldBakeSettings settings = worldBakeSettings(opt);
+  const bake::WorldBakeSettings& settings = opt.settings;
+  settings.validate();
   const fs::path out = opt.outDir.empty() ? fs::path(opt.world) / "baked" : fs::path(opt.outDir);
   fs::create_directories(out / "cells");
 
@@ -148,7 +135,7 @@ int runWorldBake(const WorldBakeOptions& opt) {
       bytesTotal += bytes.total;
       networks += report.network ? 1 : 0;
       std::fprintf(stderr, "\ncell %d,%d: %zu probes, %s, irradiance error %.2f %% (target %.1f %%), %zu bytes, %.1f s\n", c.x,
-                   c.z, report.probes, cf.stats.model.c_str(), 100.0 * cf.stats.errorAchieved, 100.0 * opt.errorTarget,
+                   c.z, report.probes, cf.stats.model.c_str(), 100.0 * cf.stats.errorAchieved, 100.0 * settings.errorTarget,
                    bytes.total, record.totalSeconds);
     } catch (const std::exception& e) {
       if (InterruptGuard::interrupted()) {

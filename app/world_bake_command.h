@@ -1,4 +1,4 @@
-// Shared by `lfgi bake` and `lfgi bake-status`: the bake flags -> settings, and the selected cells.
+// Shared by `lfgi bake` and `lfgi bake-status`: the selected cells.
 #pragma once
 
 #include <vector>
@@ -8,8 +8,6 @@
 
 namespace lfgi::app {
 
-// Throws lfgi::Error naming the bad flag.
-bake::WorldBakeSettings worldBakeSettings(const WorldBakeOptions& options);
 // --cells (X,Z or index ranges; all when empty), then --array-index/--array-size's share.
 std::vector<worlds::CellCoord> selectBakeCells(const worlds::SyntheticWorld& world, const WorldBakeOptions& options);
 
