@@ -474,6 +474,18 @@ ProbeField fieldFromKey(const CellSetup& cs, const bake::LightingKey& key, const
   return f;
 }
 
+// A zeroed field of the cell's grid at the capture's resolutions: what decodeGenerator writes into.
+ProbeField decodeTarget(const CellSetup& cs, const bake::CaptureOptions& co) {
+  ProbeField f;
+  f.grid = cs.grid;
+  f.resolution = co.resolution;
+  f.irradianceResolution = co.irradianceResolution;
+  const size_t P = size_t(cs.grid.probeCount()), n2 = size_t(co.resolution * co.resolution);
+  f.radiance.assign(P * n2 * 3, 0.0f);
+  f.distance.assign(P * n2 * 2, 0.0f);
+  return f;
+}
+
 UnseenSummary unseenSection(Ctx& c, CellSetup& cs, const bake::EmbreeScene& scene) {
   UnseenSummary sum;
   const bake::CaptureOptions co = c.capture();
@@ -497,18 +509,13 @@ UnseenSummary unseenSection(Ctx& c, CellSetup& cs, const bake::EmbreeScene& scen
     one.positions01 = all.positions01;
     one.keys = {all.keys[e]};
     // Generator decoded at this key (through the same decode the runtime uses).
-    ProbeField f;
-    f.grid = cs.grid;
-    f.resolution = co.resolution;
-    f.irradianceResolution = co.irradianceResolution;
-    const size_t P = size_t(cs.grid.probeCount()), n2 = size_t(co.resolution * co.resolution);
-    f.radiance.assign(P * n2 * 3, 0.0f);
-    f.distance.assign(P * n2 * 2, 0.0f);
+    ProbeField f = decodeTarget(cs, co);
     f.offsets = cs.placement.offsets;
     f.active = cs.placement.active;
     const size_t bad = decodeGenerator(cs.model, cs.train, cs.idx, evals[e].tod, evals[e].weather, f);
     sum.nonFiniteValues += bad + nonFinite(f.irradiance);
     std::vector<std::vector<float>> decoded(1);
+    const size_t n2 = size_t(f.resolution) * size_t(f.resolution);
     for (int64_t i : cs.idx)
       decoded[0].insert(decoded[0].end(), f.radiance.begin() + std::ptrdiff_t(size_t(i) * n2 * 3),
                         f.radiance.begin() + std::ptrdiff_t(size_t(i + 1) * n2 * 3));
@@ -557,13 +564,7 @@ UnseenSummary unseenSection(Ctx& c, CellSetup& cs, const bake::EmbreeScene& scen
   // Extremes of the conditioning the codec never saw: every decoded value finite.
   for (const auto& [tod, weather] :
        std::vector<std::pair<float, float>>{{0.0f, 0.0f}, {24.0f, 1.0f}, {3.0f, 1.0f}, {12.0f, 1.0f}}) {
-    ProbeField f;
-    f.grid = cs.grid;
-    f.resolution = co.resolution;
-    f.irradianceResolution = co.irradianceResolution;
-    const size_t P = size_t(cs.grid.probeCount()), n2 = size_t(co.resolution * co.resolution);
-    f.radiance.assign(P * n2 * 3, 0.0f);
-    f.distance.assign(P * n2 * 2, 0.0f);
+    ProbeField f = decodeTarget(cs, co);
     const size_t bad = decodeGenerator(cs.model, cs.train, cs.idx, tod, weather, f) + nonFinite(f.irradiance);
     sum.nonFiniteValues += bad;
     c.row("unseen", "generator", 0.2, 1.0, "extreme", "-", tod, weather, "nonfinite_values", double(bad));
