@@ -11,17 +11,11 @@
 #include "bake/embree_scene.h"
 #include "gpu/vir_pass.h"
 #include "shared/octahedral.h"
+#include "test_util.h"
 #include "worlds/world_cells.h"
 
 namespace lfgi::bake {
 namespace {
-
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  const size_t k = std::min(v.size() - 1, size_t(q * double(v.size())));
-  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
-  return v[k];
-}
 
 TEST(VirAccuracy, CityCellMatchesEmbreeTexelCentreRays) {
   const worlds::SyntheticWorld world(worlds::WorldParams::smallDefault(1));
@@ -86,22 +80,22 @@ TEST(VirAccuracy, CityCellMatchesEmbreeTexelCentreRays) {
           angleDeg.push_back(double(std::acos(c)) * 180.0 / std::numbers::pi);
         }
       }
-  const double medErr = quantile(relErr, 0.5), medAngle = quantile(angleDeg, 0.5);
+  const double medErr = test::quantile(relErr, 0.5), medAngle = test::quantile(angleDeg, 0.5);
   std::printf(
       "VIR vs Embree, cell %d,%d: %zu surfels, %zu probes, N=%u: median |dr|/r %.4f (p90 %.4f), median "
       "normal "
       "angle %.2f deg (p90 %.2f), holes among hit texels %.4f, sky texels covered %zu of %zu; holes %.4f -> "
       "%.4f; splat %.2f "
       "ms, resolve %.2f ms, fill %.2f ms\n",
-      cell.x, cell.z, built.surfels.size(), probes.size(), n, medErr, quantile(relErr, 0.9), medAngle,
-      quantile(angleDeg, 0.9), hits ? double(hitHoles) / double(hits) : 0.0, missCovered, misses,
+      cell.x, cell.z, built.surfels.size(), probes.size(), n, medErr, test::quantile(relErr, 0.9), medAngle,
+      test::quantile(angleDeg, 0.9), hits ? double(hitHoles) / double(hits) : 0.0, missCovered, misses,
       atlas.holeFractionBeforeFill, atlas.holeFractionAfterFill, atlas.splatMs, atlas.resolveMs,
       atlas.fillMs);
   std::printf("off by > 5 %%: %zu nearer, %zu farther of %zu compared texels\n", nearer, farther,
               relErr.size());
   ASSERT_GT(hits, probes.size() * n * n / 4);
   EXPECT_LE(medErr, 0.02);
-  EXPECT_LE(quantile(relErr, 0.9), 0.05);
+  EXPECT_LE(test::quantile(relErr, 0.9), 0.05);
   EXPECT_LE(double(nearer + farther) / double(relErr.size()), 0.1);
   EXPECT_LE(medAngle, 5.0);
   EXPECT_LE(double(hitHoles) / double(hits), 0.01);

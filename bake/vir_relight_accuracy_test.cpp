@@ -21,20 +21,16 @@
 #include "core/error.h"
 #include "gpu/relight_pass.h"
 #include "shared/octahedral.h"
+#include "test_util.h"
 #include "worlds/gltf_io.h"
 #include "worlds/world_cells.h"
 
 namespace lfgi::bake {
 namespace {
 
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  const size_t k = std::min(v.size() - 1, size_t(q * double(v.size())));
-  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
-  return v[k];
+float lum(glm::vec3 c) {
+  return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z;
 }
-
-float lum(glm::vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 
 struct Comparison {
   double probeMedian = 0.0, probeP90 = 0.0, probeRelRms = 0.0;
@@ -42,7 +38,8 @@ struct Comparison {
   size_t probeTexels = 0, surfelsCompared = 0;
   size_t keyFacing = 0, keyAgree = 0, keyFalseShadow = 0;
   size_t surfelsBuried = 0;
-  std::vector<double> probeSigned, surfelSigned;  // (relit - Embree) / Embree  // sampled surfels facing the key disc; shadow map agrees with Embree
+  std::vector<double> probeSigned, surfelSigned;  // (relit - Embree) / Embree  // sampled surfels facing the
+                                                  // key disc; shadow map agrees with Embree
 };
 
 // Runs `frames` frames of relight on the surfels and probes, then compares with Embree.
@@ -81,8 +78,10 @@ Comparison compare(const char* label, const worlds::TriangleMesh& mesh, const wo
   for (size_t k = 0; k < compareProbes.size(); ++k) {
     const ProbeCapture& pc = truth.probes[k];
     for (int t = 0; t < m * m; ++t) {
-      const glm::vec3 n = shared::octTexelDirection(glm::uvec2(uint32_t(t % m), uint32_t(t / m)), uint32_t(m));
-      glm::vec3 gt(pc.irradiance[size_t(t) * 3], pc.irradiance[size_t(t) * 3 + 1], pc.irradiance[size_t(t) * 3 + 2]);
+      const glm::vec3 n =
+          shared::octTexelDirection(glm::uvec2(uint32_t(t % m), uint32_t(t / m)), uint32_t(m));
+      glm::vec3 gt(pc.irradiance[size_t(t) * 3], pc.irradiance[size_t(t) * 3 + 1],
+                   pc.irradiance[size_t(t) * 3 + 2]);
       for (int d = 0; d < discs.count; ++d)
         if (!scene.occluded(positions[k], discs.light[d]->direction)) gt -= discs.light[d]->irradiance(n);
       const glm::vec3 got(state.probes.irradiance[compareProbes[k] * size_t(m * m) + size_t(t)]);
@@ -95,8 +94,8 @@ Comparison compare(const char* label, const worlds::TriangleMesh& mesh, const wo
     }
   }
   c.probeTexels = rel.size();
-  c.probeMedian = quantile(rel, 0.5);
-  c.probeP90 = quantile(rel, 0.9);
+  c.probeMedian = test::quantile(rel, 0.5);
+  c.probeP90 = test::quantile(rel, 0.9);
   c.probeRelRms = sg > 0.0 ? std::sqrt(se / sg) : 0.0;
 
   // Surfels: every stride-th, path-traced irradiance with surfelSamples cosine-weighted paths.
@@ -110,7 +109,8 @@ Comparison compare(const char* label, const worlds::TriangleMesh& mesh, const wo
     const glm::vec3 origin = p + n * 1e-3f;
     // Surfels buried in solid geometry (terrain left under a city's ground slab) face a back face right
     // above them: no probe sees them and Embree's paths from there are black; they are not compared.
-    if (const auto up = scene.intersect(origin, n); up && up->backface && up->t < 4.0f * surfels[s].positionRadius.w) {
+    if (const auto up = scene.intersect(origin, n);
+        up && up->backface && up->t < 4.0f * surfels[s].positionRadius.w) {
       ++c.surfelsBuried;
       continue;
     }
@@ -139,28 +139,30 @@ Comparison compare(const char* label, const worlds::TriangleMesh& mesh, const wo
     gts.push_back(lum(e));
   }
   // Surfels lit by almost nothing (the outside of the Cornell box) have no meaningful relative error.
-  const double floor = 0.01 * quantile(gts, 0.9);
+  const double floor = 0.01 * test::quantile(gts, 0.9);
   for (const auto& [g, e] : pairs)
     if (g > floor) {
       srel.push_back(std::abs(e - g) / g);
       c.surfelSigned.push_back((e - g) / g);
     }
   c.surfelsCompared = srel.size();
-  c.surfelMedian = quantile(srel, 0.5);
-  c.surfelP90 = quantile(srel, 0.9);
-  std::printf("[ measure  ] %s: %zu surfels, %lld probes, %d frames; shadow %d^2 (%.3f m texels); probe irradiance "
-              "vs Embree (%zu texels): median rel %.4f, p90 %.4f, rel RMS %.4f; surfel E (%zu surfels, %d paths): "
-              "median rel %.4f, p90 %.4f; last frame relight %.2f ms, VIR %.1f ms, convolve %.2f ms\n",
-              label, surfels.size(), (long long)probes.grid.probeCount(), frames, last.shadowResolution,
-              last.shadowTexelM, c.probeTexels, c.probeMedian, c.probeP90, c.probeRelRms, c.surfelsCompared,
-              surfelSamples, c.surfelMedian, c.surfelP90, last.shadowMs + last.lightMs, state.atlas.gpuMs,
-              state.probes.gpuMs);
+  c.surfelMedian = test::quantile(srel, 0.5);
+  c.surfelP90 = test::quantile(srel, 0.9);
+  std::printf(
+      "[ measure  ] %s: %zu surfels, %lld probes, %d frames; shadow %d^2 (%.3f m texels); probe irradiance "
+      "vs Embree (%zu texels): median rel %.4f, p90 %.4f, rel RMS %.4f; surfel E (%zu surfels, %d paths): "
+      "median rel %.4f, p90 %.4f; last frame relight %.2f ms, VIR %.1f ms, convolve %.2f ms\n",
+      label, surfels.size(), (long long)probes.grid.probeCount(), frames, last.shadowResolution,
+      last.shadowTexelM, c.probeTexels, c.probeMedian, c.probeP90, c.probeRelRms, c.surfelsCompared,
+      surfelSamples, c.surfelMedian, c.surfelP90, last.shadowMs + last.lightMs, state.atlas.gpuMs,
+      state.probes.gpuMs);
   std::printf("[ measure  ] %s: median signed error: probes %+.4f, surfels %+.4f\n", label,
-              quantile(c.probeSigned, 0.5), quantile(c.surfelSigned, 0.5));
+              test::quantile(c.probeSigned, 0.5), test::quantile(c.surfelSigned, 0.5));
   if (c.keyFacing)
-    std::printf("[ measure  ] %s: shadow map visibility agrees with an Embree shadow ray for %zu of %zu sampled "
-                "surfels facing the sun (%zu wrongly shadowed); %zu buried surfels skipped\n", label, c.keyAgree, c.keyFacing,
-                c.keyFalseShadow, c.surfelsBuried);
+    std::printf(
+        "[ measure  ] %s: shadow map visibility agrees with an Embree shadow ray for %zu of %zu sampled "
+        "surfels facing the sun (%zu wrongly shadowed); %zu buried surfels skipped\n",
+        label, c.keyAgree, c.keyFacing, c.keyFalseShadow, c.surfelsBuried);
   return c;
 }
 
@@ -180,7 +182,8 @@ TEST(VirRelightAccuracy, CornellBoxMatchesEmbree) {
     probes.positions.push_back(probes.grid.probePosition(probes.grid.probeCoord(i)));
   std::vector<size_t> all(probes.positions.size());
   for (size_t i = 0; i < all.size(); ++i) all[i] = i;
-  const Comparison off = compare("cornell, no emitter NEE", mesh, sky, surfels, probes, all, 8, 10.0f, 256, 32, false);
+  const Comparison off =
+      compare("cornell, no emitter NEE", mesh, sky, surfels, probes, all, 8, 10.0f, 256, 32, false);
   const Comparison c = compare("cornell", mesh, sky, surfels, probes, all, 8, 10.0f, 256, 32);
   // Measured (N = 32, 8 frames, VIR LOD on). Without emitter NEE: probe irradiance median rel 0.19, rel
   // RMS 0.13 (median signed +0.11); surfel E median rel 0.60 (+0.48): the small ceiling light reaches
@@ -216,7 +219,8 @@ TEST(VirRelightAccuracy, CityCellMatchesEmbree) {
     probes.positions.push_back(q);
     const bool on = !(built.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid);
     probes.active.push_back(on ? 1 : 0);
-    if (on && q.x > box.min.x + 6.0f && q.x < box.max.x - 6.0f && q.z > box.min.z + 6.0f && q.z < box.max.z - 6.0f)
+    if (on && q.x > box.min.x + 6.0f && q.x < box.max.x - 6.0f && q.z > box.min.z + 6.0f &&
+        q.z < box.max.z - 6.0f)
       inner.push_back(size_t(i));
   }
   ASSERT_FALSE(inner.empty());
@@ -226,7 +230,8 @@ TEST(VirRelightAccuracy, CityCellMatchesEmbree) {
   const worlds::SkyModel sky = worlds::makeSky(worlds::SkyState{15.0f, 45.0f, 172, 3.0f, 0.0f});
   std::printf("[ measure  ] city cell %d,%d: %zu triangles, probe grid %dx%dx%d\n", cell.x, cell.z,
               built.mesh.triangleCount(), probes.grid.dims.x, probes.grid.dims.y, probes.grid.dims.z);
-  const Comparison c = compare("city cell", built.mesh, sky, built.surfels, probes, chosen, 4, 64.0f, 128, 16);
+  const Comparison c =
+      compare("city cell", built.mesh, sky, built.surfels, probes, chosen, 4, 64.0f, 128, 16);
   // Measured (N = 16, 4 frames, 15:00 clear): probe irradiance median rel 0.0165, rel RMS 0.034 (median
   // signed -0.001); surfel E median rel 0.024 (p90 0.70: surfels in contact shadows and corners that the
   // probe grid cannot resolve); shadow map == Embree shadow ray for 92 % of the sampled sun-facing
@@ -251,21 +256,22 @@ TEST(VirRelightAccuracy, GpuGgxPrefilterMatchesCpuReference) {
   for (int j = 0; j < n; ++j)
     for (int i = 0; i < n; ++i) {
       const glm::vec3 d = shared::octTexelDirection(glm::uvec2(uint32_t(i), uint32_t(j)), uint32_t(n));
-      for (int ch = 0; ch < 3; ++ch) gradientMap[size_t((j * n + i) * 3 + ch)] = 1.0f + d[ch] * 0.5f + d.y * d.y;
+      for (int ch = 0; ch < 3; ++ch)
+        gradientMap[size_t((j * n + i) * 3 + ch)] = 1.0f + d[ch] * 0.5f + d.y * d.y;
     }
   const std::vector<float>& gradient = gradientMap;
   std::vector<glm::vec4> both;
   for (const std::vector<float>* map : {&skyMap, &gradient})
-    for (size_t t = 0; t < size_t(n * n); ++t) both.emplace_back((*map)[t * 3], (*map)[t * 3 + 1], (*map)[t * 3 + 2], 0.0f);
+    for (size_t t = 0; t < size_t(n * n); ++t)
+      both.emplace_back((*map)[t * 3], (*map)[t * 3 + 1], (*map)[t * 3 + 2], 0.0f);
   double worst = 0.0;
   for (float roughness : {0.0f, 0.25f, 0.5f, 1.0f}) {
     double ms = 0.0;
     const std::vector<glm::vec4> gpu = pass.prefilterGgx(both, n, 2, roughness, outN, &ms);
     double worstHere = 0.0;
     for (int map = 0; map < 2; ++map) {
-      const std::vector<float> cpu =
-          prefilterRadianceGgx(map == 0 ? std::span<const float>(skyMap) : std::span<const float>(gradient), n,
-                               roughness, outN);
+      const std::vector<float> cpu = prefilterRadianceGgx(
+          map == 0 ? std::span<const float>(skyMap) : std::span<const float>(gradient), n, roughness, outN);
       for (size_t t = 0; t < size_t(outN * outN); ++t)
         for (int ch = 0; ch < 3; ++ch) {
           const double want = cpu[t * 3 + size_t(ch)];
@@ -273,8 +279,9 @@ TEST(VirRelightAccuracy, GpuGgxPrefilterMatchesCpuReference) {
           worstHere = std::max(worstHere, std::abs(got - want) / std::max(std::abs(want), 1e-6));
         }
     }
-    std::printf("[ measure  ] GGX prefilter %d -> %d, roughness %.2f: worst relative |GPU - CPU| %.2e, %.3f ms\n",
-                n, outN, double(roughness), worstHere, ms);
+    std::printf(
+        "[ measure  ] GGX prefilter %d -> %d, roughness %.2f: worst relative |GPU - CPU| %.2e, %.3f ms\n", n,
+        outN, double(roughness), worstHere, ms);
     worst = std::max(worst, worstHere);
   }
   EXPECT_LE(worst, 1e-3);

@@ -10,18 +10,10 @@
 
 #include "core/error.h"
 #include "shared/octahedral.h"
+#include "test_util.h"
 
 namespace lfgi::gpu {
 namespace {
-
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  const size_t k = std::min(v.size() - 1, size_t(q * double(v.size())));
-  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
-  return v[k];
-}
-
-glm::vec3 wallAlbedo(int axis, int side) { return {0.2f + 0.1f * float(axis), 0.5f, side > 0 ? 0.8f : 0.3f}; }
 
 // Axis-aligned box [lo, hi] as 12 triangles whose normals face inward (room) or outward (solid).
 void addBox(CubemapScene& scene, glm::vec3 lo, glm::vec3 hi, bool inward, glm::vec3 ceilingEmission) {
@@ -35,7 +27,7 @@ void addBox(CubemapScene& scene, glm::vec3 lo, glm::vec3 hi, bool inward, glm::v
         q[k][a] = (k == 1 || k == 2) ? hi[a] : lo[a];
         q[k][b] = (k >= 2) ? hi[b] : lo[b];
       }
-      const glm::vec3 albedo = inward ? wallAlbedo(axis, side) : glm::vec3(0.9f, 0.1f, 0.1f);
+      const glm::vec3 albedo = inward ? test::roomWallAlbedo(axis, side) : glm::vec3(0.9f, 0.1f, 0.1f);
       const glm::vec3 emission = (inward && axis == 1 && side > 0) ? ceilingEmission : glm::vec3(0.0f);
       for (int t = 0; t < 2; ++t) {
         glm::vec3 v0 = q[0], v1 = q[1 + t], v2 = q[2 + t];
@@ -49,7 +41,8 @@ void addBox(CubemapScene& scene, glm::vec3 lo, glm::vec3 hi, bool inward, glm::v
 
 // Nearest hit from o along unit d: the inside of the room [-h, h]^3 or the outside of the solid box
 // [lo, hi] (slab test); returns the distance and the normal facing the probe.
-float analyticHit(glm::vec3 o, glm::vec3 d, float h, glm::vec3 lo, glm::vec3 hi, glm::vec3* normal, bool* solid) {
+float analyticHit(glm::vec3 o, glm::vec3 d, float h, glm::vec3 lo, glm::vec3 hi, glm::vec3* normal,
+                  bool* solid) {
   float best = 1e30f;
   for (int axis = 0; axis < 3; ++axis) {
     if (std::abs(d[axis]) < 1e-9f) continue;
@@ -85,37 +78,6 @@ float analyticHit(glm::vec3 o, glm::vec3 d, float h, glm::vec3 lo, glm::vec3 hi,
   return best;
 }
 
-float hash01(uint32_t x) {  // lowbias32 -> [0, 1)
-  x ^= x >> 16;
-  x *= 0x7feb352du;
-  x ^= x >> 15;
-  x *= 0x846ca68bu;
-  x ^= x >> 16;
-  return float(x >> 8) * (1.0f / 16777216.0f);
-}
-
-// The room's walls as inward surfels on a jittered grid (as in vir_pass_test.cpp), same albedos.
-std::vector<shared::Surfel> roomSurfels(float h, float spacing) {
-  std::vector<shared::Surfel> out;
-  const int cells = int(std::lround(2.0f * h / spacing));
-  const float radius = spacing / std::sqrt(std::numbers::pi_v<float>);
-  uint32_t k = 0;
-  for (int axis = 0; axis < 3; ++axis)
-    for (int side = -1; side <= 1; side += 2)
-      for (int j = 0; j < cells; ++j)
-        for (int i = 0; i < cells; ++i, ++k) {
-          const int a = (axis + 1) % 3, b = (axis + 2) % 3;
-          glm::vec3 p(0.0f), n(0.0f);
-          p[axis] = float(side) * h;
-          p[a] = -h + (float(i) + hash01(2 * k)) * spacing;
-          p[b] = -h + (float(j) + hash01(2 * k + 1)) * spacing;
-          n[axis] = -float(side);
-          out.push_back({glm::vec4(p, radius), glm::vec4(n, 0.0f), glm::vec4(wallAlbedo(axis, side), 1.0f),
-                         glm::vec4(0.0f)});
-        }
-  return out;
-}
-
 constexpr float kH = 5.0f;
 const glm::vec3 kSolidLo{1.0f, -2.0f, -1.0f}, kSolidHi{2.5f, 0.5f, 1.5f};
 const glm::vec3 kCeilingEmission{3.0f, 2.0f, 1.0f};
@@ -129,7 +91,8 @@ TEST(CubemapRaster, RoomWithBoxMatchesAnalyticDistanceNormalAlbedo) {
   CubemapScene scene;
   addBox(scene, glm::vec3(-kH), glm::vec3(kH), true, kCeilingEmission);
   addBox(scene, kSolidLo, kSolidHi, false, glm::vec3(0.0f));
-  const std::vector<glm::vec3> probes = {{0.0f, 0.0f, 0.0f}, {0.7f, -1.3f, 2.1f}, {-3.0f, 2.5f, -3.5f}, {4.0f, -4.0f, 4.2f}};
+  const std::vector<glm::vec3> probes = {
+      {0.0f, 0.0f, 0.0f}, {0.7f, -1.3f, 2.1f}, {-3.0f, 2.5f, -3.5f}, {4.0f, -4.0f, 4.2f}};
   CubemapRasterOptions options;
   options.resolution = 16;
   const CubemapCapture cap = raster.run(scene, probes, options);
@@ -157,18 +120,22 @@ TEST(CubemapRaster, RoomWithBoxMatchesAnalyticDistanceNormalAlbedo) {
         }
         int axis = 0;
         while (wallNormal[axis] == 0.0f) ++axis;
-        const glm::vec3 wantAlbedo = solid ? glm::vec3(0.9f, 0.1f, 0.1f) : wallAlbedo(axis, wallNormal[axis] < 0.0f ? 1 : -1);
-        const glm::vec3 wantRadiance = (!solid && axis == 1 && wallNormal[axis] < 0.0f) ? kCeilingEmission : glm::vec3(0.0f);
+        const glm::vec3 wantAlbedo = solid ? glm::vec3(0.9f, 0.1f, 0.1f)
+                                           : test::roomWallAlbedo(axis, wallNormal[axis] < 0.0f ? 1 : -1);
+        const glm::vec3 wantRadiance =
+            (!solid && axis == 1 && wallNormal[axis] < 0.0f) ? kCeilingEmission : glm::vec3(0.0f);
         // FP16 attachments: 11-bit mantissa.
         if (glm::length(glm::vec3(atlas.albedo[t]) - wantAlbedo) > 2e-3f) ++albedoOff;
         if (glm::length(glm::vec3(atlas.radiance[t]) - wantRadiance) > 4e-3f) ++radianceOff;
       }
   const size_t total = relErr.size();
-  const double med = quantile(relErr, 0.5), p90 = quantile(relErr, 0.9), worst = quantile(relErr, 1.0);
+  const double med = test::quantile(relErr, 0.5), p90 = test::quantile(relErr, 0.9),
+               worst = test::quantile(relErr, 1.0);
   size_t over1pct = 0;
   for (double e : relErr) over1pct += e > 0.01 ? 1 : 0;
   std::printf(
-      "cubemap room+box: %zu texels (%zu on the box), N=%u F=%d: |dr|/r median %.2e p90 %.2e max %.3f, > 1 %%: %zu; "
+      "cubemap room+box: %zu texels (%zu on the box), N=%u F=%d: |dr|/r median %.2e p90 %.2e max %.3f, > 1 "
+      "%%: %zu; "
       "normals off %zu, albedo off %zu, radiance off %zu; raster %.2f ms, copy %.2f ms, resample %.2f ms\n",
       total, solidTexels, n, cap.faceResolution, med, p90, worst, over1pct, normalOff, albedoOff, radianceOff,
       cap.rasterMs, cap.copyMs, cap.resampleMs);
@@ -199,7 +166,8 @@ TEST(CubemapRaster, BatchingGivesTheSameMapsAndSkyIsAHole) {
                        glm::vec3(full.vertices[3 * t + 2]), glm::vec3(full.triangles[t].albedo));
   ASSERT_EQ(open.triangleCount(), 10u);
   std::vector<glm::vec3> probes;
-  for (int k = 0; k < 5; ++k) probes.push_back({-3.0f + 1.3f * float(k), -2.0f + 0.5f * float(k), 1.0f - 0.7f * float(k)});
+  for (int k = 0; k < 5; ++k)
+    probes.push_back({-3.0f + 1.3f * float(k), -2.0f + 0.5f * float(k), 1.0f - 0.7f * float(k)});
   CubemapRasterOptions options;
   options.resolution = 8;
   options.faceResolution = 12;
@@ -251,7 +219,7 @@ TEST(CubemapRaster, AgreesWithVirOnTheSameRoom) {
   VirPass vir(*ctx);
   CubemapScene scene;
   addBox(scene, glm::vec3(-kH), glm::vec3(kH), true, glm::vec3(0.0f));
-  const std::vector<shared::Surfel> surfels = roomSurfels(kH, 0.5f);
+  const std::vector<shared::Surfel> surfels = test::inwardBoxSurfels(kH, 0.5f);
   const std::vector<glm::vec3> probes = {{0.0f, 0.0f, 0.0f}, {0.7f, -1.3f, 2.1f}, {-3.0f, 2.5f, -3.5f}};
   CubemapRasterOptions co;
   co.resolution = 16;
@@ -267,11 +235,13 @@ TEST(CubemapRaster, AgreesWithVirOnTheSameRoom) {
     const float c = std::clamp(glm::dot(glm::vec3(a.normal[t]), glm::vec3(b.normal[t])), -1.0f, 1.0f);
     angle.push_back(double(std::acos(c)) * 180.0 / std::numbers::pi);
   }
-  std::printf("cubemap vs VIR: %zu texels compared, |dr|/r median %.4f p90 %.4f, normal median %.2f deg p90 %.2f\n",
-              rel.size(), quantile(rel, 0.5), quantile(rel, 0.9), quantile(angle, 0.5), quantile(angle, 0.9));
+  std::printf(
+      "cubemap vs VIR: %zu texels compared, |dr|/r median %.4f p90 %.4f, normal median %.2f deg p90 %.2f\n",
+      rel.size(), test::quantile(rel, 0.5), test::quantile(rel, 0.9), test::quantile(angle, 0.5),
+      test::quantile(angle, 0.9));
   ASSERT_GE(rel.size(), a.distance.size() * 99 / 100);
-  EXPECT_LE(quantile(rel, 0.5), 0.02);
-  EXPECT_LE(quantile(angle, 0.5), 1.0);
+  EXPECT_LE(test::quantile(rel, 0.5), 0.02);
+  EXPECT_LE(test::quantile(angle, 0.5), 1.0);
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
 }
 

@@ -8,26 +8,12 @@
 #include <numbers>
 
 #include "core/error.h"
+#include "test_util.h"
 
 namespace lfgi::gpu {
 namespace {
 
 constexpr float kPi = std::numbers::pi_v<float>;
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
-float hash01(uint32_t x) {  // lowbias32 -> [0, 1)
-  x ^= x >> 16;
-  x *= 0x7feb352du;
-  x ^= x >> 15;
-  x *= 0x846ca68bu;
-  x ^= x >> 16;
-  return float(x >> 8) * (1.0f / 16777216.0f);
-}
 
 // Surfels on the axis-aligned face {p[axis] = offset} over [lo, hi] on the two other axes, normal
 // `sign` along axis, jittered grid of the given spacing, radius spacing / sqrt(pi) (areas sum to the face).
@@ -43,16 +29,17 @@ void addFace(std::vector<shared::Surfel>& out, int axis, float offset, float sig
       const uint32_t k = uint32_t(out.size());
       glm::vec3 p(0.0f), n(0.0f);
       p[axis] = offset;
-      p[a] = lo.x + (float(i) + 0.25f + 0.5f * hash01(2 * k)) * sa;
-      p[b] = lo.y + (float(j) + 0.25f + 0.5f * hash01(2 * k + 1)) * sb;
+      p[a] = lo.x + (float(i) + 0.25f + 0.5f * test::hash01(2 * k)) * sa;
+      p[b] = lo.y + (float(j) + 0.25f + 0.5f * test::hash01(2 * k + 1)) * sb;
       n[axis] = sign;
-      out.push_back({glm::vec4(p, radius), glm::vec4(n, 0.0f), glm::vec4(albedo, 1.0f), glm::vec4(emission, 0.0f)});
+      out.push_back(
+          {glm::vec4(p, radius), glm::vec4(n, 0.0f), glm::vec4(albedo, 1.0f), glm::vec4(emission, 0.0f)});
     }
 }
 
 // The six faces of the box [lo, hi], normals outward (sign 1) or inward (sign -1).
-void addBox(std::vector<shared::Surfel>& out, glm::vec3 lo, glm::vec3 hi, float sign, float spacing, glm::vec3 albedo,
-            glm::vec3 emission) {
+void addBox(std::vector<shared::Surfel>& out, glm::vec3 lo, glm::vec3 hi, float sign, float spacing,
+            glm::vec3 albedo, glm::vec3 emission) {
   for (int axis = 0; axis < 3; ++axis) {
     const int a = (axis + 1) % 3, b = (axis + 2) % 3;
     const glm::vec2 flo(lo[a], lo[b]), fhi(hi[a], hi[b]);
@@ -135,10 +122,11 @@ TEST(RelightPass, ShadowMapGivesExactVisibilityForABoxOverAPlane) {
       ++top;
       topLit += r.irradiance[i].w == 1.0f ? 1 : 0;
     }
-  std::printf("[ measure  ] shadow map %d^2, texel %.4f m, margin %.3f m: %zu of %zu plane surfels robust, %zu "
-              "shadowed, %zu wrong; box top %zu of %zu lit; splat %.2f ms, light %.2f ms\n",
-              r.shadowResolution, r.shadowTexelM, margin, robust, planeCount, shadowed, wrong, topLit, top,
-              r.shadowMs, r.lightMs);
+  std::printf(
+      "[ measure  ] shadow map %d^2, texel %.4f m, margin %.3f m: %zu of %zu plane surfels robust, %zu "
+      "shadowed, %zu wrong; box top %zu of %zu lit; splat %.2f ms, light %.2f ms\n",
+      r.shadowResolution, r.shadowTexelM, margin, robust, planeCount, shadowed, wrong, topLit, top,
+      r.shadowMs, r.lightMs);
   EXPECT_GT(robust, planeCount * 9 / 10);
   EXPECT_GT(shadowed, size_t(200));  // the shadow covers ~4.6 m^2 of the plane, ~460 surfels
   EXPECT_EQ(wrong, 0u);
@@ -178,17 +166,18 @@ TEST(RelightPass, FurnaceMultiBounceConvergesToAnalytic) {
     std::vector<double> e;
     for (const glm::vec4& v : state.probes.irradiance) e.push_back(double(v.y));
     const double want = double(kPi * le) * (1.0 - std::pow(double(a), k)) / (1.0 - double(a));
-    const double got = median(e);
-    std::printf("[ measure  ] furnace frame %d: probe irradiance median %.5f, analytic %.5f (%.3f %%), holes %.4f\n",
-                k, got, want, 100.0 * (got / want - 1.0), state.atlas.holeFractionAfterFill);
+    const double got = test::median(e);
+    std::printf(
+        "[ measure  ] furnace frame %d: probe irradiance median %.5f, analytic %.5f (%.3f %%), holes %.4f\n",
+        k, got, want, 100.0 * (got / want - 1.0), state.atlas.holeFractionAfterFill);
     EXPECT_NEAR(got / want, 1.0, 0.01) << "frame " << k;
   }
   std::vector<double> surfelE;
   for (const glm::vec4& v : state.surfelIrradiance) surfelE.push_back(double(v.y));
   const double wantSurfel = double(kPi * le) * (1.0 - std::pow(double(a), frames - 1)) / (1.0 - double(a));
-  std::printf("[ measure  ] furnace surfel E after %d frames: median %.5f, analytic %.5f\n", frames, median(surfelE),
-              wantSurfel);
-  EXPECT_NEAR(median(surfelE) / wantSurfel, 1.0, 0.01);
+  std::printf("[ measure  ] furnace surfel E after %d frames: median %.5f, analytic %.5f\n", frames,
+              test::median(surfelE), wantSurfel);
+  EXPECT_NEAR(test::median(surfelE) / wantSurfel, 1.0, 0.01);
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
 }
 
@@ -249,9 +238,11 @@ TEST(RelightPass, EmitterNextEventEstimationMatchesAnalyticAndIsShadowed) {
       clearWrong += std::abs(b.irradiance[i].y - a.irradiance[i].y) > 0.02f * a.irradiance[i].y;
     }
   }
-  std::printf("[ measure  ] emitter NEE: %zu floor surfels vs the analytic rectangle: worst rel error %.4f; occluder: "
-              "%zu of %zu shadowed points lit, %zu of %zu clear points changed; %d samples, %.2f ms shadow maps\n",
-              compared, worst, shadowWrong, shadowed, clearWrong, cleared, a.emitterSamples, a.emitterShadowMs);
+  std::printf(
+      "[ measure  ] emitter NEE: %zu floor surfels vs the analytic rectangle: worst rel error %.4f; "
+      "occluder: "
+      "%zu of %zu shadowed points lit, %zu of %zu clear points changed; %d samples, %.2f ms shadow maps\n",
+      compared, worst, shadowWrong, shadowed, clearWrong, cleared, a.emitterSamples, a.emitterShadowMs);
   ASSERT_GT(compared, size_t(300));
   EXPECT_LE(worst, 0.02);
   ASSERT_GT(shadowed, size_t(20));

@@ -9,47 +9,10 @@
 
 #include "core/error.h"
 #include "shared/octahedral.h"
+#include "test_util.h"
 
 namespace lfgi::gpu {
 namespace {
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
-float hash01(uint32_t x) {  // lowbias32 -> [0, 1)
-  x ^= x >> 16;
-  x *= 0x7feb352du;
-  x ^= x >> 15;
-  x *= 0x846ca68bu;
-  x ^= x >> 16;
-  return float(x >> 8) * (1.0f / 16777216.0f);
-}
-
-// The six walls of the box [-h, h]^3 as inward-facing surfels on a jittered grid of the given spacing,
-// each of radius spacing / sqrt(pi) (disc areas sum to the wall area, like worlds::sampleSurfels).
-std::vector<shared::Surfel> inwardBoxSurfels(float h, float spacing) {
-  std::vector<shared::Surfel> out;
-  const int cells = int(std::lround(2.0f * h / spacing));
-  const float radius = spacing / std::sqrt(std::numbers::pi_v<float>);
-  uint32_t k = 0;
-  for (int axis = 0; axis < 3; ++axis)
-    for (int side = -1; side <= 1; side += 2)
-      for (int j = 0; j < cells; ++j)
-        for (int i = 0; i < cells; ++i, ++k) {
-          const int a = (axis + 1) % 3, b = (axis + 2) % 3;
-          glm::vec3 p(0.0f), n(0.0f);
-          p[axis] = float(side) * h;
-          p[a] = -h + (float(i) + hash01(2 * k)) * spacing;
-          p[b] = -h + (float(j) + hash01(2 * k + 1)) * spacing;
-          n[axis] = -float(side);
-          glm::vec3 albedo(0.2f + 0.1f * float(axis), 0.5f, side > 0 ? 0.8f : 0.3f);
-          out.push_back({glm::vec4(p, radius), glm::vec4(n, 0.0f), glm::vec4(albedo, 1.0f), glm::vec4(0.0f)});
-        }
-  return out;
-}
 
 // Distance from o (inside) along unit d to the box [-h, h]^3, and the inward normal of the wall hit.
 float boxDistance(glm::vec3 o, glm::vec3 d, float h, glm::vec3* normal) {
@@ -73,7 +36,7 @@ TEST(VirPass, ClosedBoxMatchesAnalyticDistanceAndNormal) {
   auto ctx = createContext();
   VirPass pass(*ctx);
   const float h = 5.0f;
-  std::vector<shared::Surfel> surfels = inwardBoxSurfels(h, 0.5f);
+  std::vector<shared::Surfel> surfels = test::inwardBoxSurfels(h, 0.5f);
   const std::vector<glm::vec3> probes = {{0.0f, 0.0f, 0.0f}, {0.7f, -1.3f, 2.1f}, {-3.0f, 2.5f, -3.5f}};
   VirOptions options;
   options.resolution = 16;
@@ -100,7 +63,7 @@ TEST(VirPass, ClosedBoxMatchesAnalyticDistanceAndNormal) {
         const float c = std::clamp(glm::dot(glm::vec3(atlas.normal[t]), wallNormal), -1.0f, 1.0f);
         angleDeg.push_back(double(std::acos(c)) * 180.0 / std::numbers::pi);
       }
-  const double medErr = median(relErr), medAngle = median(angleDeg);
+  const double medErr = test::median(relErr), medAngle = test::median(angleDeg);
   std::printf(
       "VIR box: %zu surfels, %zu probes, N=%d: median |dr|/r %.4f, median normal angle %.2f deg, holes %.4f "
       "-> "
@@ -122,7 +85,7 @@ TEST(VirPass, HoleFillClosesGapsBetweenShrunkenDiscs) {
   auto ctx = createContext();
   VirPass pass(*ctx);
   const float h = 5.0f;
-  std::vector<shared::Surfel> surfels = inwardBoxSurfels(h, 0.5f);
+  std::vector<shared::Surfel> surfels = test::inwardBoxSurfels(h, 0.5f);
   const glm::vec3 probe(0.5f, 0.2f, -0.4f);
   VirOptions options;
   options.resolution = 32;
@@ -144,8 +107,8 @@ TEST(VirPass, HoleFillClosesGapsBetweenShrunkenDiscs) {
       filledErr.push_back(std::abs(double(atlas.distance[t].x) - ref) / ref);
     }
   ASSERT_FALSE(filledErr.empty());
-  std::printf("filled texels: %zu, median |dr|/r %.4f\n", filledErr.size(), median(filledErr));
-  EXPECT_LE(median(filledErr), 0.05);
+  std::printf("filled texels: %zu, median |dr|/r %.4f\n", filledErr.size(), test::median(filledErr));
+  EXPECT_LE(test::median(filledErr), 0.05);
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
 }
 
@@ -153,7 +116,7 @@ TEST(VirPass, HoleFillClosesGapsBetweenShrunkenDiscs) {
 TEST(VirPass, NearerSurfelWinsAndRadianceIsEmissionPlusAlbedoIrradiance) {
   auto ctx = createContext();
   VirPass pass(*ctx);
-  std::vector<shared::Surfel> surfels = inwardBoxSurfels(5.0f, 0.5f);
+  std::vector<shared::Surfel> surfels = test::inwardBoxSurfels(5.0f, 0.5f);
   const size_t wallCount = surfels.size();
   // A 2 m x 2 m occluder at x = 2 facing -x, emissive red.
   for (int j = 0; j < 8; ++j)
@@ -182,21 +145,25 @@ TEST(VirPass, NearerSurfelWinsAndRadianceIsEmissionPlusAlbedoIrradiance) {
 }
 
 // LOD on vs off (VirOptions::lod) on a closed 40 m box at the default surfel density (at N <= 16 many
-// surfels per texel, where the cut replaces them with merged discs): same distances, normals and coverage, radiance
-// within a few % (merged discs carry the area-weighted mean), and far fewer (disc, probe) pairs. A second
-// call with other irradiance reuses the resident tree and relights it.
+// surfels per texel, where the cut replaces them with merged discs): same distances, normals and coverage,
+// radiance within a few % (merged discs carry the area-weighted mean), and far fewer (disc, probe) pairs. A
+// second call with other irradiance reuses the resident tree and relights it.
 TEST(VirPass, LodMatchesFullSplatWithFarFewerPairs) {
   auto ctx = createContext();
   VirPass pass(*ctx);
   const float h = 20.0f;
-  std::vector<shared::Surfel> surfels = inwardBoxSurfels(h, 0.5f);
+  std::vector<shared::Surfel> surfels = test::inwardBoxSurfels(h, 0.5f);
   std::vector<glm::vec4> irradiance(surfels.size());
   for (size_t i = 0; i < surfels.size(); ++i) {
     const glm::vec3 p(surfels[i].positionRadius);
-    irradiance[i] = glm::vec4(2.0f + std::sin(p.x), 1.0f + 0.1f * p.y, 3.0f * hash01(uint32_t(i)), 0.0f);
+    irradiance[i] =
+        glm::vec4(2.0f + std::sin(p.x), 1.0f + 0.1f * p.y, 3.0f * test::hash01(uint32_t(i)), 0.0f);
   }
-  const std::vector<glm::vec3> probes = {{0.0f, 0.0f, 0.0f}, {2.0f, 0.0f, 0.0f}, {0.0f, 2.0f, 1.0f},
-                                         {8.0f, -4.0f, 4.0f}, {-12.0f, 10.0f, -14.0f}};
+  const std::vector<glm::vec3> probes = {{0.0f, 0.0f, 0.0f},
+                                         {2.0f, 0.0f, 0.0f},
+                                         {0.0f, 2.0f, 1.0f},
+                                         {8.0f, -4.0f, 4.0f},
+                                         {-12.0f, 10.0f, -14.0f}};
   for (int n : {8, 16}) {
     VirOptions full;
     full.resolution = n;
@@ -219,24 +186,27 @@ TEST(VirPass, LodMatchesFullSplatWithFarFewerPairs) {
       radB += b.radiance[t].x + b.radiance[t].y + b.radiance[t].z;
       const size_t p = t / (size_t(n) * size_t(n)), j = (t / size_t(n)) % size_t(n), i = t % size_t(n);
       glm::vec3 wall(0.0f);
-      const float ref = boxDistance(probes[p], shared::octTexelDirection(glm::uvec2(i, j), uint32_t(n)), h, &wall);
+      const float ref =
+          boxDistance(probes[p], shared::octTexelDirection(glm::uvec2(i, j), uint32_t(n)), h, &wall);
       refErr.push_back(std::abs(double(b.distance[t].x) - ref) / ref);
     }
     std::sort(distDiff.begin(), distDiff.end());
     const double p90 = distDiff[distDiff.size() * 9 / 10];
     std::printf(
-        "VIR LOD vs full, box N=%d: %zu surfels, %llu nodes; pairs %llu vs %llu (%.1fx fewer), %llu atomics; dist "
-        "diff median %.4f p90 %.4f, vs analytic median %.4f; normal median %.2f deg; radiance sum ratio %.4f; holes "
+        "VIR LOD vs full, box N=%d: %zu surfels, %llu nodes; pairs %llu vs %llu (%.1fx fewer), %llu atomics; "
+        "dist "
+        "diff median %.4f p90 %.4f, vs analytic median %.4f; normal median %.2f deg; radiance sum ratio "
+        "%.4f; holes "
         "%.4f -> %.4f (full %.4f -> %.4f); splat %.2f vs %.2f ms, LOD build %.1f ms\n",
         n, surfels.size(), (unsigned long long)b.lodNodes, (unsigned long long)b.splatPairs,
         (unsigned long long)a.splatPairs, double(a.splatPairs) / double(b.splatPairs),
-        (unsigned long long)b.splatAtomics, median(distDiff), p90, median(refErr), median(angle), radB / radA,
-        b.holeFractionBeforeFill, b.holeFractionAfterFill, a.holeFractionBeforeFill, a.holeFractionAfterFill,
-        b.splatMs, a.splatMs, b.lodBuildMs);
-    EXPECT_LE(median(distDiff), 0.01);
+        (unsigned long long)b.splatAtomics, test::median(distDiff), p90, test::median(refErr),
+        test::median(angle), radB / radA, b.holeFractionBeforeFill, b.holeFractionAfterFill,
+        a.holeFractionBeforeFill, a.holeFractionAfterFill, b.splatMs, a.splatMs, b.lodBuildMs);
+    EXPECT_LE(test::median(distDiff), 0.01);
     EXPECT_LE(p90, 0.05);
-    EXPECT_LE(median(refErr), 0.02);
-    EXPECT_LE(median(angle), 1.0);
+    EXPECT_LE(test::median(refErr), 0.02);
+    EXPECT_LE(test::median(angle), 1.0);
     EXPECT_NEAR(radB / radA, 1.0, 0.03);
     EXPECT_LE(b.holeFractionAfterFill, 0.01);
     EXPECT_LE(b.holeFractionBeforeFill, a.holeFractionBeforeFill + 0.02);
