@@ -149,24 +149,20 @@ GpuGeneratorBackend::Batch& GpuGeneratorBackend::batchFor(const GeneratorArch& a
   return *batches_.back();
 }
 
-gpu::GeneratorGpuModel& GpuGeneratorBackend::modelFor(const ModelRef& ref,
-                                                      std::unique_ptr<gpu::GeneratorGpuModel>& uncached) {
+std::shared_ptr<gpu::GeneratorGpuModel> GpuGeneratorBackend::modelFor(const ModelRef& ref) {
   if (ref.key != 0) {
     for (auto it = models_.begin(); it != models_.end(); ++it)
       if (it->key == ref.key) {
         models_.splice(models_.begin(), models_, it);
-        return *models_.front().model;
+        return models_.front().model;
       }
   }
-  auto model = std::make_unique<gpu::GeneratorGpuModel>(*ctx_, ref.weights);
+  auto model = std::make_shared<gpu::GeneratorGpuModel>(*ctx_, ref.weights);
   ++uploads_;
-  if (ref.key == 0 || options_.cachedModels == 0) {
-    uncached = std::move(model);
-    return *uncached;
-  }
+  if (ref.key == 0 || options_.cachedModels == 0) return model;
   if (models_.size() >= options_.cachedModels) models_.pop_back();
-  models_.push_front({ref.key, std::move(model)});
-  return *models_.front().model;
+  models_.push_front({ref.key, model});
+  return model;
 }
 
 void GpuGeneratorBackend::decode(const ModelRef& model, std::span<const float> latents, std::span<const float> cond,
@@ -174,26 +170,37 @@ void GpuGeneratorBackend::decode(const ModelRef& model, std::span<const float> l
   const GeneratorArch& a = model.weights.arch;
   checkSizes(a, latents, cond, count, "gpu");
   if (count == 0) return;
-  const std::lock_guard lock(mutex_);
-  std::unique_ptr<gpu::GeneratorGpuModel> uncached;
-  gpu::GeneratorGpuModel& gm = modelFor(model, uncached);
-  Batch& b = batchFor(a);
   const size_t L = size_t(a.latentDim), per = rawFloatsPerProbe(a);
   const gpu::GeneratorKernel kernel = options_.tiledKernel ? gpu::GeneratorKernel::Tiled : gpu::GeneratorKernel::RowStrip;
-  for (size_t p0 = 0; p0 < count; p0 += b.capacity) {
-    const uint32_t n = uint32_t(std::min<size_t>(b.capacity, count - p0));
-    const VkDeviceSize latBytes = VkDeviceSize(n) * L * sizeof(float), outBytes = VkDeviceSize(n) * per * sizeof(float);
-    std::copy_n(latents.data() + p0 * L, size_t(n) * L, static_cast<float*>(b.latentUpload.mapped()));
-    gpu::submitAndWait(*ctx_, [&](VkCommandBuffer cmd) {
-      const VkBufferCopy up{0, 0, latBytes};
-      vkCmdCopyBuffer(cmd, b.latentUpload.handle(), b.latentDevice.handle(), 1, &up);
-      gpu::memoryBarrier(cmd);
-      pass_->record(cmd, gm, *b.scratch, b.latentDevice, cond, n, b.outDevice, kernel);
-      const VkBufferCopy down{0, 0, outBytes};
-      vkCmdCopyBuffer(cmd, b.outDevice.handle(), b.outReadback.handle(), 1, &down);
-      gpu::memoryBarrier(cmd);
-    });
-    sink(p0, n, std::span<const float>(static_cast<const float*>(b.outReadback.mapped()), size_t(n) * per));
+  // The device part of each batch under the mutex; the raw outputs are copied out so that the sink's
+  // post-processing runs unlocked (another thread's batch may use the device meanwhile).
+  thread_local std::vector<float> raw;
+  std::shared_ptr<gpu::GeneratorGpuModel> gm;  // held across batches even if the cache drops it
+  size_t p0 = 0;
+  while (p0 < count) {
+    uint32_t n = 0;
+    {
+      const std::lock_guard lock(mutex_);
+      if (!gm) gm = modelFor(model);
+      Batch& b = batchFor(a);
+      n = uint32_t(std::min<size_t>(b.capacity, count - p0));
+      const VkDeviceSize latBytes = VkDeviceSize(n) * L * sizeof(float), outBytes = VkDeviceSize(n) * per * sizeof(float);
+      std::copy_n(latents.data() + p0 * L, size_t(n) * L, static_cast<float*>(b.latentUpload.mapped()));
+      gpu::submitAndWait(*ctx_, [&](VkCommandBuffer cmd) {
+        const VkBufferCopy up{0, 0, latBytes};
+        vkCmdCopyBuffer(cmd, b.latentUpload.handle(), b.latentDevice.handle(), 1, &up);
+        gpu::memoryBarrier(cmd);
+        pass_->record(cmd, *gm, *b.scratch, b.latentDevice, cond, n, b.outDevice, kernel);
+        const VkBufferCopy down{0, 0, outBytes};
+        vkCmdCopyBuffer(cmd, b.outDevice.handle(), b.outReadback.handle(), 1, &down);
+        gpu::memoryBarrier(cmd);
+      });
+      raw.resize(size_t(n) * per);
+      std::copy_n(static_cast<const float*>(b.outReadback.mapped()), raw.size(), raw.data());
+      if (p0 + n >= count) gm.reset();  // an uncached model's buffers are freed under the lock
+    }
+    sink(p0, n, raw);
+    p0 += n;
   }
 }
 

@@ -10,10 +10,11 @@
 //     lives in the decode call). Thread-safe: any number of threads decode at once.
 //   GpuGeneratorBackend: gpu::GeneratorDecodePass (rowstrip kernel by default: the barrier-free one that is
 //     fast on lavapipe). Owns or borrows one gpu::Context.
-//     Threading: a gpu::Context is one-thread-at-a-time, so decode() holds the backend's mutex for the whole
-//     cell (upload, kernels, readback and the sink's post-processing of each batch): concurrent callers (the
-//     IO threads) are serialised, in no particular order. A borrowed context must not be used by anyone else
-//     while a decode may run (e.g. from another thread) — the mutex only orders this backend's users.
+//     Threading: a gpu::Context is one-thread-at-a-time, so decode() holds the backend's mutex for the device
+//     part of each batch (latent upload, kernels, readback into a per-thread copy); the sink's
+//     post-processing runs unlocked, so one IO thread's CPU work overlaps another's device batch. Concurrent
+//     callers are otherwise serialised batch by batch, in no particular order. A borrowed context must not
+//     be used by anyone else while a decode may run: the mutex only orders this backend's users.
 //     Residency: the batch buffers (latent upload + device, scratch, output device + readback) are created
 //     for the largest batch seen and reused (no device allocation per decode once warm); a cell's weights are
 //     uploaded once into a GeneratorGpuModel kept in a small LRU cache keyed by ModelRef::key (relights of
@@ -113,10 +114,10 @@ class GpuGeneratorBackend final : public GeneratorBackend {
   struct Batch;  // the reused batch buffers
   struct CachedModel {
     uint64_t key;
-    std::unique_ptr<gpu::GeneratorGpuModel> model;
+    std::shared_ptr<gpu::GeneratorGpuModel> model;
   };
-  gpu::GeneratorGpuModel& modelFor(const ModelRef& ref, std::unique_ptr<gpu::GeneratorGpuModel>& uncached);
-  Batch& batchFor(const GeneratorArch& arch);
+  std::shared_ptr<gpu::GeneratorGpuModel> modelFor(const ModelRef& ref);  // mutex_ held
+  Batch& batchFor(const GeneratorArch& arch);  // mutex_ held
 
   GpuBackendOptions options_;
   std::unique_ptr<gpu::Context> owned_;
