@@ -12,7 +12,6 @@
 #include <spdlog/spdlog.h>
 
 #include "core/error.h"
-#include "core/generator_cpu.h"
 #include "core/half.h"
 #include "core/octahedral.h"
 #include "core/quantize.h"
