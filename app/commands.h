@@ -163,6 +163,7 @@ struct FlyOptions {
   int loadsPerFrame = 2;
   int loadDelayUs = 0;
   int resolution = 8;
+  std::string decoder = "auto";  // baked cells' generator decode: cpu | gpu | auto (streaming/generator_backend.h)
   std::string outDir;
   bool profile = false;
 };

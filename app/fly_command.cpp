@@ -1,9 +1,10 @@
 // `lfgi fly` and `lfgi profile`: the streaming manager over a whole world along a camera path.
 // Cells come from the baked cell files when --world DIR has DIR/baked/cells (CellFileSource: OpenVDB
-// cell files decoded on the CPU at load), else from SyntheticCellSource (an analytic light field on the
+// cell files decoded at load by --decoder cpu | gpu | auto), else from SyntheticCellSource (an analytic light field on the
 // world's cell layout, or the 4096 m default without --world). The summary says which.
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -76,6 +77,34 @@ plot dir.'/frames.csv' every ::1 using 1:21 with lines lw 2 title 'fallback frac
 unset multiplot
 )";
 
+// The decoder used, what `auto` measured, and the flight's generator-cell decodes (ms per load, probes/s).
+nlohmann::ordered_json decoderJson(const streaming::CellFileSource& source) {
+  const streaming::DecoderSelection& sel = source.selection();
+  std::vector<double> ms;
+  double probes = 0.0, totalMs = 0.0;
+  for (const auto& d : source.decodeSamples())
+    if (d.probes > 0) {
+      ms.push_back(d.ms);
+      probes += double(d.probes);
+      totalMs += d.ms;
+    }
+  std::sort(ms.begin(), ms.end());
+  auto pct = [&ms](double q) { return ms.empty() ? 0.0 : ms[std::min(ms.size() - 1, size_t(q * double(ms.size())))]; };
+  nlohmann::ordered_json j;
+  j["requested"] = streaming::decoderChoiceName(sel.requested);
+  j["backend"] = sel.backend;
+  j["device"] = sel.device;
+  j["reason"] = sel.reason;
+  j["auto_cpu_probes_per_s"] = sel.cpuProbesPerS;
+  j["auto_gpu_probes_per_s"] = sel.gpuProbesPerS;
+  j["auto_measured_probes"] = sel.measuredProbes;
+  j["generator_decodes"] = ms.size();
+  j["p50_generator_decode_ms"] = pct(0.5);
+  j["p95_generator_decode_ms"] = pct(0.95);
+  j["generator_decode_probes_per_s"] = totalMs > 0.0 ? probes / (totalMs * 1e-3) : 0.0;
+  return j;
+}
+
 }  // namespace
 
 int runFly(const FlyOptions& opt) {
@@ -86,6 +115,7 @@ int runFly(const FlyOptions& opt) {
   if (!opt.world.empty() && std::filesystem::is_directory(cellsDir)) {
     streaming::CellFileSourceOptions fso;
     fso.worldDir = opt.world;
+    fso.decoder = streaming::parseDecoderChoice(opt.decoder);
     fileSource = std::make_unique<streaming::CellFileSource>(fso);
     src.layout = fileSource->layout();
   } else if (!opt.world.empty()) {
@@ -101,9 +131,9 @@ int runFly(const FlyOptions& opt) {
   if (!fileSource) synthetic = std::make_unique<streaming::SyntheticCellSource>(src);
   streaming::CellSource& source = fileSource ? static_cast<streaming::CellSource&>(*fileSource) : *synthetic;
   const std::string sourceText =
-      fileSource ? fmt::format("cell files from {} ({} valid, {} missing, {} corrupt; CPU decode at load)",
+      fileSource ? fmt::format("cell files from {} ({} valid, {} missing, {} corrupt; {} decode at load, --decoder {})",
                                cellsDir.string(), fileSource->validCells(), fileSource->missingCells(),
-                               fileSource->corruptCells())
+                               fileSource->corruptCells(), fileSource->selection().backend, opt.decoder)
                  : std::string("synthetic analytic cells (raw FP32 probe fields) on the world's cell layout");
   std::printf("source: %s\n", sourceText.c_str());
 
@@ -182,6 +212,7 @@ int runFly(const FlyOptions& opt) {
     j["cell_loads"] = fileSource->loads();
     j["cell_read_ms_total"] = fileSource->readMsTotal();
     j["cell_decode_ms_total"] = fileSource->decodeMsTotal();
+    j["decoder"] = decoderJson(*fileSource);
   }
   j["cell_bytes"] = cellBytes;
   j["bytes_per_probe"] = double(cellBytes) / double(cellProbes);
@@ -229,6 +260,13 @@ int runFly(const FlyOptions& opt) {
         s.cellsEvicted, s.cellsRelit, s.cellsFailed, peakRssMb(), j["source"].get<std::string>());
     writeFileAtomic(out / "summary.html", html);
     std::printf("profile: %s (trace.json for Perfetto, profile.png, summary.html)\n", out.string().c_str());
+  }
+  if (fileSource) {
+    const auto& d = j["decoder"];
+    std::printf("decoder: %s (%s), %zu generator decodes, p50 / p95 %.1f / %.1f ms, %.0f probes/s\n",
+                d["backend"].get<std::string>().c_str(), d["reason"].get<std::string>().c_str(),
+                d["generator_decodes"].get<size_t>(), d["p50_generator_decode_ms"].get<double>(),
+                d["p95_generator_decode_ms"].get<double>(), d["generator_decode_probes_per_s"].get<double>());
   }
   std::printf("wrote %s\n", (out / "summary.json").string().c_str());
   return s.interrupted ? 130 : 0;

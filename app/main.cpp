@@ -195,6 +195,8 @@ int main(int argc, char** argv) {
     c->add_option("--tod-start", o.todStart, "Time of day at the start of the flight, hours")->check(CLI::Range(0.0, 24.0))->capture_default_str();
     c->add_option("--tod-end", o.todEnd, "Time of day at the end of the flight, hours (= --tod-start: no relight)")->check(CLI::Range(0.0, 24.0))->capture_default_str();
     c->add_option("--out", o.outDir, "Output directory (default out/fly or out/profile)");
+    c->add_option("--decoder", o.decoder, "Generator decode of baked cells: cpu, gpu or auto (the faster, timed once)")
+        ->check(CLI::IsMember({"cpu", "gpu", "auto"}))->capture_default_str();
   };
   CLI::App* flyCmd = app.add_subcommand("fly", "Fly a camera over the world through the streaming manager: frames.csv + summary.json");
   addFlyOptions(flyCmd, flyOpt);

@@ -6,16 +6,17 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "core/error.h"
-#include "core/generator_cpu.h"
 #include "core/half.h"
 #include "core/octahedral.h"
 #include "core/quantize.h"
 #include "core/sh.h"
+#include "streaming/generator_backend.h"
 #include "worlds/world_cells.h"
 
 namespace lfgi::streaming {
@@ -165,8 +166,36 @@ void convolveIrradiance(ProbeField& f, int64_t first, int64_t count) {
   }
 }
 
+void cellLatents(const CellFile& cell, std::span<const uint8_t> active, std::vector<float>& latents,
+                 const std::string& name) {
+  if (!cell.generator) fail("{}: no generator, no latents", name);
+  const GeneratorArch& arch = cell.generator->weights.arch;
+  const int64_t P = cell.grid.probeCount();
+  if (!active.empty() && active.size() != size_t(P))
+    fail("{}: {} active flags for {} probes", name, active.size(), P);
+  const int64_t A = active.empty() ? P : int64_t(std::count_if(active.begin(), active.end(), [](uint8_t a) { return a != 0; }));
+  const size_t L = size_t(arch.latentDim);
+  if (arch.latentSource == LatentSource::Stored) {
+    latents = dequantizeLatents(cell.generator->latents);
+  } else {
+    latents.resize(size_t(A) * L);
+    const glm::vec3 lo = cell.grid.origin, ext = cell.grid.boxMax() - cell.grid.origin;
+    size_t k = 0;
+    for (int64_t i = 0; i < P; ++i) {
+      if (!active.empty() && !active[size_t(i)]) continue;
+      const glm::vec3 p = cell.grid.probePosition(cell.grid.probeCoord(i));
+      glm::vec3 q;
+      for (int a = 0; a < 3; ++a) q[a] = ext[a] > 0.0f ? std::clamp((p[a] - lo[a]) / ext[a], 0.0f, 1.0f) : 0.5f;
+      positionLatent(q, arch.fourierOctaves, std::span<float>(latents).subspan(k * L, L));
+      ++k;
+    }
+  }
+  if (latents.size() != size_t(A) * L)
+    fail("{}: {} latent floats for {} active probes of {}", name, latents.size(), A, L);
+}
+
 void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, int irradianceResolution,
-                     int shOnlyResolution, ProbeField& out, const std::string& name) {
+                     int shOnlyResolution, ProbeField& out, const std::string& name, GeneratorBackend* backend) {
   const int n = decodedResolution(cell, shOnlyResolution);
   if (n < 1 || n > 128) fail("{}: decoded resolution {} outside [1, 128]", name, n);
   const int m = irradianceResolutionFor(n, irradianceResolution);
@@ -192,36 +221,18 @@ void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, 
   if (cell.generator && A > 0) {
     const GeneratorWeights weights = dequantizeWeights(cell.generator->weights);
     const GeneratorArch& arch = weights.arch;
-    GeneratorCpu decoder(weights);
-    // The active probes in latent order are decoded densely into a staging field, then scattered.
+    // The active probes in latent order are decoded densely (batches of the backend's choosing) into a
+    // staging field, then scattered. Everything after the network is this code, for every backend.
     thread_local std::vector<float> latents;
     thread_local ProbeField stage;
-    const size_t L = size_t(arch.latentDim);
-    if (arch.latentSource == LatentSource::Stored) {
-      latents = dequantizeLatents(cell.generator->latents);
-    } else {
-      latents.resize(size_t(A) * L);
-      const glm::vec3 lo = cell.grid.origin, ext = cell.grid.boxMax() - cell.grid.origin;
-      size_t k = 0;
-      for (int64_t i = 0; i < P; ++i) {
-        if (!out.active[size_t(i)]) continue;
-        const glm::vec3 p = cell.grid.probePosition(cell.grid.probeCoord(i));
-        glm::vec3 q;
-        for (int a = 0; a < 3; ++a) q[a] = ext[a] > 0.0f ? std::clamp((p[a] - lo[a]) / ext[a], 0.0f, 1.0f) : 0.5f;
-        positionLatent(q, arch.fourierOctaves, std::span<float>(latents).subspan(k * L, L));
-        ++k;
-      }
-    }
-    if (latents.size() != size_t(A) * L)
-      fail("{}: {} latent floats for {} active probes of {}", name, latents.size(), A, L);
+    cellLatents(cell, out.active, latents, name);
     const auto cond = conditioningVector(timeOfDayHours, weather);
     const std::span<const float> condSpan(cond.data(), size_t(arch.condDim));
-    // Chunks of whole decoder batches: the same sgemm batches as one decodeProbeField over every active
-    // probe (identical values), with a staging field of ~1024 probes instead of the cell's.
-    const size_t chunk = decoder.chunkProbes() * std::max<size_t>(1, 1024 / decoder.chunkProbes());
     stage.grid = ProbeGrid{};
     stage.resolution = n;
     stage.irradianceResolution = m;
+    stage.normal.clear();
+    stage.albedo.clear();
     int64_t next = 0;           // next probe index to place
     size_t firstInactive = size_t(-1);
     auto placeUpTo = [&](int64_t end, size_t& k) {  // scatter staged probes, SH for the inactive ones
@@ -236,19 +247,28 @@ void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, 
         }
       }
     };
-    for (size_t k0 = 0; k0 < size_t(A); k0 += chunk) {
-      const size_t cnt = std::min(chunk, size_t(A) - k0);
+    const size_t raw = size_t(kGeneratorChannels) * tn;
+    if (arch.outChannels() != kGeneratorChannels)
+      fail("{}: the model emits {} channels, a probe field needs {}", name, arch.outChannels(), kGeneratorChannels);
+    auto sink = [&](size_t, size_t cnt, std::span<const float> rawOut) {
       stage.grid.dims = {int(cnt), 1, 1};
-      decodeProbeField(decoder, std::span<const float>(latents).subspan(k0 * L, cnt * L), condSpan, cell.outputScale,
-                       stage);
+      stage.radiance.resize(cnt * tn * 3);
+      stage.distance.resize(cnt * tn * 2);
       stage.irradiance.resize(cnt * tm * 3);
+      for (size_t p = 0; p < cnt; ++p)
+        decodeChannels(rawOut.subspan(p * raw, raw), n, cell.outputScale,
+                       std::span(stage.radiance).subspan(p * tn * 3, tn * 3),
+                       std::span(stage.distance).subspan(p * tn * 2, tn * 2), {}, {});
       convolveIrradiance(stage, 0, int64_t(cnt));
-      // Place probes up to (excluding) the (k0 + cnt)-th active one.
+      // Place probes up to (excluding) the next active one after this batch.
       size_t k = 0, seen = 0;
       int64_t end = next;
       while (end < P && seen < cnt) seen += out.active[size_t(end++)] != 0;
       placeUpTo(end, k);
-    }
+    };
+    CpuGeneratorBackend cpu;
+    GeneratorBackend& b = backend ? *backend : static_cast<GeneratorBackend&>(cpu);
+    b.decode(ModelRef{weights, backend ? generatorModelKey(weights) : 0}, latents, condSpan, size_t(A), sink);
     size_t k = 0;
     placeUpTo(P, k);  // trailing inactive probes
     return;
@@ -284,6 +304,9 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
   info_.assign(N, {});
   fallback_.assign(N, {});
   int maxGeneratorN = 0, logged = 0;
+  // Auto: the first generator cell's model, latents and active count, for timing both backends.
+  std::optional<GeneratorWeights> probeWeights;
+  std::vector<float> probeLatents;
   for (int z = 0; z < cells; ++z)
     for (int x = 0; x < cells; ++x) {
       const glm::ivec2 c{x, z};
@@ -305,6 +328,10 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
         inf.activeProbes = file.activeProbeCount();
         inf.resolution = inf.network ? file.generator->weights.arch.outputResolution() : 0;
         if (inf.network) maxGeneratorN = std::max(maxGeneratorN, inf.resolution);
+        if (inf.network && options_.decoder == DecoderChoice::Auto && !probeWeights && inf.activeProbes > 0) {
+          probeWeights = dequantizeWeights(file.generator->weights);
+          cellLatents(file, file.active, probeLatents, path.string());
+        }
         ++validCells_;
       } catch (const Error& e) {
         inf.state = CellFileState::Corrupt;
@@ -352,6 +379,21 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
                  missingCells_, N, options_.cellsDir.string());
   spdlog::info("streaming: cell files in {}: {} valid, {} missing, {} corrupt; slot {} bytes",
                options_.cellsDir.string(), validCells_, missingCells_, corruptCells_, maxCellBytes_);
+  // The decoder: the timing input is the real first generator cell (its own model, latents and the noon
+  // conditioning), so the rates are the ones this world's loads will see.
+  const auto cond = conditioningVector(12.0f, options_.weather);
+  const size_t condDim = probeWeights ? size_t(probeWeights->arch.condDim) : 0;
+  const size_t probeCount = probeWeights ? probeLatents.size() / size_t(probeWeights->arch.latentDim) : 0;
+  backend_ = chooseGeneratorBackend(options_.decoder, probeWeights ? &*probeWeights : nullptr, probeLatents,
+                                    std::span<const float>(cond.data(), condDim), probeCount, selection_,
+                                    options_.gpu);
+  gpuBackend_ = dynamic_cast<GpuGeneratorBackend*>(backend_.get());
+  samples_.reserve(4096);
+}
+
+std::vector<CellFileSource::DecodeSample> CellFileSource::decodeSamples() const {
+  const std::lock_guard lock(samplesMutex_);
+  return samples_;
 }
 
 fs::path CellFileSource::cellPath(glm::ivec2 cell) const {
@@ -373,8 +415,15 @@ void CellFileSource::readAndDecode(glm::ivec2 cell, float timeOfDayHours, ProbeF
   const auto t1 = Clock::now();
   readUs_.fetch_add(usSince(t0));
   decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution, options_.shOnlyResolution,
-                  out, path.string());
-  decodeUs_.fetch_add(usSince(t1));
+                  out, path.string(), backend_.get());
+  recordDecode(t1, file);
+}
+
+void CellFileSource::recordDecode(std::chrono::steady_clock::time_point t0, const CellFile& file) {
+  const uint64_t us = usSince(t0);
+  decodeUs_.fetch_add(us);
+  const std::lock_guard lock(samplesMutex_);
+  samples_.push_back({float(double(us) * 1e-3), file.generator ? file.activeProbeCount() : 0});
 }
 
 void CellFileSource::load(glm::ivec2 cell, ProbeField& out) {
@@ -397,8 +446,8 @@ bool CellFileSource::relight(glm::ivec2 cell, ProbeField& field, float timeOfDay
     if (file.grid.probeCount() != field.probeCount() || decodedResolution(file, options_.shOnlyResolution) != field.resolution)
       fail("{}: changed size since the cell was loaded", path.string());
     decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution, options_.shOnlyResolution,
-                    field, path.string());
-    decodeUs_.fetch_add(usSince(t1));
+                    field, path.string(), backend_.get());
+    recordDecode(t1, file);
     return true;
   } catch (const Error& e) {
     spdlog::warn("streaming: relight of cell {},{} failed, keeping its lighting: {}", cell.x, cell.y, e.what());

@@ -12,9 +12,18 @@
 // all is an lfgi::Error naming the directory.
 //
 // load() (IO threads, concurrently): readCellFile again (every check: a file corrupted or deleted after
-// construction throws lfgi::Error naming the file, the manager logs it and keeps the fallback) then a CPU
+// construction throws lfgi::Error naming the file, the manager logs it and keeps the fallback) then a
 // decode into the slot's ProbeField (decodeCellField below), reusing the slot's arrays (no allocation
 // once a slot has held a cell of this size; reading and dequantizing a file still allocates).
+//
+// Decoder (options.decoder, streaming/generator_backend.h): the generator network runs on the CPU
+// (GeneratorCpu) or on the Vulkan device (gpu::GeneratorDecodePass in batches, device buffers reused);
+// Auto times both once at construction on the first generator cell's own model and latents and keeps the
+// faster (selection() says which, and both rates). The post-processing after the network is one code path
+// for both. Threading with the GPU backend: the source owns its gpu::Context (created at construction, so
+// a missing device is known before the flight) and GPU decodes from several IO threads are serialised by
+// the backend's mutex (one cell at a time on the device; reads and checks still run concurrently); nothing
+// else may use that context.
 //
 // Lighting: generator cells decode under the conditioning of the time of day the manager last set
 // (setTimeOfDay, called by StreamingManager::update) and options.weather; relight() re-decodes a resident
@@ -23,12 +32,18 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <vector>
 
+#include <memory>
+#include <mutex>
+
 #include "core/cell_file.h"
 #include "streaming/cell_source.h"
+#include "streaming/generator_backend.h"
 
 namespace lfgi::streaming {
 
@@ -38,6 +53,10 @@ struct CellFileSourceOptions {
   int irradianceResolution = 0;        // m of the decoded irradiance maps; 0: max(2, n / 2)
   int shOnlyResolution = 0;            // n for cells without a network; 0: the largest generator n, else 8
   float weather = 0.0f;                // generator conditioning, [0, 1]
+  // Generator decode backend. Gpu without a Vulkan device: the constructor throws lfgi::Error; Auto: logs
+  // why and decodes on the CPU.
+  DecoderChoice decoder = DecoderChoice::Cpu;
+  GpuBackendOptions gpu;
   // Throws lfgi::Error naming the bad field.
   void validate() const;
 };
@@ -85,10 +104,21 @@ class CellFileSource final : public CellSource {
   uint64_t loads() const { return loads_.load(); }
   double readMsTotal() const { return double(readUs_.load()) * 1e-3; }
   double decodeMsTotal() const { return double(decodeUs_.load()) * 1e-3; }
+  // The decoder in use and, for Auto, both measured rates.
+  const DecoderSelection& selection() const { return selection_; }
+  // The GPU backend when the source decodes on the device (validation counts, device name), else null.
+  GpuGeneratorBackend* gpuBackend() const { return gpuBackend_; }
+  // One entry per successful decode (load / relightInto / relight) so far, in completion order (any thread).
+  struct DecodeSample {
+    float ms = 0.0f;          // decode time (after the file read), network + post-processing
+    int64_t probes = 0;       // active probes through the network (0: SH-only cell)
+  };
+  std::vector<DecodeSample> decodeSamples() const;
 
  private:
   // Reads + validates cell's file and decodes it at timeOfDayHours into out (load and relightInto).
   void readAndDecode(glm::ivec2 cell, float timeOfDayHours, ProbeField& out);
+  void recordDecode(std::chrono::steady_clock::time_point t0, const CellFile& file);
 
   CellFileSourceOptions options_;
   WorldLayout layout_;
@@ -99,6 +129,11 @@ class CellFileSource final : public CellSource {
   int validCells_ = 0, missingCells_ = 0, corruptCells_ = 0;
   std::atomic<float> timeOfDay_{12.0f};
   std::atomic<uint64_t> loads_{0}, readUs_{0}, decodeUs_{0};
+  std::unique_ptr<GeneratorBackend> backend_;
+  GpuGeneratorBackend* gpuBackend_ = nullptr;  // backend_ when it is the GPU one
+  DecoderSelection selection_;
+  mutable std::mutex samplesMutex_;
+  std::vector<DecodeSample> samples_;
 };
 
 // The cell's SH L1 fallback: the per-cell entry, or the mean of the per-probe entries (cell.fallback must
@@ -110,16 +145,26 @@ int decodedResolution(const CellFile& cell, int shOnlyResolution);
 
 // Decodes a read cell file into `out` (grid, resolutions, active, radiance, distance, irradiance; no
 // normal / albedo / offsets), reusing out's capacity:
-//   generator cells: the active probes (latent order) through decodeProbeField (core/generator_cpu.h)
-//     with conditioningVector(timeOfDayHours, weather); position latents from the probe's lattice
+//   generator cells: the active probes (latent order) through the network (backend) with
+//     conditioningVector(timeOfDayHours, weather), then decodeChannels (core/generator.h); position latents from the probe's lattice
 //     position (the cell file keeps no relocation offsets, so a relocated probe's latent differs from
 //     the bake's by its offset); irradiance = convolveIrradiance of the decoded radiance;
 //   cells without a network, and the inactive probes of any cell: the probe's SH L1 (its per-probe
 //     entry, else the cell's) evaluated: radiance max(0, shEvaluate) at texel centres, irradiance
 //     shIrradiance at texel-centre normals, distance moments (range, range^2) (nothing occludes).
 // Throws lfgi::Error (starting with `name`) if the model cannot decode to a probe field.
+// backend: the generator network's backend (null: CpuGeneratorBackend); everything else is the same code
+// for every backend.
 void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, int irradianceResolution,
-                     int shOnlyResolution, ProbeField& out, const std::string& name = "cell");
+                     int shOnlyResolution, ProbeField& out, const std::string& name = "cell",
+                     GeneratorBackend* backend = nullptr);
+
+// The network inputs of a generator cell's active probes in latent order (active: the probe flags, empty =
+// all): its stored latents dequantized, or position latents at the probes' lattice points (see above).
+// Throws lfgi::Error (starting with `name`) for a cell without a generator or a latent count that
+// disagrees with the active probes.
+void cellLatents(const CellFile& cell, std::span<const uint8_t> active, std::vector<float>& latents,
+                 const std::string& name = "cell");
 
 // field.irradiance from field.radiance for probes [first, first + count): the texel sum of
 // bruteForceIrradiance (core/sh.h: E(n) = sum L(w) max(0, n.w) omega, exact texel solid angles), with the

@@ -7,6 +7,10 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <thread>
+#include <chrono>
+#include <cstdlib>
+#include <cstdio>
 
 #include <fmt/format.h>
 
@@ -17,6 +21,7 @@
 #include "core/probe_codecs.h"
 #include "core/quantize.h"
 #include "generator_test_util.h"
+#include "gpu/context.h"
 #include "streaming/streaming_manager.h"
 #include "worlds/world_cells.h"
 
@@ -431,5 +436,225 @@ TEST(CellFileStreaming, CorruptAndMissingFilesMidFlightKeepTheFallback) {
   EXPECT_GT(s.irradiance.x, 0.0f);
 }
 
+
+// ---- The GPU decoder (streaming/generator_backend.h) ----
+
+CellFileSourceOptions gpuOptions(const fs::path& world, DecoderChoice d = DecoderChoice::Gpu) {
+  CellFileSourceOptions o = options(world);
+  o.decoder = d;
+  return o;
+}
+
+// Tolerance of a GPU-decoded field against the CPU-decoded one, relative to the array's largest magnitude.
+// gpu/generator_pass_test.cpp holds the raw network outputs to 1e-5 of their largest magnitude (float sums
+// in another order, lavapipe fusing multiply-adds). After the network: radiance = exposure * expm1(y), so
+// dL = (L + exposure) dy: relative to the largest L the error grows by at most (Lmax + exposure) / Lmax times
+// max|y| (<= ~3 for these models: ~2e-5 x a few); distance is linear in y; irradiance is a non-negative
+// weighted sum of radiance (same relative bound). 1e-4 leaves ~2-5x headroom over that estimate, and is
+// far below what a wrong channel, texel or probe order would give (O(1)).
+constexpr double kGpuFieldTolerance = 1e-4;
+
+void expectFieldsClose(const ProbeField& gpu, const ProbeField& cpu, const std::string& what) {
+  ASSERT_EQ(gpu.grid.dims, cpu.grid.dims) << what;
+  ASSERT_EQ(gpu.resolution, cpu.resolution) << what;
+  ASSERT_EQ(gpu.irradianceResolution, cpu.irradianceResolution) << what;
+  EXPECT_EQ(gpu.active, cpu.active) << what;
+  ASSERT_EQ(gpu.radiance.size(), cpu.radiance.size()) << what;
+  ASSERT_EQ(gpu.distance.size(), cpu.distance.size()) << what;
+  ASSERT_EQ(gpu.irradiance.size(), cpu.irradiance.size()) << what;
+  const double r = test::relMaxError(gpu.radiance, cpu.radiance), d = test::relMaxError(gpu.distance, cpu.distance),
+               e = test::relMaxError(gpu.irradiance, cpu.irradiance);
+  std::printf("  %s: max rel error radiance %.2e, distance %.2e, irradiance %.2e\n", what.c_str(), r, d, e);
+  EXPECT_LT(r, kGpuFieldTolerance) << what;
+  EXPECT_LT(d, kGpuFieldTolerance) << what;
+  EXPECT_LT(e, kGpuFieldTolerance) << what;
+}
+
+TEST(CellFileSourceGpu, GpuLoadEqualsTheCpuLoadWithinTolerance) {
+  const fs::path world = makeWorld("gpu_vs_cpu");
+  CellFileSource cpu(options(world)), gpu(gpuOptions(world));
+  ASSERT_NE(gpu.gpuBackend(), nullptr);
+  EXPECT_EQ(cpu.gpuBackend(), nullptr);
+  EXPECT_EQ(gpu.selection().backend, "gpu");
+  EXPECT_EQ(cpu.selection().backend, "cpu");
+  cpu.setTimeOfDay(15.5f);
+  gpu.setTimeOfDay(15.5f);
+  std::vector<ProbeField> fields(9);
+  int generatorCells = 0;
+  for (int pass = 0; pass < 2; ++pass) {
+    const uint64_t allocations = gpu.gpuBackend()->bufferAllocations(), uploads = gpu.gpuBackend()->modelUploads();
+    for (int z = 0; z < 3; ++z)
+      for (int x = 0; x < 3; ++x) {
+        ProbeField& g = fields[size_t(z * 3 + x)];
+        ProbeField c;
+        const float* before = g.radiance.data();
+        gpu.load({x, z}, g);
+        cpu.load({x, z}, c);
+        ASSERT_NO_THROW(g.validate());
+        if (cpu.info({x, z}).network) {
+          generatorCells += pass == 0;
+          expectFieldsClose(g, c, fmt::format("cell {},{}", x, z));
+        } else {  // SH-only: no network, the same code for both
+          EXPECT_EQ(g.radiance, c.radiance);
+          EXPECT_EQ(g.irradiance, c.irradiance);
+          EXPECT_EQ(g.distance, c.distance);
+        }
+        if (pass == 1) {
+          EXPECT_EQ(g.radiance.data(), before);  // the slot's arrays are reused
+        }
+      }
+    if (pass == 1) {  // warm: no new device buffers, no re-upload of a cell's weights
+      EXPECT_EQ(gpu.gpuBackend()->bufferAllocations(), allocations);
+      EXPECT_EQ(gpu.gpuBackend()->modelUploads(), uploads);
+    }
+  }
+  EXPECT_EQ(generatorCells, 4);  // (0, 0) position latents, (2, 0), (1, 1), (0, 2) stored
+  EXPECT_EQ(gpu.gpuBackend()->modelUploads(), 4u);
+  EXPECT_EQ(gpu.decodeSamples().size(), 18u);
+  EXPECT_EQ(gpu.gpuBackend()->context().validationErrors.load(), 0u);
+}
+
+// More active probes than one GPU batch: batches of 256 with disabled probes between them land where the
+// CPU's 1024-probe chunks put them.
+TEST(CellFileSourceGpu, MultiBatchDecodeOfALargeCellMatchesTheCpu) {
+  CellFile c = makeCell(2, 0);
+  c.grid.dims = {16, 6, 16};
+  c.grid.spacing = glm::vec3(4.0f);
+  c.active.assign(size_t(c.grid.probeCount()), 1);
+  for (size_t i = 0; i < c.active.size(); i += 7) c.active[i] = 0;
+  const int64_t A = c.activeProbeCount();
+  const GeneratorWeights w = dequantizeWeights(c.generator->weights);
+  c.generator->latents = quantizeLatents(test::randomLatents(size_t(A), w.arch.latentDim, 5), w.arch.latentDim, 8);
+  GpuBackendOptions go;
+  go.batchProbes = 256;
+  ASSERT_GT(A, 4 * 256);
+  GpuGeneratorBackend gpu(go);
+  ProbeField fc, fg;
+  decodeCellField(c, 9.0f, 0.25f, 0, 8, fc);
+  decodeCellField(c, 9.0f, 0.25f, 0, 8, fg, "large cell", &gpu);
+  expectFieldsClose(fg, fc, "large cell");
+  EXPECT_EQ(gpu.context().validationErrors.load(), 0u);
+}
+
+TEST(CellFileSourceGpu, RelightIntoWithTheGpuEqualsAFreshGpuLoad) {
+  const fs::path world = makeWorld("gpu_relight");
+  CellFileSource source(gpuOptions(world));
+  source.setTimeOfDay(8.0f);
+  ProbeField morning, staged, fresh;
+  source.load({1, 1}, morning);
+  const ProbeField before = morning;
+  source.relightInto({1, 1}, morning, staged, 16.0f);
+  source.setTimeOfDay(16.0f);
+  source.load({1, 1}, fresh);
+  EXPECT_EQ(staged.radiance, fresh.radiance);
+  EXPECT_EQ(staged.distance, fresh.distance);
+  EXPECT_EQ(staged.irradiance, fresh.irradiance);
+  EXPECT_NE(staged.irradiance, before.irradiance);  // the conditioning reached the device
+  EXPECT_EQ(morning.irradiance, before.irradiance);  // the resident field is untouched
+  // The in-place relight agrees too.
+  EXPECT_TRUE(source.relight({1, 1}, morning, 16.0f));
+  EXPECT_EQ(morning.irradiance, fresh.irradiance);
+  EXPECT_EQ(source.gpuBackend()->context().validationErrors.load(), 0u);
+}
+
+TEST(CellFileSourceGpu, AutoPicksABackendAndReportsBothRates) {
+  const fs::path world = makeWorld("gpu_auto");
+  CellFileSource source(gpuOptions(world, DecoderChoice::Auto));
+  const DecoderSelection& s = source.selection();
+  std::printf("  %s -> %s\n", s.reason.c_str(), s.backend.c_str());
+  EXPECT_EQ(s.requested, DecoderChoice::Auto);
+  EXPECT_TRUE(s.backend == "cpu" || s.backend == "gpu") << s.backend;
+  EXPECT_GT(s.cpuProbesPerS, 0.0);
+  EXPECT_GT(s.gpuProbesPerS, 0.0);
+  EXPECT_EQ(s.measuredProbes, 512u);  // the first generator cell (0, 0)'s 32 probes, repeated to 512
+  EXPECT_FALSE(s.device.empty());
+  EXPECT_EQ(s.backend == "gpu", s.gpuProbesPerS > s.cpuProbesPerS);
+  EXPECT_EQ(source.gpuBackend() != nullptr, s.backend == "gpu");
+  EXPECT_NE(s.reason.find("probes/s"), std::string::npos) << s.reason;
+  CellFileSource cpu(options(world));
+  ProbeField a, b;
+  source.load({0, 0}, a);
+  cpu.load({0, 0}, b);
+  expectFieldsClose(a, b, "auto cell 0,0");
+}
+
+// No usable Vulkan device (simulated by naming one that does not exist): `gpu` is an error that says so,
+// `auto` logs the reason and decodes on the CPU.
+TEST(CellFileSourceGpu, NoDeviceGpuIsAnErrorAndAutoFallsBackToTheCpu) {
+  const fs::path world = makeWorld("gpu_none");
+  const char* old = std::getenv("LFGI_VK_DEVICE");
+  const std::string saved = old ? old : "";
+  setenv("LFGI_VK_DEVICE", "no-such-device-xyz", 1);
+  std::string error;
+  try {
+    CellFileSource source(gpuOptions(world));
+  } catch (const Error& e) {
+    error = e.what();
+  }
+  std::unique_ptr<CellFileSource> autoSource;
+  EXPECT_NO_THROW(autoSource = std::make_unique<CellFileSource>(gpuOptions(world, DecoderChoice::Auto)));
+  if (old) setenv("LFGI_VK_DEVICE", saved.c_str(), 1);
+  else unsetenv("LFGI_VK_DEVICE");
+  EXPECT_NE(error.find("decoder gpu: no usable Vulkan device"), std::string::npos) << error;
+  EXPECT_NE(error.find("no-such-device-xyz"), std::string::npos) << error;
+  ASSERT_TRUE(autoSource);
+  EXPECT_EQ(autoSource->selection().backend, "cpu");
+  EXPECT_EQ(autoSource->gpuBackend(), nullptr);
+  EXPECT_NE(autoSource->selection().reason.find("no Vulkan device"), std::string::npos) << autoSource->selection().reason;
+  ProbeField f;
+  autoSource->load({1, 1}, f);
+  EXPECT_NO_THROW(f.validate());
+}
+
+// The scripted flight of CellFileStreaming above with the GPU decoder: inline IO makes the decisions the same
+// as the CPU's (the decoder changes values, not timing-free decisions); then two IO threads decode on the
+// device at once (serialised by the backend): no hole, budget held, every far cell arrives.
+TEST(CellFileStreamingGpu, FlightWithTheGpuDecoderHasNoHolesAndStaysWithinBudget) {
+  const fs::path world = makeWorld("gpu_flight");
+  auto fly = [&](DecoderChoice d, int ioThreads, std::vector<StreamingEvent>* events, glm::vec3* finalSample) {
+    CellFileSource source(gpuOptions(world, d));
+    StreamingConfig c = fileConfig(source.maxCellBytes());
+    c.ioThreads = ioThreads;
+    StreamingManager m(source, c);
+    int f = 0, missing = 0;
+    std::vector<FrameInput> path = eastward();
+    for (int extra = 0; extra < 200; ++extra) {  // hover at the end (wall time for the IO threads)
+      FrameInput in = path.back();
+      in.velocity = glm::vec3(0.0f);
+      path.push_back(in);
+    }
+    for (const FrameInput& in : path) {
+      const FrameStats s = m.update(in);
+      EXPECT_LE(s.bytesResident, c.memoryBudgetBytes) << "frame " << f;
+      EXPECT_EQ(s.failed, 0) << "frame " << f;
+      for (float dz : {-60.0f, 0.0f, 60.0f})
+        for (float dx : {-60.0f, 0.0f, 60.0f}) {
+          const glm::vec3 p(in.position.x + dx, 1.0f, in.position.z + dz);
+          if (m.layout().contains(m.layout().cellOf(p))) missing += m.sample(p, {0, 1, 0}).missing;
+        }
+      if (ioThreads > 0 && f >= 90 && m.isResident({2, 1}) && m.sample({2 * kCell + 30.0f, 1.0f, kCell + 30.0f}, {0, 1, 0}).fallbackWeight == 0.0f)
+        break;
+      if (ioThreads > 0 && f >= 90) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      ++f;
+    }
+    EXPECT_EQ(missing, 0);
+    EXPECT_TRUE(m.isResident({2, 1}));
+    *finalSample = m.sample({2 * kCell + 30.0f, 1.0f, kCell + 30.0f}, {0, 1, 0}).irradiance;
+    if (events) *events = m.events();
+    if (source.gpuBackend()) {
+      EXPECT_EQ(source.gpuBackend()->context().validationErrors.load(), 0u);
+    }
+    EXPECT_GE(source.loads(), 4u);
+  };
+  std::vector<StreamingEvent> cpuEvents, gpuEvents;
+  glm::vec3 cpuE, gpuE, threadedE;
+  fly(DecoderChoice::Cpu, 0, &cpuEvents, &cpuE);
+  fly(DecoderChoice::Gpu, 0, &gpuEvents, &gpuE);
+  EXPECT_EQ(gpuEvents, cpuEvents);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(gpuE[k], cpuE[k], kGpuFieldTolerance * std::abs(cpuE[k]) + 1e-6) << k;
+  // With IO threads the lighting a cell holds depends on when its relight landed: invariants only.
+  fly(DecoderChoice::Gpu, 2, nullptr, &threadedE);
+  EXPECT_TRUE(std::isfinite(threadedE.x + threadedE.y + threadedE.z));
+}
 }  // namespace
 }  // namespace lfgi::streaming
