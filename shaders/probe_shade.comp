@@ -40,11 +40,13 @@ layout(std430, set = 0, binding = 15) writeonly buffer OTotal { vec4 outTotal[];
 
 const float kPi = 3.14159265358979;
 
-// Bilinear tap positions of direction d in a bordered octahedral map of interior resolution r.
+// Bilinear tap positions of direction d in a bordered octahedral map of interior resolution r, as the
+// CPU's octSampleBilinear (core/octahedral.cpp): b is the bordered texel coordinate with bordered texel i's
+// centre at b = i (interior texel j, centre (j + 0.5) / r in encode space, is bordered texel j + 1).
 void octBilinear(vec3 d, uint r, out uvec2 t0, out vec2 f) {
-  vec2 b = (octEncode(d) * 0.5 + vec2(0.5)) * float(r) + vec2(0.5);  // bordered texel space, centres at +0.5
-  vec2 x0 = clamp(floor(b - vec2(0.5)), vec2(0.0), vec2(float(r)));
-  f = clamp(b - vec2(0.5) - x0, vec2(0.0), vec2(1.0));
+  vec2 b = (octEncode(d) * 0.5 + vec2(0.5)) * float(r) + vec2(0.5);
+  vec2 x0 = clamp(floor(b), vec2(0.0), vec2(float(r)));
+  f = clamp(b - x0, vec2(0.0), vec2(1.0));
   t0 = uvec2(x0);
 }
 
