@@ -8,8 +8,11 @@
 #include <numbers>
 #include <random>
 
+#include "bake/shading_inputs.h"
 #include "gpu/gbuffer_pass.h"
 #include "gpu/probe_shading_pass.h"
+#include "core/error.h"
+#include "core/sh.h"
 #include "streaming/streaming_manager.h"
 
 namespace lfgi {
@@ -41,7 +44,7 @@ TEST(StreamingShading, GpuMatchesStreamingSampleAcrossFadesAndFallbacks) {
   std::map<std::pair<int, int>, ProbeField> fields;
   manager.onActivate = [&](glm::ivec2 c, const ProbeField& f) { fields[{c.x, c.y}] = f; };
   streaming::FrameInput in;
-  in.position = glm::vec3(40.0f, 10.0f, 40.0f);  // cell 1,1
+  in.position = glm::vec3(80.0f, 10.0f, 80.0f);  // cell 2,2: cells 1..3 resident, the x = 0 and z = 0 rows not
   in.dtSeconds = 0.1f;
   for (int f = 0; f < 6; ++f) manager.update(in);
 
@@ -109,10 +112,43 @@ TEST(StreamingShading, GpuMatchesStreamingSampleAcrossFadesAndFallbacks) {
   gpu::submitAndWait(*ctx, [&](VkCommandBuffer cmd) { pass.record(cmd, sb, gb, out); });
   const gpu::ShadeOutputHost r = gpu::readShadeOutput(*ctx, out);
 
+  // sample(), except in the last probe interval of a cell on its fallback before a resident neighbour:
+  // there the pass blends into the neighbour's first layer (no step at the face) where sample() keeps the
+  // fallback up to the face; the expected value is then sample() at the lattice planes around the point
+  // (the cell's last layer, the face: the neighbour's first layer), bilinear in x and z.
+  const streaming::WorldLayout& layout = manager.layout();
+  int blended = 0;
+  auto expected = [&](glm::vec3 q, glm::vec3 nn) {
+    const glm::ivec2 a = layout.cellOf(q);
+    const glm::vec2 lo = layout.cellMin(a);
+    const float last = layout.cellSize - so.probeSpacing;
+    glm::vec2 t(0.0f);
+    for (int k = 0; k < 2; ++k) {
+      const float local = (k == 0 ? q.x - lo.x : q.z - lo.y) - last;
+      const glm::ivec2 next = a + (k == 0 ? glm::ivec2(1, 0) : glm::ivec2(0, 1));
+      if (!manager.isResident(a) && local > 0.0f && layout.contains(next)) t[k] = std::min(1.0f, local / so.probeSpacing);
+    }
+    if (t.x == 0.0f && t.y == 0.0f) return manager.sample(q, nn);
+    ++blended;
+    streaming::IrradianceSample sum;
+    sum.fallbackWeight = 0.0f;
+    for (int k = 0; k < 4; ++k) {
+      const int dx = k & 1, dz = k >> 1;
+      const float w = (dx ? t.x : 1.0f - t.x) * (dz ? t.y : 1.0f - t.y);
+      if (w == 0.0f) continue;
+      glm::vec3 plane = q;
+      if (t.x > 0.0f) plane.x = lo.x + (dx ? layout.cellSize : last);
+      if (t.y > 0.0f) plane.z = lo.y + (dz ? layout.cellSize : last);
+      const streaming::IrradianceSample s = manager.sample(plane, nn);
+      sum.irradiance += w * s.irradiance;
+      sum.fallbackWeight += w * s.fallbackWeight;
+    }
+    return sum;
+  };
   int mixed = 0, onFallback = 0;
   double worst = 0.0;
   for (size_t k = 0; k < p.size(); ++k) {
-    const streaming::IrradianceSample s = manager.sample(p[k], n[k]);
+    const streaming::IrradianceSample s = expected(p[k], n[k]);
     ASSERT_FALSE(s.missing);
     for (int c = 0; c < 3; ++c) {
       const float e = s.irradiance[c];
@@ -125,9 +161,47 @@ TEST(StreamingShading, GpuMatchesStreamingSampleAcrossFadesAndFallbacks) {
     if (s.fallbackWeight == 1.0f) ++onFallback;
   }
   EXPECT_GT(mixed, 30);
+  EXPECT_GT(blended, 10);
   EXPECT_GT(onFallback, 100);
   RecordProperty("worst_relative_difference", std::to_string(worst));
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
+}
+
+// The fallback `lfgi render --neighbours-fallback` gives a cell: the mean SH L1 of its active probes (the
+// inactive ones, zero maps here, must not pull it down), from a sparse mask of columns.
+TEST(StreamingShading, FieldFallbackIsTheMeanShL1OfActiveProbes) {
+  ProbeField f;
+  f.grid = {glm::vec3(0.0f), glm::vec3(2.0f), glm::ivec3(8, 3, 8)};
+  f.resolution = 8;
+  f.irradianceResolution = 4;
+  const size_t P = size_t(f.grid.probeCount());
+  f.radiance.assign(P * 64 * 3, 0.0f);
+  f.distance.assign(P * 64 * 2, 1.0f);
+  f.irradiance.assign(P * 16 * 3, 0.0f);
+  f.active.assign(P, 0);
+  for (size_t i = 0; i < P; i += 2) {  // active probes: constant radiance 1 or 3 (mean 2)
+    f.active[i] = 1;
+    const float L = (i / 2) % 2 == 0 ? 1.0f : 3.0f;
+    for (int j = 0; j < 8; ++j)
+      for (int k = 0; k < 8; ++k)
+        for (int c = 0; c < 3; ++c) f.radiance[(i * 64 + size_t(j * 8 + k)) * 3 + size_t(c)] = L;
+  }
+  const ShL1 sh = bake::fieldFallback(f);
+  for (const glm::vec3 n : {glm::vec3(0, 1, 0), glm::vec3(1, 0, 0), glm::vec3(0, 0, -1)})
+    EXPECT_NEAR(shIrradiance(sh, n).x, 2.0f * kPi, 1e-4f);
+  f.active.assign(P, 0);
+  EXPECT_THROW(bake::fieldFallback(f), Error);
+
+  std::vector<uint8_t> disabled(P, 0);
+  disabled[size_t(f.grid.linearIndex({1, 0, 1}))] = 1;
+  const std::vector<uint8_t> mask = bake::fallbackProbeMask(f.grid, disabled, 3);
+  size_t count = 0;
+  for (uint8_t m : mask) count += m;
+  EXPECT_EQ(count, 3u * 3u * 3u - 1u);  // 3 x 3 columns x 3 layers, one inside solid
+  EXPECT_EQ(mask[size_t(f.grid.linearIndex({1, 1, 1}))], 1);
+  EXPECT_EQ(mask[size_t(f.grid.linearIndex({1, 0, 1}))], 0);
+  EXPECT_EQ(mask[size_t(f.grid.linearIndex({0, 0, 0}))], 0);
+  EXPECT_THROW(bake::fallbackProbeMask(f.grid, std::vector<uint8_t>(3), 3), Error);
 }
 
 }  // namespace

@@ -20,8 +20,12 @@
 //     + sum_k t_k (1 - f_k) * fallback(q_k),     beta = sum_k t_k f_k
 // where q_k = p, except on an x or z axis where p is in the owning grid's last probe interval: there q_k
 // sits on the corner's lattice plane (the last layer or the face), as StreamingManager::sample() places
-// its fallback evaluations. With visibility and backface weights off this is exactly sample(); a point in
-// a fallback-only cell is shaded from the fallback alone, so no point inside the cells lacks indirect light.
+// its fallback evaluations. A fallback-only cell runs the same sum over its box's lattice, every own corner
+// on the fallback (f = 0): a point in it takes the fallback alone, except in its last probe interval before
+// a resident neighbour, where it blends into that neighbour's first layer, so the border has no step from
+// either side (sample() takes the fallback alone there and steps at the face; the test in
+// bake/streaming_shading_test.cpp states the difference). With visibility and backface weights off this is
+// sample() everywhere else; no point inside the cells lacks indirect light.
 // Specular from a fallback: the SH L1 radiance in the mirror direction r with its linear band scaled by
 // 1 - alpha/3 (alpha = roughness^2): L = (E0 + (1.5 - 0.5 alpha) E1 . r) / pi, where E(n) = E0 + E1 . n is
 // the fallback irradiance. Mirror: the SH L1 radiance at r; roughness 1: irradiance / pi at r (the cosine

@@ -311,6 +311,11 @@ TEST(ProbeShading, NoJumpAcrossABorderToAFullOrFallbackNeighbour) {
   const Line full = line({fullCell(a, 1.0f, fbA), fullCell(b, 1.0f, fbB)});
   const Line half = line({fullCell(a, 1.0f, fbA), fullCell(b, 0.5f, fbB)});
   const Line fallback = line({fullCell(a, 1.0f, fbA), fallbackCell(gridB, fbB)});
+  // The other way round: A on its fallback, B resident. A's last interval blends its fallback (2.3 at
+  // x = 3) into B's first probe layer (E = 2 at x = 4); the fallback at the face, 3.1, is 1.1 from it (the
+  // step StreamingManager::sample() has there).
+  const Line reverse = line({fallbackCell(gridA, fbA), fullCell(b, 1.0f, fbB)});
+  EXPECT_LT(reverse.maxJump, 0.03f);
   EXPECT_LT(full.maxJump, 0.006f);
   EXPECT_LT(half.maxJump, 0.03f);
   EXPECT_LT(fallback.maxJump, 0.03f);
@@ -319,6 +324,7 @@ TEST(ProbeShading, NoJumpAcrossABorderToAFullOrFallbackNeighbour) {
   RecordProperty("max_jump_full", std::to_string(full.maxJump));
   RecordProperty("max_jump_half", std::to_string(half.maxJump));
   RecordProperty("max_jump_fallback", std::to_string(fallback.maxJump));
+  RecordProperty("max_jump_reverse", std::to_string(reverse.maxJump));
   EXPECT_EQ(h.ctx->validationErrors.load(), 0u);
 }
 

@@ -147,16 +147,18 @@ int findCorner(int ci, ivec3 coord, out int cellOut) {
   return fb >= 0 ? -1 : -2;
 }
 
-// Global probe index of lattice point `coord` of full cell ci, or -1 where the point lies in a
-// fallback-only cell; cellOut: the cell it belongs to. Inside ci's grid: its own probe; else another
-// cell's (findCorner), first as is, then with y clamped into the grid (cells tile x and z: above or
+// Global probe index of lattice point `coord` of cell ci, or -1 where the point lies in a fallback-only
+// cell (ci's own lattice points when ci is fallback-only: its box's grid); cellOut: the cell it belongs
+// to. Inside ci's grid: its own probe; else another cell's (findCorner), first as is, then with y clamped into the grid (cells tile x and z: above or
 // below the layers the neighbour's column counts, as StreamingManager::sample() clamps y); else the
-// nearest probe of ci (clamping, as ProbeGrid::trilinear).
-int latticeProbe(int ci, ivec3 coord, out int cellOut) {
+// nearest probe of ci (clamping, as ProbeGrid::trilinear). used: the lattice point of ci taken (coord, or
+// coord clamped on the axes with no cell beyond).
+int latticeProbe(int ci, ivec3 coord, out int cellOut, out ivec3 used) {
   ShadeCell c = cells[ci];
   cellOut = ci;
+  used = coord;
   if (all(greaterThanEqual(coord, ivec3(0))) && all(lessThan(coord, c.dims.xyz))) {
-    return c.dims.w + (coord.z * c.dims.y + coord.y) * c.dims.x + coord.x;
+    return fallbackOnly(c) ? -1 : c.dims.w + (coord.z * c.dims.y + coord.y) * c.dims.x + coord.x;
   }
   int other;
   int found = findCorner(ci, coord, other);
@@ -167,7 +169,28 @@ int latticeProbe(int ci, ivec3 coord, out int cellOut) {
     cellOut = other;
     return found;
   }
+  if (fallbackOnly(c)) {
+    // A fallback-only cell at the edge of the cells given: clamp one axis at a time, so a diagonal corner
+    // takes the side neighbour's first layer (continuous with that neighbour's own clamped last layer).
+    ivec3 lo = ivec3(0, 0, 0), hi = c.dims.xyz - ivec3(1);
+    for (int axis = 0; axis < 2 && found == -2; ++axis) {
+      ivec3 k = yc;
+      if (axis == 0) k.x = clamp(k.x, lo.x, hi.x);
+      else k.z = clamp(k.z, lo.z, hi.z);
+      if (k != yc && (k.x >= c.dims.x || k.z >= c.dims.z || k.x < 0 || k.z < 0)) {
+        found = findCorner(ci, k, other);
+        used = k;
+      }
+    }
+    if (found != -2) {
+      cellOut = other;
+      return found;
+    }
+    used = clamp(coord, ivec3(0), c.dims.xyz - ivec3(1));
+    return -1;
+  }
   ivec3 k = clamp(coord, ivec3(0), c.dims.xyz - ivec3(1));
+  used = k;
   return c.dims.w + (k.z * c.dims.y + k.y) * c.dims.x + k.x;
 }
 
@@ -315,9 +338,10 @@ void main() {
     vec3 irrSum = vec3(0.0), specSum = vec3(0.0);
     float beta = 0.0;  // the probes' share (the rest is fallback)
     Fallback fb = Fallback(vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0));
-    if (fallbackOnly(c)) {
-      addFallback(fb, ci, p, 1.0);
-    } else {
+    // A fallback-only cell runs the same loop over its box's lattice with every own corner on the
+    // fallback: in its last probe interval it blends into a resident neighbour's first layer, so the border
+    // has no step from that side either (StreamingManager::sample() takes the fallback alone there).
+    {
       vec3 local = (p - c.origin.xyz) / c.spacing.xyz;
       ivec3 base = clamp(ivec3(floor(local)), ivec3(0), c.dims.xyz - ivec3(1));
       vec3 alpha = clamp(local - vec3(base), vec3(0.0), vec3(1.0));
@@ -326,13 +350,16 @@ void main() {
       for (uint k = 0u; k < 8u; ++k) {
         ivec3 off = ivec3(int(k & 1u), int((k >> 1u) & 1u), int((k >> 2u) & 1u));
         int cellK;
-        int probe = latticeProbe(ci, base + off, cellK);
+        ivec3 used;
+        int probe = latticeProbe(ci, base + off, cellK, used);
         if (probe >= 0 && probes[probe].w == 0.0) continue;  // disabled probe (inside solid)
         vec3 tri = mix(vec3(1.0) - alpha, alpha, vec3(off));
         float trilinear = tri.x * tri.y * tri.z;
         tSum += trilinear;
         float fade = probe >= 0 ? cells[cellK].origin.w : 0.0;
-        column[off.x + 2 * off.z] += trilinear * (1.0 - fade);
+        // A corner clamped at the edge of the cells given stands for the last layer on that axis: its
+        // fallback too (as sample() at the world edge).
+        column[clamp(used.x - base.x, 0, 1) + 2 * clamp(used.z - base.z, 0, 1)] += trilinear * (1.0 - fade);
         if (probe < 0 || fade <= 0.0) continue;
         beta += trilinear * fade;
         vec4 pr = probes[probe];
@@ -362,6 +389,15 @@ void main() {
         if (wantSpec) specSum += w * sampleSpecular(uint(probe), r, rough);
         weightSum += w;
       }
+      bool lastX = base.x + 1 == c.dims.x, lastZ = base.z + 1 == c.dims.z;
+      if (!lastX) {  // both x columns evaluate at p.x: merge them
+        column.xz += column.yw;
+        column.yw = vec2(0.0);
+      }
+      if (!lastZ) {
+        column.xy += column.zw;
+        column.zw = vec2(0.0);
+      }
       if (tSum > 0.0) {
         beta /= tSum;
         // Each column's fallback where StreamingManager::sample() evaluates it: on an x or z axis in the
@@ -369,8 +405,8 @@ void main() {
         for (int col = 0; col < 4; ++col) {
           if (column[col] <= 0.0) continue;
           vec3 q = p;
-          if (base.x + 1 == c.dims.x) q.x = c.origin.x + float(base.x + (col & 1)) * c.spacing.x;
-          if (base.z + 1 == c.dims.z) q.z = c.origin.z + float(base.z + (col >> 1)) * c.spacing.z;
+          if (lastX) q.x = c.origin.x + float(base.x + (col & 1)) * c.spacing.x;
+          if (lastZ) q.z = c.origin.z + float(base.z + (col >> 1)) * c.spacing.z;
           addFallback(fb, ci, q, column[col] / tSum);
         }
       } else {
