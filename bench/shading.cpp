@@ -57,6 +57,25 @@ std::vector<uint8_t> surfaceMask(const Image& shaded, const Image& ref, float em
   return m;
 }
 
+// The world-cell view (cell 1,0 of the 64 m world of 32 m cells, seed 3, seen from the south-west) and its
+// path-traced reference settings.
+bake::PinholeCamera worldCellCamera() {
+  bake::PinholeCamera c;
+  c.position = glm::vec3(20.0f, 25.0f, -5.0f);
+  c.target = glm::vec3(40.0f, 0.0f, 20.0f);
+  c.verticalFovDeg = 60.0f;
+  return c;
+}
+
+bake::RenderOptions worldCellReferenceOptions(bool quick, int bounces) {
+  bake::RenderOptions ro;
+  ro.width = quick ? 48 : 96;
+  ro.height = ro.width * 9 / 16;
+  ro.samplesPerPixel = quick ? 256 : 1024;
+  ro.maxBounces = bounces;
+  return ro;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -180,16 +199,9 @@ int main(int argc, char** argv) {
         fallbacks.push_back(bake::fieldFallback(fields.back()));
       }
       const double captureS = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
-      bake::PinholeCamera wc;
-      wc.position = glm::vec3(20.0f, 25.0f, -5.0f);
-      wc.target = glm::vec3(40.0f, 0.0f, 20.0f);
-      wc.verticalFovDeg = 60.0f;
-      const int w = quick ? 48 : 96, h = w * 9 / 16;
-      bake::RenderOptions ro;
-      ro.width = w;
-      ro.height = h;
-      ro.samplesPerPixel = quick ? 256 : 1024;
-      ro.maxBounces = bs.bounces;
+      const bake::PinholeCamera wc = worldCellCamera();
+      const bake::RenderOptions ro = worldCellReferenceOptions(quick, bs.bounces);
+      const int w = ro.width, h = ro.height;
       const bake::RenderResult ref = bake::renderShadingReference(scene, noon, wc, ro);
       bake::ShadingRenderer renderer(*ctx, in.sceneMesh);
       const ProbeGrid& g = fields[1].grid;
@@ -334,16 +346,9 @@ int main(int argc, char** argv) {
       o.summary()["world_cell_bake_s"] = bakeS;
       o.summary()["world_cell_model"] = cf.stats.model;
       const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
-      bake::PinholeCamera wc;
-      wc.position = glm::vec3(20.0f, 25.0f, -5.0f);
-      wc.target = glm::vec3(40.0f, 0.0f, 20.0f);
-      wc.verticalFovDeg = 60.0f;
-      const int w = quick ? 48 : 96, h = w * 9 / 16;
-      bake::RenderOptions ro;
-      ro.width = w;
-      ro.height = h;
-      ro.samplesPerPixel = quick ? 256 : 1024;
-      ro.maxBounces = bs.bounces;
+      const bake::PinholeCamera wc = worldCellCamera();
+      const bake::RenderOptions ro = worldCellReferenceOptions(quick, bs.bounces);
+      const int w = ro.width, h = ro.height;
       const bake::RenderResult ref = bake::renderShadingReference(scene, noon, wc, ro);
       bake::ShadingRenderer renderer(*ctx, mesh);
       const ProbeGrid& grid = built.probes.grid;

@@ -127,6 +127,16 @@ TEST(ProbeShading, LinearFieldIsExactAcrossACellBorder) {
     }
   }
   EXPECT_GT(inLastInterval, 3);
+  // B's layers at other heights (world cells place them per cell): x and z still match, so the corners at
+  // x = 4 take B's own layers around each point's height with B's y weights; E = 1 + x + 2 y stays exact.
+  auto irrY = [](glm::vec3 q) { return glm::vec3(1.0f + q.x + 2.0f * q.y); };
+  const ProbeField ay = makeField({glm::vec3(0.0f), glm::vec3(1.0f), glm::ivec3(4, 2, 2)}, irrY);
+  const ProbeField by = makeField({glm::vec3(4.0f, 0.2f, 0.0f), glm::vec3(1.0f), glm::ivec3(4, 2, 2)}, irrY);
+  const ShadeOutputHost shifted = h.shade({&ay, &by}, points(p, n, albedo), glm::vec3(3.0f, 5.0f, 5.0f), o);
+  for (size_t k = 0; k < p.size(); ++k) {
+    const float e = 1.0f + p[k].x + 2.0f * p[k].y;
+    EXPECT_NEAR(shifted.diffuse[k].x, e, 2e-4f * e) << "x = " << p[k].x << ", y = " << p[k].y;
+  }
   EXPECT_EQ(h.ctx->validationErrors.load(), 0u);
 }
 

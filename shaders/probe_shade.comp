@@ -120,14 +120,19 @@ int cellFor(vec3 p) {
 }
 
 // Lattice point `coord` (outside cell ci's grid) in another cell: a full cell whose lattice holds the same
-// world point gives its probe (>= 0); a fallback-only cell whose box holds the point (a quarter spacing
-// further out, off the shared face) gives -1; none: -2. cellOut: that cell.
-int findCorner(int ci, ivec3 coord, out int cellOut) {
+// point in x and z gives its probe (>= 0); a fallback-only cell whose box holds the point (a quarter
+// spacing further out, off the shared face) gives -1; none: -2. cellOut: that cell. Cells tile x and z
+// and may place their layers at other heights (world cells do): a full neighbour's corner takes the
+// neighbour's own layer below (offY 0) or above (offY 1) the point's height py, and wy its weight in the
+// neighbour's y interpolation, so the neighbour's value at the face is its own trilinear value there, as
+// StreamingManager::sample() evaluates it (-1: the caller's y weight holds).
+int findCorner(int ci, ivec3 coord, float py, int offY, out int cellOut, out float wy) {
   ShadeCell c = cells[ci];
   vec3 q = c.origin.xyz + vec3(coord) * c.spacing.xyz;
   vec3 outward = vec3(greaterThanEqual(coord, c.dims.xyz)) - vec3(lessThan(coord, ivec3(0)));
   vec3 qOut = q + 0.25 * outward * c.spacing.xyz;
   int fb = -1;
+  wy = -1.0;
   for (uint i = 0u; i < params.size.z; ++i) {
     if (int(i) == ci) continue;
     ShadeCell o = cells[i];
@@ -137,8 +142,13 @@ int findCorner(int ci, ivec3 coord, out int cellOut) {
     }
     vec3 l = (q - o.origin.xyz) / o.spacing.xyz;
     ivec3 k = ivec3(round(l));
-    if (all(greaterThanEqual(k, ivec3(0))) && all(lessThan(k, o.dims.xyz)) &&
-        all(lessThan(abs(l - vec3(k)), vec3(1e-3)))) {
+    if (k.x >= 0 && k.z >= 0 && k.x < o.dims.x && k.z < o.dims.z && abs(l.x - float(k.x)) < 1e-3 &&
+        abs(l.z - float(k.z)) < 1e-3) {
+      float ly = clamp((py - o.origin.y) / o.spacing.y, 0.0, float(o.dims.y - 1));
+      int by = min(int(floor(ly)), max(o.dims.y - 2, 0));
+      float ay = o.dims.y > 1 ? clamp(ly - float(by), 0.0, 1.0) : 0.0;
+      k.y = min(by + offY, o.dims.y - 1);
+      wy = offY != 0 ? ay : 1.0 - ay;
       cellOut = int(i);
       return o.dims.w + (k.z * o.dims.y + k.y) * o.dims.x + k.x;
     }
@@ -153,18 +163,19 @@ int findCorner(int ci, ivec3 coord, out int cellOut) {
 // below the layers the neighbour's column counts, as StreamingManager::sample() clamps y); else the
 // nearest probe of ci (clamping, as ProbeGrid::trilinear). used: the lattice point of ci taken (coord, or
 // coord clamped on the axes with no cell beyond).
-int latticeProbe(int ci, ivec3 coord, out int cellOut, out ivec3 used) {
+int latticeProbe(int ci, ivec3 coord, float py, int offY, out int cellOut, out ivec3 used, out float wy) {
   ShadeCell c = cells[ci];
   cellOut = ci;
   used = coord;
+  wy = -1.0;
   if (all(greaterThanEqual(coord, ivec3(0))) && all(lessThan(coord, c.dims.xyz))) {
     return fallbackOnly(c) ? -1 : c.dims.w + (coord.z * c.dims.y + coord.y) * c.dims.x + coord.x;
   }
   int other;
-  int found = findCorner(ci, coord, other);
+  int found = findCorner(ci, coord, py, offY, other, wy);
   ivec3 yc = ivec3(coord.x, clamp(coord.y, 0, c.dims.y - 1), coord.z);
   if (found == -2 && yc != coord && (yc.x >= c.dims.x || yc.z >= c.dims.z || yc.x < 0 || yc.z < 0))
-    found = findCorner(ci, yc, other);
+    found = findCorner(ci, yc, py, offY, other, wy);
   if (found != -2) {
     cellOut = other;
     return found;
@@ -178,7 +189,7 @@ int latticeProbe(int ci, ivec3 coord, out int cellOut, out ivec3 used) {
       if (axis == 0) k.x = clamp(k.x, lo.x, hi.x);
       else k.z = clamp(k.z, lo.z, hi.z);
       if (k != yc && (k.x >= c.dims.x || k.z >= c.dims.z || k.x < 0 || k.z < 0)) {
-        found = findCorner(ci, k, other);
+        found = findCorner(ci, k, py, offY, other, wy);
         used = k;
       }
     }
@@ -351,10 +362,11 @@ void main() {
         ivec3 off = ivec3(int(k & 1u), int((k >> 1u) & 1u), int((k >> 2u) & 1u));
         int cellK;
         ivec3 used;
-        int probe = latticeProbe(ci, base + off, cellK, used);
+        float wy;
+        int probe = latticeProbe(ci, base + off, p.y, off.y, cellK, used, wy);
         if (probe >= 0 && probes[probe].w == 0.0) continue;  // disabled probe (inside solid)
         vec3 tri = mix(vec3(1.0) - alpha, alpha, vec3(off));
-        float trilinear = tri.x * tri.y * tri.z;
+        float trilinear = tri.x * (wy >= 0.0 ? wy : tri.y) * tri.z;
         tSum += trilinear;
         float fade = probe >= 0 ? cells[cellK].origin.w : 0.0;
         // A corner clamped at the edge of the cells given stands for the last layer on that axis: its
