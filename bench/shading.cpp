@@ -67,6 +67,15 @@ bake::PinholeCamera worldCellCamera() {
   return c;
 }
 
+// Capture / bake settings of that cell (map resolution, samples, bounces).
+bake::WorldBakeSettings worldCellBakeSettings(bool quick) {
+  bake::WorldBakeSettings bs;
+  bs.resolution = quick ? 8 : 16;
+  bs.spp = quick ? 8 : 16;
+  bs.bounces = 4;
+  return bs;
+}
+
 bake::RenderOptions worldCellReferenceOptions(bool quick, int bounces) {
   bake::RenderOptions ro;
   ro.width = quick ? 48 : 96;
@@ -176,10 +185,7 @@ int main(int argc, char** argv) {
     auto neighbours = [&] {
       const worlds::SyntheticWorld world(worlds::WorldParams{3, 64.0, 32.0});
       const worlds::CellCoord cell{1, 0};
-      bake::WorldBakeSettings bs;
-      bs.resolution = quick ? 8 : 16;
-      bs.spp = quick ? 8 : 16;
-      bs.bounces = 4;
+      bake::WorldBakeSettings bs = worldCellBakeSettings(quick);
       const bake::CellBakeInputs in = bake::prepareCellBake(world, cell, bs);
       const bake::EmbreeScene scene(in.sceneMesh, "world cell 1,0 + neighbours");
       const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
@@ -328,10 +334,7 @@ int main(int argc, char** argv) {
     {
       const worlds::SyntheticWorld world(worlds::WorldParams{3, 64.0, 32.0});
       const worlds::CellCoord cell{1, 0};
-      bake::WorldBakeSettings bs;
-      bs.resolution = quick ? 8 : 16;
-      bs.spp = quick ? 8 : 16;
-      bs.bounces = 4;
+      bake::WorldBakeSettings bs = worldCellBakeSettings(quick);
       bs.keys = "12";
       bs.maxSteps = quick ? 300 : 1500;
       bake::CellBakeInputs in = bake::prepareCellBake(world, cell, bs);
