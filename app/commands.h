@@ -144,6 +144,8 @@ struct RenderCommandOptions {
   float surfelSpacing = 0.0f;  // --probes vir on a scene: surfel spacing (m); 0: bounding-box diagonal / 64
   float exposure = std::numeric_limits<float>::quiet_NaN();  // EV of the PNG; NaN: auto (median -> 0.18)
   float aoRadius = 0.0f;       // m; > 0: ray-traced AO from the G-buffer on indirect diffuse + "ao" layer
+  bool neighboursFallback = false;  // world: the 8 neighbours on their SH L1 fallback (not resident)
+  float cellFade = 1.0f;            // world: the centre cell's cross-fade weight against its fallback, [0, 1]
 };
 int runRender(const RenderCommandOptions& options);
 

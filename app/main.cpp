@@ -145,6 +145,8 @@ int main(int argc, char** argv) {
   renderCmd->add_option("--surfel-spacing", renderOpt.surfelSpacing, "--probes vir on a scene: surfel spacing in m (0: bounding-box diagonal / 64)")->check(CLI::Range(0.0, 100.0));
   renderCmd->add_option("--exposure", renderOpt.exposure, "Fixed PNG exposure in EV (default: auto, median luminance -> 0.18)")->check(CLI::Range(-40.0, 40.0));
   renderCmd->add_option("--ao-radius", renderOpt.aoRadius, "Ray-traced ambient occlusion radius in m on indirect diffuse (0: off)")->check(CLI::Range(0.0, 1e4));
+  renderCmd->add_flag("--neighbours-fallback", renderOpt.neighboursFallback, "World: the 8 neighbour cells on their SH L1 streaming fallback instead of their probes (shows the border blend)")->needs(renWorld);
+  renderCmd->add_option("--cell-fade", renderOpt.cellFade, "World: the cell's streaming cross-fade weight, 1 its probes .. 0 its SH L1 fallback")->check(CLI::Range(0.0, 1.0))->needs(renWorld)->capture_default_str();
 
   lfgi::app::WorldBakeOptions bakeOpt;
   CLI::App* bakeCmd = app.add_subcommand("bake", "Bake world cells into cell files: capture, smallest model meeting the error target, int8, OpenVDB (resumable, skips unchanged cells)");

@@ -15,6 +15,11 @@
 // writes), the neighbours' files from the same folder when present.
 // --exposure EV fixes the PNG exposure (time-of-day sweeps); default: the median luminance maps to 0.18.
 // --ao-radius R: ray-traced ambient occlusion from the G-buffer (bake/shading_view.h) on indirect diffuse.
+// --neighbours-fallback (world cells): the 8 neighbours are not resident, as in streaming before they
+// arrive: only their SH L1 fallback (bake::fieldFallback of a sparse capture / VIR of their probes, or of
+// their decoded cell file; no sun: the pass adds it), so the border shows the fallback blend of
+// gpu/probe_shading_pass.h. --cell-fade F (world cells): the centre cell's cross-fade weight (1 full, 0
+// its fallback alone). Either one gives every cell its fallback.
 //
 // Output (--out X.exr): X.exr (R/G/B, direct, indirect_diffuse, indirect_specular, indirect, weight, ao),
 // X.png; with --compare: X_reference.exr (R/G/B, direct, indirect), X_reference.png,
@@ -72,6 +77,9 @@ fs::path withSuffix(const fs::path& exr, const std::string& suffix, const std::s
 
 int runRender(const RenderCommandOptions& opt) {
   if (opt.world.empty() == opt.scene.empty()) fail("give exactly one of --world DIR (with --cell) or --scene NAME_OR_FILE");
+  if ((opt.neighboursFallback || opt.cellFade != 1.0f) && opt.world.empty())
+    fail("--neighbours-fallback / --cell-fade: streaming fallbacks are per world cell (give --world DIR --cell X,Z)");
+  if (!(opt.cellFade >= 0.0f && opt.cellFade <= 1.0f)) fail("--cell-fade {}: expected a value in [0, 1]", opt.cellFade);
   if (opt.probes != "capture" && opt.probes != "vir" && opt.probes != "codec")
     fail("--probes '{}': expected capture, vir or codec", opt.probes);
   if (opt.probes == "codec" && opt.world.empty())
@@ -119,6 +127,7 @@ int runRender(const RenderCommandOptions& opt) {
   };
   worlds::TriangleMesh mesh;
   std::vector<ProbeField> fields;
+  std::vector<gpu::ShadingCellInput> cellInputs;  // world cells: every cell's state (full / fallback-only)
   std::string what;
   if (!opt.scene.empty()) {
     worlds::ScenePreset preset;
@@ -192,9 +201,10 @@ int runRender(const RenderCommandOptions& opt) {
     // probes the shading pass will read, including the neighbouring cells' first layers.
     std::vector<std::vector<uint8_t>> active(built.size());
     for (size_t k = 0; k < built.size(); ++k) active[k].assign(built[k].probes.flags.size(), 0);
+    auto isCentre = [&](size_t k) { return built[k].layout.cell.x == c.x && built[k].layout.cell.z == c.z; };
     if (opt.probeRadius > 0.0f) {
       for (size_t k = 0; k < built.size(); ++k)
-        for (size_t i = 0; i < active[k].size(); ++i)
+        for (size_t i = 0; i < active[k].size() && (isCentre(k) || !opt.neighboursFallback); ++i)
           active[k][i] = glm::length(built[k].probes.position(int64_t(i)) - camera.position) <= opt.probeRadius;
     } else {
       for (int y = 0; y < height; ++y)
@@ -204,6 +214,7 @@ int runRender(const RenderCommandOptions& opt) {
           if (!hit) continue;
           const glm::vec3 p = camera.position + hit->t * d;
           for (size_t k = 0; k < built.size(); ++k) {
+            if (opt.neighboursFallback && (built[k].layout.cell.x != c.x || built[k].layout.cell.z != c.z)) continue;
             const ProbeGrid& g = built[k].probes.grid;
             const glm::vec3 local = (p - g.origin) / g.spacing;
             if (glm::any(glm::lessThan(local, glm::vec3(-1.0f))) || glm::any(glm::greaterThan(local, glm::vec3(g.dims))))
@@ -225,6 +236,9 @@ int runRender(const RenderCommandOptions& opt) {
     if (opt.probes == "vir")
       for (const worlds::BuiltCell& b : built) surfels.insert(surfels.end(), b.surfels.begin(), b.surfels.end());
     vo.maxRange = float(world.cellSizeM());
+    std::vector<size_t> fieldCell;  // built index of fields[j]
+    const bool wantFallbacks = opt.neighboursFallback || opt.cellFade != 1.0f;
+    std::vector<std::optional<ShL1>> fallbacks(built.size());
     if (opt.probes == "codec") {
       // Every cell whose file exists (the centre's must); all fields share one map size: the first network
       // model's, else --resolution (SH L1 cells take any size).
@@ -262,12 +276,41 @@ int runRender(const RenderCommandOptions& opt) {
         if (cf.generator && cf.generator->weights.arch.outputResolution() != res)
           fail("{}: decodes {}x{} maps but another cell file decodes {}x{}", paths[j].string(),
                cf.generator->weights.arch.outputResolution(), cf.generator->weights.arch.outputResolution(), res, res);
-        fields.push_back(bake::codecProbeField(cf, paths[j].string(), scene, sky, res));
-        spdlog::info("cell {},{}: decoded {} probes from {} ({})", cf.cellX, cf.cellZ, cf.activeProbeCount(),
-                     paths[j].string(), cf.stats.model);
+        ProbeField decoded = bake::codecProbeField(cf, paths[j].string(), scene, sky, res);
+        const size_t k = files[j].first;
+        if (wantFallbacks) fallbacks[k] = bake::fieldFallback(decoded);
+        spdlog::info("cell {},{}: decoded {} probes from {} ({}){}", cf.cellX, cf.cellZ, cf.activeProbeCount(),
+                     paths[j].string(), cf.stats.model,
+                     opt.neighboursFallback && !isCentre(k) ? ": its SH L1 fallback only" : "");
+        if (opt.neighboursFallback && !isCentre(k)) continue;
+        fields.push_back(std::move(decoded));
+        fieldCell.push_back(k);
+      }
+    } else if (wantFallbacks) {
+      // Each cell's fallback from a sparse set of its own probes (fallbackProbeMask), by the same source.
+      for (size_t k = 0; k < built.size(); ++k) {
+        const worlds::BuiltCell& b = built[k];
+        std::vector<uint8_t> disabled(b.probes.flags.size());
+        for (size_t i = 0; i < disabled.size(); ++i) disabled[i] = (b.probes.flags[i] & worlds::kProbeDisabledSolid) != 0;
+        const std::vector<uint8_t> mask = bake::fallbackProbeMask(b.probes.grid, disabled);
+        size_t n = 0;
+        for (uint8_t m : mask) n += m;
+        if (n == 0) {
+          spdlog::info("cell {},{}: no probe outside solid for its fallback: it stays dark", b.layout.cell.x,
+                       b.layout.cell.z);
+          fallbacks[k] = ShL1{};
+          continue;
+        }
+        spdlog::info("cell {},{}: SH L1 fallback from {} probes ({})", b.layout.cell.x, b.layout.cell.z, n, opt.probes);
+        const ProbeField f =
+            opt.probes == "vir"
+                ? bake::virProbeField(*ctx, surfels, b.probes.grid, b.probes.offsets, mask, sky, vo)
+                : bake::captureGridField(scene, sky, b.probes.grid, b.probes.offsets, mask, co, false);
+        fallbacks[k] = bake::fieldFallback(f);
       }
     }
     for (size_t k = 0; k < built.size() && opt.probes != "codec"; ++k) {
+      if (opt.neighboursFallback && !isCentre(k)) continue;
       worlds::BuiltCell& b = built[k];
       size_t n = 0;
       for (size_t i = 0; i < active[k].size(); ++i) {
@@ -279,20 +322,44 @@ int runRender(const RenderCommandOptions& opt) {
         spdlog::info("cell {},{}: VIR of {} of {} probes", b.layout.cell.x, b.layout.cell.z, n, active[k].size());
         bake::VirProbeStats st;
         fields.push_back(bake::virProbeField(*ctx, surfels, b.probes.grid, b.probes.offsets, active[k], sky, vo, &st));
+        fieldCell.push_back(k);
         reportVir(st, fmt::format("cell {},{}", b.layout.cell.x, b.layout.cell.z));
         continue;
       }
       spdlog::info("cell {},{}: capturing {} of {} probes", b.layout.cell.x, b.layout.cell.z, n, active[k].size());
       fields.push_back(bake::captureGridField(scene, sky, b.probes.grid, b.probes.offsets, active[k], co, true));
+      fieldCell.push_back(k);
     }
-    if (fields.empty()) fail("--cell {}: no probe of the cell or its neighbours is near what the camera sees", opt.cell);
+    if (fields.empty() && !wantFallbacks)
+      fail("--cell {}: no probe of the cell or its neighbours is near what the camera sees", opt.cell);
+    // Every cell's streaming state: full (its field; the centre with --cell-fade) or, with
+    // --neighbours-fallback, fallback-only; cells with neither are left out (the pass clamps there).
+    for (size_t k = 0; k < built.size(); ++k) {
+      const auto j = std::find(fieldCell.begin(), fieldCell.end(), k);
+      gpu::ShadingCellInput in;
+      if (fallbacks[k]) in.fallback = *fallbacks[k];
+      if (j != fieldCell.end()) {
+        in.field = &fields[size_t(j - fieldCell.begin())];
+        in.fade = isCentre(k) ? opt.cellFade : 1.0f;
+      } else if (fallbacks[k]) {
+        in.fallbackOnly = true;
+        in.box = built[k].probes.grid;
+      } else {
+        continue;
+      }
+      cellInputs.push_back(in);
+    }
     what = fmt::format("world {} cells around {}", opt.world, opt.cell);
   }
 
   bake::ShadingRenderer renderer(*ctx, mesh);
-  std::vector<const ProbeField*> ptrs;
-  for (const ProbeField& f : fields) ptrs.push_back(&f);
-  renderer.setProbes(ptrs, opt.specularLevels);
+  if (!cellInputs.empty()) {
+    renderer.setCells(cellInputs, opt.specularLevels);
+  } else {
+    std::vector<const ProbeField*> ptrs;
+    for (const ProbeField& f : fields) ptrs.push_back(&f);
+    renderer.setProbes(ptrs, opt.specularLevels);
+  }
   gpu::ShadingOptions so;
   so.chebyshev = !opt.noChebyshev;
   so.aoRadius = opt.aoRadius;
@@ -328,9 +395,13 @@ int runRender(const RenderCommandOptions& opt) {
   writePng(withSuffix(exr, "_error", ".png"), bake::errorHeatMap(view.image, "indirect.", ref.image, "indirect."), 1.0f);
   // Error over pixels that probes shade (surfaces), so sky pixels (exact in both) do not dilute it.
   std::vector<uint8_t> mask(size_t(width) * size_t(height), 0);
-  const int wc = view.image.channelIndex("weight");
+  const int wc = view.image.channelIndex("weight"), fc = view.image.channelIndex("fallback");
+  double fallbackShare = 0.0;
   for (int y = 0; y < height; ++y)
-    for (int x = 0; x < width; ++x) mask[size_t(y) * size_t(width) + size_t(x)] = view.image.at(x, y, wc) > 0.0f;
+    for (int x = 0; x < width; ++x) {
+      mask[size_t(y) * size_t(width) + size_t(x)] = view.image.at(x, y, wc) > 0.0f || view.image.at(x, y, fc) > 0.0f;
+      fallbackShare += view.image.at(x, y, fc);
+    }
   size_t shaded = 0;
   for (uint8_t m : mask) shaded += m;
   if (shaded == 0) {
@@ -341,6 +412,10 @@ int runRender(const RenderCommandOptions& opt) {
   const double indirect = bake::layerRelativeRms(view.image, "indirect.", ref.image, "indirect.", &mask);
   std::printf("relative RMS vs path-traced reference (%d spp, %zu pixels shaded from %s probes): total %.4f, indirect %.4f\n",
               opt.referenceSpp, shaded, opt.probes.c_str(), total, indirect);
+  if (!cellInputs.empty())
+    std::printf("fallback share of the indirect light: %.4f (mean over shaded pixels; neighbours %s, cell fade %.3f)\n",
+                fallbackShare / double(shaded), opt.neighboursFallback ? "on their SH L1 fallback" : "full",
+                double(opt.cellFade));
   spdlog::info("reference {:.2f} s -> {}, error map {}", ref.seconds, withSuffix(exr, "_reference", ".exr").string(),
                withSuffix(exr, "_error", ".png").string());
   return 0;

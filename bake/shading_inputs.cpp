@@ -125,6 +125,46 @@ ProbeField probeFieldFromCapture(const ProbeGrid& grid, const CaptureResult& r, 
   return f;
 }
 
+ShL1 fieldFallback(const ProbeField& field) {
+  field.validate();
+  const int n = field.resolution;
+  const size_t n2 = size_t(n) * size_t(n);
+  const std::shared_ptr<const std::vector<double>> weights = shTexelWeights(n);
+  glm::dvec3 sum[4] = {};
+  int64_t count = 0;
+  for (int64_t i = 0; i < field.probeCount(); ++i) {
+    if (!field.isActive(i)) continue;
+    const ShL1 sh = shProject<4>(std::span<const float>(field.radiance).subspan(size_t(i) * n2 * 3, n2 * 3), n, *weights);
+    for (int k = 0; k < 4; ++k) sum[k] += glm::dvec3(sh.c[size_t(k)]);
+    ++count;
+  }
+  if (count == 0) fail("fieldFallback: the field has no active probe");
+  ShL1 out;
+  for (int k = 0; k < 4; ++k) out.c[size_t(k)] = glm::vec3(sum[k] / double(count));
+  return out;
+}
+
+std::vector<uint8_t> fallbackProbeMask(const ProbeGrid& grid, std::span<const uint8_t> disabled, int columns) {
+  grid.validate();
+  if (columns < 1) fail("fallbackProbeMask: {} columns, expected >= 1", columns);
+  if (!disabled.empty() && disabled.size() != size_t(grid.probeCount()))
+    fail("fallbackProbeMask: {} flags for {} probes", disabled.size(), grid.probeCount());
+  auto pick = [&](int dims) {
+    std::vector<int> at;
+    const int k = std::min(columns, dims);
+    for (int c = 0; c < k; ++c) at.push_back(int((float(c) + 0.5f) * float(dims) / float(k)));
+    return at;
+  };
+  std::vector<uint8_t> mask(size_t(grid.probeCount()), 0);
+  for (int z : pick(grid.dims.z))
+    for (int x : pick(grid.dims.x))
+      for (int y = 0; y < grid.dims.y; ++y) {
+        const size_t i = size_t(grid.linearIndex({x, y, z}));
+        mask[i] = disabled.empty() || disabled[i] == 0;
+      }
+  return mask;
+}
+
 std::vector<float> prefilterSpecularLevels(const ProbeField& field, int levels) {
   if (levels < 1 || levels > 16) fail("prefilterSpecularLevels: {} levels outside [1, 16]", levels);
   const int n = field.resolution;

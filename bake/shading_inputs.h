@@ -11,6 +11,7 @@
 #include "bake/reference_render.h"
 #include "core/image.h"
 #include "core/probe_field.h"
+#include "core/sh.h"
 #include "shared/shading.h"
 #include "worlds/mesh.h"
 
@@ -25,6 +26,16 @@ std::vector<shared::GpuMaterial> gpuMaterials(const worlds::TriangleMesh& mesh);
 // Throws lfgi::Error if sizes disagree, an index is out of range, or the captures' resolutions differ.
 ProbeField probeFieldFromCapture(const ProbeGrid& grid, const CaptureResult& result,
                                  std::span<const int64_t> gridIndex);
+
+// SH L1 fallback of a cell from its field, as the bake's cell-file fallback is made (the mean of the active
+// probes' L1 projections of radiance) but from the field given, so from a field without the discs it holds
+// no sun (the shading pass adds the sun itself). Throws lfgi::Error if the field has no active probe.
+ShL1 fieldFallback(const ProbeField& field);
+
+// A sparse subset of a cell's probes for its fallback (fieldFallback of a capture of just these): every
+// layer of about columns x columns evenly spaced xz columns, leaving out probes inside solid (disabled[i]
+// != 0). Returns an active mask over grid.probeCount().
+std::vector<uint8_t> fallbackProbeMask(const ProbeGrid& grid, std::span<const uint8_t> disabled, int columns = 3);
 
 // GGX-prefiltered radiance for the shading pass's specular lookups: per probe `levels` n x n x 3 maps,
 // level k = prefilterRadianceGgx(radiance, n, k / (levels - 1), n) (one level: roughness 0). Inactive

@@ -19,14 +19,22 @@ ShadingRenderer::ShadingRenderer(gpu::Context& ctx, const worlds::TriangleMesh& 
       shading_(ctx) {}
 
 void ShadingRenderer::setProbes(std::span<const ProbeField* const> fields, int levels) {
-  std::vector<std::vector<float>> spec;
-  spec.reserve(fields.size());
+  std::vector<gpu::ShadingCellInput> in;
   for (const ProbeField* f : fields) {
     if (!f) fail("ShadingRenderer::setProbes: null field");
-    spec.push_back(prefilterSpecularLevels(*f, levels));
+    in.push_back({f, {}});
   }
-  std::vector<gpu::ShadingCellInput> in;
-  for (size_t k = 0; k < fields.size(); ++k) in.push_back({fields[k], spec[k]});
+  setCells(in, levels);
+}
+
+void ShadingRenderer::setCells(std::span<const gpu::ShadingCellInput> cells, int levels) {
+  std::vector<gpu::ShadingCellInput> in(cells.begin(), cells.end());
+  std::vector<std::vector<float>> spec(in.size());
+  for (size_t k = 0; k < in.size(); ++k)
+    if (in[k].field && in[k].specular.empty()) {
+      spec[k] = prefilterSpecularLevels(*in[k].field, levels);
+      in[k].specular = spec[k];
+    }
   shading_.setProbes(gpu::packShadingProbes(in, levels));
 }
 
@@ -56,7 +64,7 @@ ShadedView ShadingRenderer::render(const worlds::SkyModel& sky, const PinholeCam
   v.image = Image(width, height,
                   {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect_diffuse.R", "indirect_diffuse.G",
                    "indirect_diffuse.B", "indirect_specular.R", "indirect_specular.G", "indirect_specular.B",
-                   "indirect.R", "indirect.G", "indirect.B", "weight", "ao"});
+                   "indirect.R", "indirect.G", "indirect.B", "weight", "ao", "fallback"});
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
       const size_t p = size_t(y) * size_t(width) + size_t(x);
@@ -70,6 +78,7 @@ ShadedView ShadingRenderer::render(const worlds::SkyModel& sky, const PinholeCam
       }
       px[15] = h.diffuse[p].w;
       px[16] = h.specular[p].w;
+      px[17] = h.direct[p].w;
     }
   }
   return v;

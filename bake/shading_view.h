@@ -5,7 +5,9 @@
 // Image channels of render(): R/G/B (total), direct.R/G/B, indirect_diffuse.R/G/B,
 // indirect_specular.R/G/B, indirect.R/G/B (diffuse + specular: compare with renderShadingReference's
 // indirect layer), weight (sum of probe weights; 0 where no probe contributed), ao (ambient occlusion
-// applied to indirect diffuse, gpu::ShadingOptions::aoRadius; 1 when off).
+// applied to indirect diffuse, gpu::ShadingOptions::aoRadius; 1 when off), fallback (share of the indirect
+// light from the cells' SH L1 fallbacks, gpu/probe_shading_pass.h: 0 where probes give it all, 1 in a
+// fallback-only cell; 0 on sky). A pixel is shaded from probes or fallbacks where weight > 0 or fallback > 0.
 #pragma once
 
 #include <memory>
@@ -36,6 +38,9 @@ class ShadingRenderer {
   ShadingRenderer(gpu::Context& ctx, const worlds::TriangleMesh& mesh);
   // Prefilters (bake::prefilterSpecularLevels, `levels` roughness levels), packs and uploads the fields.
   void setProbes(std::span<const ProbeField* const> fields, int specularLevels = 4);
+  // Cells in any streaming state (full with a fade, or fallback-only: gpu::ShadingCellInput); full cells
+  // without a specular span get prefilterSpecularLevels of their field.
+  void setCells(std::span<const gpu::ShadingCellInput> cells, int specularLevels = 4);
   ShadedView render(const worlds::SkyModel& sky, const PinholeCamera& camera, int width, int height,
                     const gpu::ShadingOptions& options = {});
   // Shades given G-buffer points (no ray cast), viewed from eye (tests, leak probes).

@@ -8,36 +8,111 @@
 
 namespace lfgi::gpu {
 
+namespace {
+
+// The fallback irradiance E(n) = a + b.x n.x + b.y n.y + b.z n.z of an SH L1 radiance (shIrradiance is
+// linear in n: a and b from its values at the +-axes).
+void packFallback(const ShL1& sh, shared::ShadeCell& out) {
+  glm::vec3 plus[3], minus[3];
+  for (int a = 0; a < 3; ++a) {
+    glm::vec3 d(0.0f);
+    d[a] = 1.0f;
+    plus[a] = shIrradiance(sh, d);
+    minus[a] = shIrradiance(sh, -d);
+  }
+  out.fallback[0] = glm::vec4(0.5f * (plus[0] + minus[0]), 0.0f);
+  for (int a = 0; a < 3; ++a) out.fallback[1 + a] = glm::vec4(0.5f * (plus[a] - minus[a]), 0.0f);
+}
+
+bool ownsXZ(const shared::ShadeCell& c, glm::vec2 q) {
+  const glm::vec2 lo(c.origin.x, c.origin.z);
+  const glm::vec2 hi = lo + glm::vec2(float(c.dims.x) * c.spacing.x, float(c.dims.z) * c.spacing.z);
+  return q.x >= lo.x && q.y >= lo.y && q.x < hi.x && q.y < hi.y;
+}
+
+// The fallback neighbour table of every cell (shared::ShadeCell::fallbackCells): the cell owning this
+// cell's centre + (dx, dz) x box size, clamped per axis where there is none (StreamingManager clamps at the
+// world edge), else the cell itself.
+void linkFallbackCells(std::vector<shared::ShadeCell>& cells) {
+  for (size_t c = 0; c < cells.size(); ++c) {
+    const shared::ShadeCell& me = cells[c];
+    const glm::vec2 size(float(me.dims.x) * me.spacing.x, float(me.dims.z) * me.spacing.z);
+    const glm::vec2 centre = glm::vec2(me.origin.x, me.origin.z) + 0.5f * size;
+    auto find = [&](int dx, int dz) -> int {
+      if (dx == 0 && dz == 0) return int(c);
+      const glm::vec2 q = centre + glm::vec2(float(dx), float(dz)) * size;
+      for (size_t i = 0; i < cells.size(); ++i)
+        if (i != c && ownsXZ(cells[i], q)) return int(i);
+      return -1;
+    };
+    int table[9];
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dx = -1; dx <= 1; ++dx) {
+        int n = find(dx, dz);
+        if (n < 0) {
+          const int cx = dx != 0 && find(dx, 0) < 0 ? 0 : dx, cz = dz != 0 && find(0, dz) < 0 ? 0 : dz;
+          n = find(cx, cz);
+        }
+        table[(dz + 1) * 3 + dx + 1] = n < 0 ? int(c) : n;
+      }
+    for (int k = 0; k < 9; ++k) cells[c].fallbackCells[k / 4][k % 4] = table[k];
+    for (int k = 9; k < 12; ++k) cells[c].fallbackCells[k / 4][k % 4] = int(c);
+  }
+}
+
+}  // namespace
+
 ShadingProbeSet packShadingProbes(std::span<const ShadingCellInput> cells, int levels) {
   if (cells.empty()) fail("probe shading: no cells given");
   if (levels < 1 || levels > 16) fail("probe shading: {} specular levels outside [1, 16]", levels);
   ShadingProbeSet s;
   s.specularLevels = levels;
   s.minSpacing = 1e30f;
+  bool haveResolution = false;
   for (size_t c = 0; c < cells.size(); ++c) {
-    const ProbeField* f = cells[c].field;
-    if (!f) fail("probe shading: cell {} has no field", c);
+    const ShadingCellInput& in = cells[c];
+    for (int k = 0; k < 4; ++k)
+      if (!std::isfinite(in.fallback.c[size_t(k)].x + in.fallback.c[size_t(k)].y + in.fallback.c[size_t(k)].z))
+        fail("probe shading: cell {}: fallback SH coefficient {} is not finite", c, k);
+    if (in.fallbackOnly) {
+      if (in.field) fail("probe shading: cell {} is fallback-only but has a field", c);
+      try {
+        in.box.validate();
+      } catch (const Error& e) {
+        fail("probe shading: cell {}: fallback-only box: {}", c, e.what());
+      }
+      shared::ShadeCell sc{glm::vec4(in.box.origin, 0.0f), glm::vec4(in.box.spacing, 1.0f), glm::ivec4(in.box.dims, -1),
+                           {}, {}};
+      packFallback(in.fallback, sc);
+      s.cells.push_back(sc);
+      continue;
+    }
+    const ProbeField* f = in.field;
+    if (!f) fail("probe shading: cell {} has no field (a cell shaded from its SH L1 alone is fallbackOnly)", c);
+    if (!(in.fade >= 0.0f && in.fade <= 1.0f)) fail("probe shading: cell {}: fade {} outside [0, 1]", c, in.fade);
     try {
       f->validate();
     } catch (const Error& e) {
       fail("probe shading: cell {}: {}", c, e.what());
     }
-    if (c == 0) {
+    if (!haveResolution) {
       s.resolution = f->resolution;
       s.irradianceResolution = f->irradianceResolution;
+      haveResolution = true;
     } else if (f->resolution != s.resolution || f->irradianceResolution != s.irradianceResolution) {
-      fail("probe shading: cell {} has resolutions {}/{}, cell 0 has {}/{} (all cells must agree)", c, f->resolution,
-           f->irradianceResolution, s.resolution, s.irradianceResolution);
+      fail("probe shading: cell {} has resolutions {}/{}, an earlier cell has {}/{} (all cells must agree)", c,
+           f->resolution, f->irradianceResolution, s.resolution, s.irradianceResolution);
     }
     const int n = f->resolution, m = f->irradianceResolution;
     const size_t n2 = size_t(n) * size_t(n), m2 = size_t(m) * size_t(m);
     const int64_t count = f->probeCount();
-    if (!cells[c].specular.empty() && cells[c].specular.size() != size_t(count) * size_t(levels) * n2 * 3)
+    if (!in.specular.empty() && in.specular.size() != size_t(count) * size_t(levels) * n2 * 3)
       fail("probe shading: cell {}: specular holds {} floats, expected {} probes x {} levels x {}x{}x3", c,
-           cells[c].specular.size(), count, levels, n, n);
+           in.specular.size(), count, levels, n, n);
     s.minSpacing = std::min({s.minSpacing, f->grid.spacing.x, f->grid.spacing.y, f->grid.spacing.z});
-    shared::ShadeCell sc{glm::vec4(f->grid.origin, 0.0f), glm::vec4(f->grid.spacing, 0.0f),
-                         glm::ivec4(f->grid.dims, int(s.probes.size()))};
+    shared::ShadeCell sc{glm::vec4(f->grid.origin, in.fade), glm::vec4(f->grid.spacing, 0.0f),
+                         glm::ivec4(f->grid.dims, int(s.probes.size())), {}, {}};
+    packFallback(in.fallback, sc);
     s.cells.push_back(sc);
     for (int64_t i = 0; i < count; ++i) {
       s.probes.push_back(glm::vec4(f->probePosition(i), f->isActive(i) ? 1.0f : 0.0f));
@@ -50,14 +125,20 @@ ShadingProbeSet packShadingProbes(std::span<const ShadingCellInput> cells, int l
       for (size_t t = 0; t < mom.size() / 2; ++t) s.moments.push_back(glm::vec2(mom[t * 2], mom[t * 2 + 1]));
       for (int l = 0; l < levels; ++l) {
         std::span<const float> src =
-            cells[c].specular.empty()
+            in.specular.empty()
                 ? std::span<const float>(f->radiance).subspan(size_t(i) * n2 * 3, n2 * 3)
-                : cells[c].specular.subspan((size_t(i) * size_t(levels) + size_t(l)) * n2 * 3, n2 * 3);
+                : in.specular.subspan((size_t(i) * size_t(levels) + size_t(l)) * n2 * 3, n2 * 3);
         const std::vector<float> b = makeBordered(src, n, 3);
         for (size_t t = 0; t < b.size() / 3; ++t) s.specular.push_back(glm::vec4(b[t * 3], b[t * 3 + 1], b[t * 3 + 2], 0.0f));
       }
     }
   }
+  if (!haveResolution) {  // fallback-only: no maps are read; 1 x 1 keeps the layout well-formed
+    s.resolution = 1;
+    s.irradianceResolution = 1;
+    s.minSpacing = 1.0f;
+  }
+  linkFallbackCells(s.cells);
   return s;
 }
 
@@ -94,20 +175,23 @@ void ProbeShadingPass::setProbes(const ShadingProbeSet& s) {
   const size_t probes = s.probes.size();
   const size_t mb = size_t(s.irradianceResolution + 2) * size_t(s.irradianceResolution + 2);
   const size_t nb = size_t(s.resolution + 2) * size_t(s.resolution + 2);
-  if (probes == 0 || s.irradiance.size() != probes * mb || s.moments.size() != probes * nb ||
+  if (s.cells.empty() || s.irradiance.size() != probes * mb || s.moments.size() != probes * nb ||
       s.specular.size() != probes * nb * size_t(s.specularLevels))
-    fail("probe shading: inconsistent probe set ({} probes, {} irradiance, {} moment, {} specular texels)", probes,
-         s.irradiance.size(), s.moments.size(), s.specular.size());
+    fail("probe shading: inconsistent probe set ({} cells, {} probes, {} irradiance, {} moment, {} specular texels)",
+         s.cells.size(), probes, s.irradiance.size(), s.moments.size(), s.specular.size());
   cells_ = createStorageBuffer(ctx_, s.cells.size() * sizeof(shared::ShadeCell));
-  probes_ = createStorageBuffer(ctx_, probes * sizeof(glm::vec4));
-  irradiance_ = createStorageBuffer(ctx_, s.irradiance.size() * sizeof(glm::vec4));
-  moments_ = createStorageBuffer(ctx_, s.moments.size() * sizeof(glm::vec2));
-  specular_ = createStorageBuffer(ctx_, s.specular.size() * sizeof(glm::vec4));
   upload<shared::ShadeCell>(ctx_, cells_, s.cells);
-  upload<glm::vec4>(ctx_, probes_, s.probes);
-  upload<glm::vec4>(ctx_, irradiance_, s.irradiance);
-  upload<glm::vec2>(ctx_, moments_, s.moments);
-  upload<glm::vec4>(ctx_, specular_, s.specular);
+  // Every cell fallback-only: no probe is read, but each binding needs a buffer (one zero element).
+  auto store = [&]<typename T>(Buffer& b, const std::vector<T>& v) {
+    const std::vector<T> one(1, T(0));
+    const std::vector<T>& src = v.empty() ? one : v;
+    b = createStorageBuffer(ctx_, src.size() * sizeof(T));
+    upload<T>(ctx_, b, src);
+  };
+  store(probes_, s.probes);
+  store(irradiance_, s.irradiance);
+  store(moments_, s.moments);
+  store(specular_, s.specular);
   minSpacing_ = s.minSpacing;
   cellCount_ = uint32_t(s.cells.size());
   maps_ = glm::uvec4(uint32_t(s.irradianceResolution), uint32_t(s.resolution), uint32_t(s.specularLevels), 0);

@@ -8,8 +8,31 @@
 // Several cells at once: every ProbeField keeps its own grid; a pixel is shaded by the cell that owns its
 // point (half-open boxes, core/probe_grid.h; outside every box, the nearest cell), and a corner of its
 // 8-probe cube that falls outside that cell's grid is taken from the cell whose lattice holds the same
-// world point (the neighbour's first probe layer), else clamped into the owning grid. So a border needs
-// the neighbour's field resident; without it shading falls back to clamping (continuous, less accurate).
+// world point (the neighbour's first probe layer), else clamped into the owning grid.
+//
+// Streaming fallback (streaming/streaming_manager.h): a cell is either full (its field, with a fade in
+// [0, 1] while it cross-fades in) or fallback-only (not resident: its box and its SH L1 fallback, no
+// probes). Every cell may carry an SH L1 fallback; the fallback at a point is bilinear between the 4 cell
+// centres around it in xz (no step at a border). Per pixel, with t_k the trilinear weights of the 8
+// corners and f_k the fade of the cell each corner's probe belongs to (0 for a corner in a fallback-only
+// cell):
+//   E = beta * (probe result over the corners, weights t_k f_k x visibility x backface, normalised)
+//     + sum_k t_k (1 - f_k) * fallback(q_k),     beta = sum_k t_k f_k
+// where q_k = p, except on an x or z axis where p is in the owning grid's last probe interval: there q_k
+// sits on the corner's lattice plane (the last layer or the face), as StreamingManager::sample() places
+// its fallback evaluations. A fallback-only cell runs the same sum over its box's lattice, every own corner
+// on the fallback (f = 0): a point in it takes the fallback alone, except in its last probe interval before
+// a resident neighbour, where it blends into that neighbour's first layer, so the border has no step from
+// either side (sample() takes the fallback alone there and steps at the face; the test in
+// bake/streaming_shading_test.cpp states the difference). With visibility and backface weights off this is
+// sample() everywhere else; no point inside the cells lacks indirect light.
+// Specular from a fallback: the SH L1 radiance in the mirror direction r with its linear band scaled by
+// 1 - alpha/3 (alpha = roughness^2): L = (E0 + (1.5 - 0.5 alpha) E1 . r) / pi, where E(n) = E0 + E1 . n is
+// the fallback irradiance. Mirror: the SH L1 radiance at r; roughness 1: irradiance / pi at r (the cosine
+// lobe's band-1 factor 2/3), the standard zonal attenuation of a lobe widening from a delta to a cosine.
+// Fallback irradiance and radiance are clamped at 0 (an SH L1 of a peaked sky can go negative).
+// Disabled probes (inside solid) are left out of both sums (the t_k renormalised over the others); if all 8
+// are, the point takes the fallback.
 //
 // AO (ShadingOptions::aoRadius): from the G-buffer, not from the probes' distance moments: short cosine rays
 // through the same BVH resolve contact occlusion (corners, under objects) far below the probe spacing,
@@ -25,6 +48,7 @@
 #include <vector>
 
 #include "core/probe_field.h"
+#include "core/sh.h"
 #include "gpu/buffer.h"
 #include "gpu/gbuffer_pass.h"
 #include "gpu/program.h"
@@ -33,11 +57,19 @@
 namespace lfgi::gpu {
 
 struct ShadingCellInput {
-  const ProbeField* field = nullptr;
+  const ProbeField* field = nullptr;  // full cells; null for a fallback-only cell
   // Optional GGX-prefiltered radiance (bake::prefilterRadianceGgx): per probe `levels` interior n x n x 3
   // maps, probe-major, level k prefiltered for roughness k / (levels - 1). Empty: the raw radiance serves
   // every level.
   std::span<const float> specular;
+  // Streaming state. fade: weight of the probes against the fallback, in [0, 1] (StreamingManager::fade);
+  // fallback: the cell's SH L1 radiance (CellSource::fallback; zero: no fallback light).
+  float fade = 1.0f;
+  ShL1 fallback{};
+  // A cell that is not resident: field null, shaded from `fallback` alone; `box` is its owned box (its
+  // ProbeGrid: origin, spacing, dims). Ignored for full cells (their field's grid is the box).
+  bool fallbackOnly = false;
+  ProbeGrid box;
 };
 
 // The probes of all cells packed into the GPU layout: bordered octahedral maps, one global probe index.
@@ -54,7 +86,9 @@ struct ShadingProbeSet {
 };
 
 // Validates every field (ProbeField::validate) and packs them. Throws lfgi::Error naming the cell index
-// for a null field, different resolutions, or a specular span of the wrong size; levels in [1, 16].
+// for a null field (not fallback-only), a fallback-only cell with a field or a bad box, a fade outside
+// [0, 1], a non-finite fallback, different resolutions, or a specular span of the wrong size; levels in
+// [1, 16]. Every cell may be fallback-only (then no probe is uploaded).
 ShadingProbeSet packShadingProbes(std::span<const ShadingCellInput> cells, int specularLevels);
 
 struct ShadingOptions {
@@ -74,7 +108,9 @@ struct ShadingOptions {
 
 struct ShadeOutput {
   int width = 0, height = 0;
-  Buffer direct, diffuse, specular, total;  // vec4 per pixel; diffuse.w = sum of probe weights; specular.w = AO
+  // vec4 per pixel; diffuse.w = sum of probe weights; specular.w = AO; direct.w = the fallback's share of the
+  // indirect light (1 - beta above; 0 on sky and on points not shaded from probes or fallbacks)
+  Buffer direct, diffuse, specular, total;
 };
 ShadeOutput createShadeOutput(Context& ctx, int width, int height);
 

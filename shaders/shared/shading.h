@@ -55,14 +55,28 @@ struct GBufferParams {
 };
 LFGI_CHECK_SIZE(GBufferParams, 128)
 
-// One cell's probe grid in the shading pass. Probe k of the cell is global probe firstProbe + k; its maps
-// start at (firstProbe + k) * texels of the map kind (bordered octahedral maps, see ShadeParams).
+// One cell of the shading pass, in one of two states (the streaming manager's, streaming/streaming_manager.h):
+//   full: its probe grid; probe k of the cell is global probe firstProbe + k, whose maps start at
+//     (firstProbe + k) * texels of the map kind (bordered octahedral maps, see ShadeParams); its fade in
+//     [0, 1] weighs the probes against the fallback (1: fully faded in);
+//   fallback-only (spacing.w = 1): a cell that is not resident; only its box (origin, spacing, dims: its
+//     probe grid, whose probes are not uploaded) and its SH L1 fallback.
+// Every cell carries its fallback as irradiance E(n) = fallback[0] + fallback[1] n.x + fallback[2] n.y +
+// fallback[3] n.z (rgb: shIrradiance of the SH L1 radiance, linear in n). The fallback at a point is
+// bilinear between the fallbacks of the 4 cell centres around it in xz, as StreamingManager::sample():
+// fallbackCells[(dz + 1) * 3 + dx + 1] (flattened over the 3 ivec4) is the cell whose fallback stands at
+// this cell's centre + (dx, dz) x box size; a missing neighbour is clamped per axis like the world edge
+// there (entry 4 is the cell itself).
 struct ShadeCell {
-  vec4 origin;   // xyz: ProbeGrid::origin
-  vec4 spacing;  // xyz: ProbeGrid::spacing
-  ivec4 dims;    // xyz: ProbeGrid::dims; w: firstProbe
+  vec4 origin;   // xyz: ProbeGrid::origin; w: fade (0 for a fallback-only cell)
+  vec4 spacing;  // xyz: ProbeGrid::spacing; w: 1 fallback-only, 0 full
+  ivec4 dims;    // xyz: ProbeGrid::dims; w: firstProbe (full cells; -1 fallback-only)
+  ivec4 fallbackCells[3];
+  vec4 fallback[4];
 };
-LFGI_CHECK_SIZE(ShadeCell, 48)
+LFGI_CHECK_SIZE(ShadeCell, 160)
+LFGI_CHECK_OFFSET(ShadeCell, fallbackCells, 48)
+LFGI_CHECK_OFFSET(ShadeCell, fallback, 96)
 
 struct ShadeParams {
   SkyParams sky;
