@@ -733,7 +733,7 @@ int main(int argc, char** argv) {
   bool noShared = false;
   int sharedSteps = 0, fitSteps = 0;
   app.add_flag("--no-shared", noShared, "Skip the world-shared generator + per-cell adapter rows");
-  app.add_option("--shared-steps", sharedSteps, "Pre-training steps of the shared generator (default 1500 quick, 3000 full)");
+  app.add_option("--shared-steps", sharedSteps, "Pre-training steps of the shared generator (default 1000 quick, 3000 full)");
   app.add_option("--fit-steps", fitSteps, "Steps of each held-out cell's latent + adapter fit (default 400 quick, 800 full)");
   std::string sunMode = "separate";
   app.add_option("--sun", sunMode, "separate: probes store radiance without the sun disc plus a visibility bit; "
@@ -770,19 +770,21 @@ int main(int argc, char** argv) {
     for (const worlds::CellCoord c : cells) specs.push_back([&world, c, cellProbes] { return worldCell(world, c, cellProbes); });
 
     openblas_set_num_threads(1);
-    // World-shared generator: pre-trained on one cell of each kind that the bench does not measure.
+    // World-shared generator: pre-trained on the first cell of each kind (field, suburb, city, park) of
+    // another world (seed 2), so every measured scene is held out; stored once per world.
     std::optional<SharedModel> shared;
     size_t worldProbes = 0;
     if (!noShared) {
+      const worlds::SyntheticWorld pretrainWorld(worlds::WorldParams::smallDefault(2));
       std::vector<bake::GeneratorTrainingSet> sets;
       std::vector<std::string> names, kindsUsed;
-      for (int z = 0; z < world.cellsX() && sets.size() < 4; ++z)
-        for (int x = 0; x < world.cellsX() && sets.size() < 4; ++x) {
+      for (int z = 0; z < pretrainWorld.cellsX() && sets.size() < 4; ++z)
+        for (int x = 0; x < pretrainWorld.cellsX() && sets.size() < 4; ++x) {
           const worlds::CellCoord c{x, z};
-          if (std::find(cells.begin(), cells.end(), c) != cells.end()) continue;
-          const std::string kind(worlds::cellKindName(world.cellKind(c)));
+          const std::string kind(worlds::cellKindName(pretrainWorld.cellKind(c)));
           if (std::find(kindsUsed.begin(), kindsUsed.end(), kind) != kindsUsed.end()) continue;
-          SceneSpec spec = worldCell(world, c, cellProbes);
+          SceneSpec spec = worldCell(pretrainWorld, c, cellProbes);
+          spec.name = "seed2_" + spec.name;
           names.push_back(spec.name);
           Captured cap = capture(spec, co, sky, timeOfDay, cacheDir);
           if (sunMode == "separate") splitSun(cap, sky.sun);
@@ -792,7 +794,7 @@ int main(int argc, char** argv) {
       GeneratorArch arch;
       arch.latentDim = 8;
       arch.convChannels = {32, 16, kGeneratorChannels};
-      shared = makeSharedModel(sets, names, arch, sharedSteps > 0 ? sharedSteps : (quick ? 1500 : 3000), cacheDir);
+      shared = makeSharedModel(sets, names, arch, sharedSteps > 0 ? sharedSteps : (quick ? 1000 : 3000), cacheDir);
       for (int z = 0; z < world.cellsX(); ++z)
         for (int x = 0; x < world.cellsX(); ++x) worldProbes += worlds::buildCell(world, {x, z}).stats.probesActive;
       spdlog::info("shared generator: {} B (int8) on {}; default world {} active probes", shared->bytes,
@@ -861,7 +863,8 @@ int main(int argc, char** argv) {
     auto pool = [&](const std::string& scene, const std::string& kind) {
       std::map<std::pair<std::string, std::string>, std::vector<const Result*>> byCodec;
       for (const Result& r : results)
-        if (kind == "all" || r.kind == kind) byCodec[{r.codec, r.setting}].push_back(&r);
+        if (kind == "all" || r.kind == kind || (kind == "cells" && r.scene.rfind("cell_", 0) == 0))
+          byCodec[{r.codec, r.setting}].push_back(&r);
       std::vector<Result> pooled;
       for (const auto& [key, rs] : byCodec) {
         Result a = *rs[0];
@@ -913,6 +916,10 @@ int main(int argc, char** argv) {
     for (const std::string& k : kinds)
       for (const Result& r : pool("kind", k)) add(r);
     for (const Result& r : all) add(r);
+    // The synthetic cells of the default world only (every one held out from the shared generator's
+    // pre-training): scene "cells", kind "cells".
+    const std::vector<Result> cellRows = pool("cells", "cells");
+    for (const Result& r : cellRows) add(r);
 
     // Headline (BENCHMARKS.md keys), from the "all" rows.
     const Result* sh2 = nullptr;
@@ -988,6 +995,34 @@ int main(int argc, char** argv) {
       j["fit_steps"] = sharedFitSteps;
       j["world_probes_256m"] = worldProbes;
       j["world_probes_16km2"] = double(worldProbes) * 16.0 / worldKm2;
+      // SH curve over the synthetic cells only (the "cells" rows), for the cells block below.
+      std::vector<const Result*> allShRows = shRows;
+      shRows.clear();
+      for (const Result& r : cellRows)
+        if (r.family == "sh") shRows.push_back(&r);
+      std::sort(shRows.begin(), shRows.end(), [](const Result* a, const Result* b) { return a->bytes < b->bytes; });
+      const Result* cellSh2 = nullptr;
+      for (const Result& r : cellRows)
+        if (r.codec == "sh_l2") cellSh2 = &r;
+      for (const Result& r : cellRows) {
+        if (r.family == "sh") j["cells"]["sh"][r.codec] = {{"bytes_per_probe", r.bytes}, {"irr_rel_rms", r.irr}};
+        if (r.family == "gan")
+          j["cells"]["per_cell_gan"][r.setting] = {{"bytes_per_probe", r.bytes}, {"irr_rel_rms", r.irr},
+                                                   {"encode_s_per_scene", r.encodeSPerScene}};
+        if (r.family != "shared_adapter" || !cellSh2) continue;
+        j["cells"]["rows"][r.setting] = {
+            {"bytes_per_probe_cell_only", r.bytes},
+            {"bytes_per_probe_shared_256m", r.bytesWorld},
+            {"bytes_per_probe_shared_16km2", r.bytes16km2},
+            {"irr_rel_rms", r.irr},
+            {"fit_s_per_scene", r.encodeSPerScene},
+            {"bytes_ratio_vs_sh_l2_at_equal_error_256m",
+             r.irr <= cellSh2->irr ? nlohmann::ordered_json(cellSh2->bytes / r.bytesWorld) : null},
+            {"bytes_ratio_vs_sh_curve_at_codec_error_256m", shCurveRatio(r, r.bytesWorld)},
+            {"bytes_ratio_vs_sh_curve_at_codec_error_16km2", shCurveRatio(r, r.bytes16km2)},
+            {"bytes_ratio_vs_sh_curve_at_codec_error_cell_only", shCurveRatio(r, r.bytes)}};
+      }
+      shRows = allShRows;
       for (const Result& r : all) {
         if (r.family == "gan")
           j["per_cell_gan"][r.setting] = {{"bytes_per_probe", r.bytes}, {"irr_rel_rms", r.irr},
