@@ -394,6 +394,18 @@ void saveCheckpointArchive(const std::filesystem::path& path, uint64_t fp, int s
   writeViaTempFile(path, [&](const std::filesystem::path& tmp) { ar.save_to(tmp.string()); });
 }
 
+// After the training loop: an interrupted run writes its checkpoint; a finished one removes it (nothing is
+// left to resume; its result goes to the caller, the cell file).
+template <typename Save>
+void closeCheckpoint(bool interrupted, const std::filesystem::path& path, Save&& save) {
+  if (interrupted) {
+    save();
+  } else if (!path.empty()) {
+    std::error_code ec;
+    std::filesystem::remove(path, ec);
+  }
+}
+
 std::vector<torch::Tensor> snapshotOf(const std::vector<torch::Tensor>& tensors) {
   std::vector<torch::Tensor> st;
   for (const torch::Tensor& t : tensors) st.push_back(t.detach().clone());
@@ -644,13 +656,7 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
     if (progress) progress->update(size_t(step));
   }
   if (progress) progress->finish();
-  if (result.report.interrupted) {
-    saveCheckpoint();
-  } else if (!o.checkpoint.empty()) {
-    // A finished run leaves nothing to resume; its result goes to the caller (the cell file).
-    std::error_code ec;
-    std::filesystem::remove(o.checkpoint, ec);
-  }
+  closeCheckpoint(result.report.interrupted, o.checkpoint, saveCheckpoint);
 
   result.weights = exportWeights(gen, o.arch);
   if (stored) result.latents = toVector(fakeQuantize(latents, o.latentQuantBits));
@@ -865,12 +871,7 @@ SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const Ge
     if (progress) progress->update(size_t(step));
   }
   if (progress) progress->finish();
-  if (result.report.interrupted) {
-    saveCheckpoint();
-  } else if (!o.checkpoint.empty()) {
-    std::error_code ec;
-    std::filesystem::remove(o.checkpoint, ec);
-  }
+  closeCheckpoint(result.report.interrupted, o.checkpoint, saveCheckpoint);
 
   result.weights = exportWeights(gen, o.arch);
   const uint64_t sharedHash = weightsContentHash(result.weights);

@@ -15,9 +15,12 @@
 // the sun floor. Pooled rows (scene "kind" per scene kind, scene "all" over every scene): bytes = total
 // bytes / total probes, errors = mean of the per-scene errors.
 //
-// The generative codec ("gan" rows, GanCodec below; --no-gan skips its training) fills summary.json's codec_*
-// keys: the cheapest gan setting at SH L2's irradiance error, else the most accurate gan row
-// (gan_reached_sh_l2_error false). The best baseline at SH L2's error is reported beside it.
+// The generative codecs ("gan" rows: a per-cell generator, GanCodec below, --no-gan skips its training;
+// "shared_adapter" rows: latents + FiLM adapter against one world-shared generator, SharedAdapterCodec,
+// --no-shared) fill summary.json's codec_* keys: the cheapest of their settings at SH L2's irradiance error
+// (shared rows with the shared model's bytes spread over the default world), else the most accurate row
+// (codec_reached_sh_l2_error false). The best baseline at SH L2's error is reported beside it, and
+// summary.json "shared_generator" holds the shared rows over all scenes and over the synthetic cells alone.
 #include <CLI/CLI.hpp>
 #include <cblas.h>
 #include <spdlog/spdlog.h>
