@@ -71,10 +71,24 @@ struct GeneratorNetImpl : torch::nn::Module {
                   .stride(2)
                   .padding(1))));
   }
-  torch::Tensor forward(const torch::Tensor& x) {
-    torch::Tensor h = torch::relu(linear->forward(x)).view({-1, c0, kBase, kBase});
+  // film: a per-cell adapter (core/generator.h GeneratorAdapter) as [2][channels] (scale row, shift row),
+  // undefined for none; `stages` of it are applied.
+  torch::Tensor forward(const torch::Tensor& x, const torch::Tensor& film = {}, int stages = 0) {
+    auto modulate = [&](torch::Tensor h, int stage, int64_t& base) {
+      if (stage >= stages) return h;
+      const int64_t c = h.size(1);
+      std::vector<int64_t> shape(size_t(h.dim()), 1);
+      shape[1] = c;
+      torch::Tensor g = film[0].narrow(0, base, c).view(shape), b = film[1].narrow(0, base, c).view(shape);
+      base += c;
+      return h * (g + 1.0) + b;
+    };
+    int64_t base = 0;
+    torch::Tensor h = linear->forward(x);
+    if (stages > 0) h = modulate(h.view({-1, c0, kBase * kBase}), 0, base);
+    h = torch::relu(h).view({-1, c0, kBase, kBase});
     for (size_t i = 0; i < convs.size(); ++i) {
-      h = convs[i]->forward(h);
+      h = modulate(convs[i]->forward(h), int(i) + 1, base);
       if (i + 1 < convs.size()) h = torch::relu(h);
     }
     return h;
@@ -260,7 +274,7 @@ uint64_t fingerprint(const GeneratorTrainingSet& set, const GeneratorTrainingOpt
                   o.loss.normal, o.loss.albedo, o.loss.latent, o.loss.adversarial, d.scale.exposure,
                   d.scale.range})
     h = fnvValue(h, v);
-  for (int v : {o.maxSteps, o.discriminatorWidth, o.batchSize, int(o.adversarial)}) h = fnvValue(h, v);
+  for (int v : {o.maxSteps, o.discriminatorWidth, o.batchSize, int(o.adversarial), o.latentQuantBits}) h = fnvValue(h, v);
   return fnvValue(h, o.seed);
 }
 
@@ -304,6 +318,103 @@ float learningRateAt(const GeneratorTrainingOptions& o, int step) {
 
 void setGroupLr(torch::optim::Adam& opt, size_t group, float lr) {
   static_cast<torch::optim::AdamOptions&>(opt.param_groups()[group].options()).lr(lr);
+}
+
+// Straight-through fake quantization (Bengio et al. 2013; Jacob et al. 2018): the forward pass sees x
+// on the symmetric `bits` grid of core/quantize.h with one scale per column (x: [rows][columns], scale =
+// max over the column |x| / M), the backward pass the identity. bits 0: x unchanged. The grid is exactly
+// quantizePerChannel's (same float division, round half to even), so exported grid values quantize back
+// to themselves.
+torch::Tensor fakeQuantize(const torch::Tensor& x, int bits) {
+  if (bits <= 0) return x;
+  const double m = double((1 << (bits - 1)) - 1);
+  torch::Tensor s = (x.detach().abs().amax(0, true) / m);
+  torch::Tensor safe = torch::where(s > 0, s, torch::ones_like(s));
+  torch::Tensor q = torch::where(s > 0, (x.detach() / safe).round().clamp(-m, m) * s, torch::zeros_like(x));
+  return x + (q - x.detach());
+}
+
+// Radiance channels of raw outputs y [B][11][n][n] through the metric's irradiance operator: [B][3][m*m].
+torch::Tensor predictedIrradiance(const torch::Tensor& y, const Data& d) {
+  const int64_t T = int64_t(d.n) * d.n;
+  torch::Tensor L = torch::expm1(y.narrow(1, 0, 3).clamp(0.0, 20.0)) * d.scale.exposure;
+  return torch::matmul(L.reshape({y.size(0), 3, T}), d.kernel);
+}
+
+// The reconstruction part of the loss (file comment of generator_training.h) of outputs y for samples idx.
+torch::Tensor reconstructionLoss(const torch::Tensor& y, const torch::Tensor& idx, const Data& d,
+                                 const TrainingLossWeights& w) {
+  torch::Tensor ref = d.target.index_select(0, idx);
+  torch::Tensor diff2 = (y - ref).pow(2);
+  torch::Tensor total = w.radiance * (diff2.narrow(1, 0, 3) * d.radianceWeight).mean() +
+                        w.distance * diff2.narrow(1, 3, 2).mean() + w.normal * diff2.narrow(1, 5, 3).mean() +
+                        w.albedo * diff2.narrow(1, 8, 3).mean();
+  if (w.irradiance > 0.0f) {
+    torch::Tensor eRef = d.irradiance.index_select(0, idx);
+    total = total + w.irradiance * (predictedIrradiance(y, d) - eRef).pow(2).sum() / eRef.pow(2).sum().clamp_min(1e-30);
+  }
+  return total;
+}
+
+// Irradiance relative RMS over every sample of d, outputs from forward(idx) (libtorch; exported models
+// are re-measured with the core decoder).
+template <typename Forward>
+double irradianceError(const Data& d, Forward&& forward) {
+  torch::NoGradGuard noGrad;
+  double num = 0.0, den = 0.0;
+  for (int64_t s0 = 0; s0 < d.S; s0 += 1024) {
+    torch::Tensor idx = torch::arange(s0, std::min(d.S, s0 + 1024), torch::kLong);
+    torch::Tensor e = predictedIrradiance(forward(idx), d), ref = d.irradiance.index_select(0, idx);
+    num += (e - ref).pow(2).sum().item<double>();
+    den += ref.pow(2).sum().item<double>();
+  }
+  return den > 0.0 ? std::sqrt(num / den) : (num > 0.0 ? INFINITY : 0.0);
+}
+
+// Checkpoints (atomic; meta = [fingerprint, step]). openCheckpoint: the step of the checkpoint at path,
+// nullopt if there is none; throws if it is unreadable or of other data or options.
+std::optional<int> openCheckpoint(const std::filesystem::path& path, uint64_t fp,
+                                  torch::serialize::InputArchive& ar) {
+  if (path.empty() || !std::filesystem::exists(path)) return std::nullopt;
+  try {
+    ar.load_from(path.string());
+  } catch (const std::exception& e) {
+    fail("{}: not a readable training checkpoint ({})", path.string(), e.what());
+  }
+  torch::Tensor meta;
+  ar.read("meta", meta);
+  if (meta.numel() != 2 || uint64_t(meta[0].item<int64_t>()) != fp)
+    fail("{}: checkpoint of other training data or options (delete it to start over)", path.string());
+  return int(meta[1].item<int64_t>());
+}
+
+void saveCheckpointArchive(const std::filesystem::path& path, uint64_t fp, int step,
+                           torch::serialize::OutputArchive& ar) {
+  ar.write("meta", torch::tensor(std::vector<int64_t>{int64_t(fp), int64_t(step)}, torch::kLong));
+  writeViaTempFile(path, [&](const std::filesystem::path& tmp) { ar.save_to(tmp.string()); });
+}
+
+// After the training loop: an interrupted run writes its checkpoint; a finished one removes it (nothing is
+// left to resume; its result goes to the caller, the cell file).
+template <typename Save>
+void closeCheckpoint(bool interrupted, const std::filesystem::path& path, Save&& save) {
+  if (interrupted) {
+    save();
+  } else if (!path.empty()) {
+    std::error_code ec;
+    std::filesystem::remove(path, ec);
+  }
+}
+
+std::vector<torch::Tensor> snapshotOf(const std::vector<torch::Tensor>& tensors) {
+  std::vector<torch::Tensor> st;
+  for (const torch::Tensor& t : tensors) st.push_back(t.detach().clone());
+  return st;
+}
+
+void restoreFrom(const std::vector<torch::Tensor>& tensors, const std::vector<torch::Tensor>& snapshot) {
+  torch::NoGradGuard noGrad;
+  for (size_t i = 0; i < tensors.size(); ++i) tensors[i].copy_(snapshot[i]);
 }
 
 }  // namespace
@@ -369,6 +480,8 @@ void GeneratorTrainingOptions::validate() const {
   if (discriminatorWidth < 1) fail("GeneratorTrainingOptions.discriminatorWidth = {}: need >= 1", discriminatorWidth);
   if (!(exposure >= 0.0f) || !(range >= 0.0f)) fail("GeneratorTrainingOptions: exposure and range must be >= 0");
   if (checkpointEvery < 1) fail("GeneratorTrainingOptions.checkpointEvery = {}: need >= 1", checkpointEvery);
+  if (latentQuantBits != 0 && latentQuantBits != 4 && latentQuantBits != 8)
+    fail("GeneratorTrainingOptions.latentQuantBits = {}: 0 (off), 4 or 8", latentQuantBits);
   if (arch.outChannels() != kGeneratorChannels)
     fail("GeneratorTrainingOptions.arch: {} output channels, the codec needs {}", arch.outChannels(),
          kGeneratorChannels);
@@ -411,7 +524,6 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
   torch::manual_seed(o.seed);
   const Data d = makeData(set, o);
   const bool stored = o.arch.latentSource == LatentSource::Stored;
-  const int64_t T = int64_t(d.n) * d.n;
 
   GeneratorNet gen(o.arch);
   torch::Tensor latents = stored ? (torch::randn({d.P, o.arch.latentDim}) * 0.1).requires_grad_(true)
@@ -428,18 +540,9 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
   const uint64_t fp = fingerprint(set, o, d);
   int step = 0;
   TrainedGenerator result;
-  if (!o.checkpoint.empty() && std::filesystem::exists(o.checkpoint)) {
-    torch::serialize::InputArchive ar;
-    try {
-      ar.load_from(o.checkpoint.string());
-    } catch (const std::exception& e) {
-      fail("{}: not a readable training checkpoint ({})", o.checkpoint.string(), e.what());
-    }
-    torch::Tensor meta;
-    ar.read("meta", meta);
-    if (meta.numel() != 2 || uint64_t(meta[0].item<int64_t>()) != fp)
-      fail("{}: checkpoint of other training data or options (delete it to start over)", o.checkpoint.string());
-    step = int(meta[1].item<int64_t>());
+  torch::serialize::InputArchive ar;
+  if (std::optional<int> resumed = openCheckpoint(o.checkpoint, fp, ar)) {
+    step = *resumed;
     torch::serialize::InputArchive g, og;
     ar.read("gen", g);
     gen->load(g);
@@ -462,45 +565,29 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
   }
   auto saveCheckpoint = [&]() {
     if (o.checkpoint.empty()) return;
-    torch::serialize::OutputArchive ar, g, og;
-    ar.write("meta", torch::tensor(std::vector<int64_t>{int64_t(fp), int64_t(step)}, torch::kLong));
+    torch::serialize::OutputArchive out, g, og;
     gen->save(g);
-    ar.write("gen", g);
-    if (stored) ar.write("latents", latents.detach());
+    out.write("gen", g);
+    if (stored) out.write("latents", latents.detach());
     opt.save(og);
-    ar.write("opt", og);
+    out.write("opt", og);
     if (o.adversarial) {
       torch::serialize::OutputArchive dg, dog;
       disc->save(dg);
-      ar.write("disc", dg);
+      out.write("disc", dg);
       discOpt.save(dog);
-      ar.write("discOpt", dog);
+      out.write("discOpt", dog);
     }
-    writeViaTempFile(o.checkpoint, [&](const std::filesystem::path& tmp) { ar.save_to(tmp.string()); });
+    saveCheckpointArchive(o.checkpoint, fp, step, out);
   };
 
+  // Latents as the decoder will see them: on the int8 / 4-bit grid with quantization in the loop.
   auto inputs = [&](const torch::Tensor& idx) {
     torch::Tensor p = idx.remainder(d.P), k = idx.div(d.P, "floor");
-    torch::Tensor z = latents.index_select(0, p);
+    torch::Tensor z = (stored ? fakeQuantize(latents, o.latentQuantBits) : latents).index_select(0, p);
     return o.arch.condDim > 0 ? torch::cat({z, d.cond.index_select(0, k)}, 1) : z;
   };
-  auto predictedIrradiance = [&](const torch::Tensor& y) {
-    torch::Tensor L = torch::expm1(y.narrow(1, 0, 3).clamp(0.0, 20.0)) * d.scale.exposure;
-    return torch::matmul(L.reshape({y.size(0), 3, T}), d.kernel);
-  };
-  // Irradiance relative RMS of the current model over the whole set (libtorch forward; the exported
-  // model is re-measured with the core decoder at the end).
-  auto evaluate = [&]() {
-    torch::NoGradGuard noGrad;
-    double num = 0.0, den = 0.0;
-    for (int64_t s0 = 0; s0 < d.S; s0 += 1024) {
-      torch::Tensor idx = torch::arange(s0, std::min(d.S, s0 + 1024), torch::kLong);
-      torch::Tensor e = predictedIrradiance(gen->forward(inputs(idx))), ref = d.irradiance.index_select(0, idx);
-      num += (e - ref).pow(2).sum().item<double>();
-      den += ref.pow(2).sum().item<double>();
-    }
-    return den > 0.0 ? std::sqrt(num / den) : (num > 0.0 ? INFINITY : 0.0);
-  };
+  auto evaluate = [&]() { return irradianceError(d, [&](const torch::Tensor& idx) { return gen->forward(inputs(idx)); }); };
 
   BatchSchedule schedule(d.S, o.batchSize, o.seed);
   std::optional<Progress> progress;
@@ -510,18 +597,12 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
   bool done = false;
   // Divergence guard: the state of the last finite evaluation (at first the starting weights). A
   // non-finite loss or error stops training and restores it, so the exported model is always finite.
-  auto snapshot = [&]() {
-    std::vector<torch::Tensor> st;
-    for (const torch::Tensor& p : gen->parameters()) st.push_back(p.detach().clone());
-    if (stored) st.push_back(latents.detach().clone());
-    return st;
-  };
+  std::vector<torch::Tensor> trainable = gen->parameters();
+  if (stored) trainable.push_back(latents);
+  auto snapshot = [&]() { return snapshotOf(trainable); };
   std::vector<torch::Tensor> lastFinite = snapshot();
   auto restoreLastFinite = [&]() {
-    torch::NoGradGuard noGrad;
-    std::vector<torch::Tensor> params = gen->parameters();
-    for (size_t i = 0; i < params.size(); ++i) params[i].copy_(lastFinite[i]);
-    if (stored) latents.copy_(lastFinite.back());
+    restoreFrom(trainable, lastFinite);
     result.report.diverged = true;
   };
   while (step < o.maxSteps && !done) {
@@ -534,15 +615,7 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
     torch::Tensor idx = schedule.batch(step);
     torch::Tensor y = gen->forward(inputs(idx));
     torch::Tensor ref = d.target.index_select(0, idx);
-    torch::Tensor diff2 = (y - ref).pow(2);
-    torch::Tensor total = o.loss.radiance * (diff2.narrow(1, 0, 3) * d.radianceWeight).mean() +
-                          o.loss.distance * diff2.narrow(1, 3, 2).mean() +
-                          o.loss.normal * diff2.narrow(1, 5, 3).mean() + o.loss.albedo * diff2.narrow(1, 8, 3).mean();
-    if (o.loss.irradiance > 0.0f) {
-      torch::Tensor eRef = d.irradiance.index_select(0, idx);
-      total = total + o.loss.irradiance * (predictedIrradiance(y) - eRef).pow(2).sum() /
-                          eRef.pow(2).sum().clamp_min(1e-30);
-    }
+    torch::Tensor total = reconstructionLoss(y, idx, d, o.loss);
     if (stored && o.loss.latent > 0.0f) total = total + o.loss.latent * latents.pow(2).mean();
     if (!std::isfinite(total.item<double>())) {
       restoreLastFinite();
@@ -583,16 +656,10 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
     if (progress) progress->update(size_t(step));
   }
   if (progress) progress->finish();
-  if (result.report.interrupted) {
-    saveCheckpoint();
-  } else if (!o.checkpoint.empty()) {
-    // A finished run leaves nothing to resume; its result goes to the caller (the cell file).
-    std::error_code ec;
-    std::filesystem::remove(o.checkpoint, ec);
-  }
+  closeCheckpoint(result.report.interrupted, o.checkpoint, saveCheckpoint);
 
   result.weights = exportWeights(gen, o.arch);
-  if (stored) result.latents = toVector(latents);
+  if (stored) result.latents = toVector(fakeQuantize(latents, o.latentQuantBits));
   result.scale = d.scale;
   result.report.steps = step;
   result.report.finalLoss = loss;
@@ -605,8 +672,262 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
   return result;
 }
 
+// ---- world-shared generator + per-cell adapters ------------------------------------------------------
+void SharedTrainingOptions::validate() const {
+  training.validate();
+  if (training.adversarial) fail("SharedTrainingOptions.training.adversarial: not supported by the shared generator");
+  if (training.arch.latentSource != LatentSource::Stored)
+    fail("SharedTrainingOptions.training.arch: the shared generator needs stored latents");
+  if (adapterStages < 0 || adapterStages > training.arch.layers() + 1)
+    fail("SharedTrainingOptions.adapterStages = {} outside [0, {}]", adapterStages, training.arch.layers() + 1);
+  if (!(adapterLearningRate > 0.0f)) fail("SharedTrainingOptions.adapterLearningRate must be > 0");
+  if (!(adapterPrior >= 0.0f)) fail("SharedTrainingOptions.adapterPrior must be >= 0");
+  if (adapterQuantBits != 0 && adapterQuantBits != 4 && adapterQuantBits != 8)
+    fail("SharedTrainingOptions.adapterQuantBits = {}: 0 (off), 4 or 8", adapterQuantBits);
+}
+
+TrainedGenerator CellAdaptation::folded(const GeneratorWeights& shared) const {
+  TrainedGenerator t;
+  t.weights = applyAdapter(shared, adapter);
+  t.latents = latents;
+  t.scale = scale;
+  t.report = report;
+  return t;
+}
+
+namespace {
+
+// The one training loop of the shared model: pre-training (frozen == nullptr: shared weights trained
+// with every cell's latents and adapter) and a frozen fit (one or more cells against fixed weights).
+SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const GeneratorWeights* frozen,
+                            const SharedTrainingOptions& so) {
+  const auto t0 = std::chrono::steady_clock::now();
+  so.validate();
+  const GeneratorTrainingOptions& o = so.training;
+  if (sets.empty()) fail("shared generator: no training cells");
+  for (size_t c = 0; c < sets.size(); ++c) {
+    sets[c].validate();
+    if (o.arch.outputResolution() != sets[c].resolution())
+      fail("shared generator: cell {} captures are {} x {}, the model outputs {} x {}", c, sets[c].resolution(),
+           sets[c].resolution(), o.arch.outputResolution(), o.arch.outputResolution());
+  }
+  if (frozen) {
+    frozen->validate();
+    const GeneratorArch &a = frozen->arch, &b = o.arch;
+    if (a.latentDim != b.latentDim || a.condDim != b.condDim || a.convChannels != b.convChannels ||
+        a.latentSource != b.latentSource)
+      fail("shared generator: the options' architecture is not the frozen model's");
+  }
+  setThreads(o.threads);
+  torch::manual_seed(o.seed);
+  std::vector<Data> data;
+  for (const GeneratorTrainingSet& set : sets) data.push_back(makeData(set, o));
+  const size_t C = sets.size();
+  const int64_t adapterFloats = int64_t(adapterChannels(o.arch, so.adapterStages));
+
+  GeneratorNet gen(o.arch);
+  if (frozen) {
+    importWeights(gen, *frozen);
+    for (torch::Tensor& p : gen->parameters()) p.requires_grad_(false);
+  }
+  std::vector<torch::Tensor> latents, film;
+  for (const Data& d : data) {
+    latents.push_back((torch::randn({d.P, o.arch.latentDim}) * 0.1).requires_grad_(true));
+    film.push_back(torch::zeros({2, adapterFloats}).requires_grad_(true));
+  }
+  std::vector<torch::optim::OptimizerParamGroup> groups;
+  std::vector<float> baseLr;
+  if (!frozen) {
+    groups.emplace_back(gen->parameters(), std::make_unique<torch::optim::AdamOptions>(o.learningRate));
+    baseLr.push_back(o.learningRate);
+  }
+  groups.emplace_back(latents, std::make_unique<torch::optim::AdamOptions>(o.latentLearningRate));
+  baseLr.push_back(o.latentLearningRate);
+  if (adapterFloats > 0) {
+    groups.emplace_back(film, std::make_unique<torch::optim::AdamOptions>(so.adapterLearningRate));
+    baseLr.push_back(so.adapterLearningRate);
+  }
+  torch::optim::Adam opt(std::move(groups), torch::optim::AdamOptions(o.learningRate));
+
+  uint64_t fp = fnvValue(kFnvOffset, uint64_t(C));
+  for (size_t c = 0; c < C; ++c) fp = fnvValue(fp, fingerprint(sets[c], o, data[c]));
+  for (int v : {so.adapterStages, so.adapterQuantBits}) fp = fnvValue(fp, v);
+  for (float v : {so.adapterLearningRate, so.adapterPrior}) fp = fnvValue(fp, v);
+  fp = fnvValue(fp, frozen ? weightsContentHash(*frozen) : uint64_t(0));
+
+  int step = 0;
+  SharedGenerator result;
+  torch::serialize::InputArchive ar;
+  if (std::optional<int> resumed = openCheckpoint(o.checkpoint, fp, ar)) {
+    step = *resumed;
+    torch::NoGradGuard noGrad;
+    if (!frozen) {
+      torch::serialize::InputArchive g;
+      ar.read("gen", g);
+      gen->load(g);
+    }
+    for (size_t c = 0; c < C; ++c) {
+      torch::Tensor z, f;
+      ar.read("latents" + std::to_string(c), z);
+      ar.read("film" + std::to_string(c), f);
+      latents[c].copy_(z);
+      film[c].copy_(f);
+    }
+    torch::serialize::InputArchive og;
+    ar.read("opt", og);
+    opt.load(og);
+    result.report.resumedFromStep = step;
+  }
+  auto saveCheckpoint = [&]() {
+    if (o.checkpoint.empty()) return;
+    torch::serialize::OutputArchive out, og;
+    if (!frozen) {
+      torch::serialize::OutputArchive g;
+      gen->save(g);
+      out.write("gen", g);
+    }
+    for (size_t c = 0; c < C; ++c) {
+      out.write("latents" + std::to_string(c), latents[c].detach());
+      out.write("film" + std::to_string(c), film[c].detach());
+    }
+    opt.save(og);
+    out.write("opt", og);
+    saveCheckpointArchive(o.checkpoint, fp, step, out);
+  };
+
+  // What the decoder sees: latents and adapter on their grids when quantized in the loop.
+  auto latentsOf = [&](size_t c) { return fakeQuantize(latents[c], o.latentQuantBits); };
+  auto filmOf = [&](size_t c) {
+    return adapterFloats > 0 ? fakeQuantize(film[c].t(), so.adapterQuantBits).t() : torch::Tensor();
+  };
+  auto forward = [&](size_t c, const torch::Tensor& idx) {
+    const Data& d = data[c];
+    torch::Tensor z = latentsOf(c).index_select(0, idx.remainder(d.P));
+    if (o.arch.condDim > 0) z = torch::cat({z, d.cond.index_select(0, idx.div(d.P, "floor"))}, 1);
+    return gen->forward(z, filmOf(c), so.adapterStages);
+  };
+  auto evaluate = [&]() {
+    double sum = 0.0;
+    for (size_t c = 0; c < C; ++c)
+      sum += irradianceError(data[c], [&](const torch::Tensor& idx) { return forward(c, idx); });
+    return sum / double(C);
+  };
+
+  std::vector<BatchSchedule> schedules;
+  for (size_t c = 0; c < C; ++c) schedules.emplace_back(data[c].S, o.batchSize, o.seed + c);
+  std::vector<torch::Tensor> trainable = latents;
+  trainable.insert(trainable.end(), film.begin(), film.end());
+  if (!frozen)
+    for (const torch::Tensor& p : gen->parameters()) trainable.push_back(p);
+  std::vector<torch::Tensor> lastFinite = snapshotOf(trainable);
+  auto restoreLastFinite = [&]() {
+    restoreFrom(trainable, lastFinite);
+    result.report.diverged = true;
+  };
+  std::optional<Progress> progress;
+  const char* label = frozen ? "fit cell adapter" : "pretrain shared generator";
+  if (o.showProgress) progress.emplace(label, size_t(o.maxSteps), "steps", size_t(step));
+  double err = INFINITY, loss = 0.0;
+  int stepsThisCall = 0;
+  bool done = false;
+  while (step < o.maxSteps && !done) {
+    if (InterruptGuard::interrupted() || (o.stopAfterSteps > 0 && stepsThisCall >= o.stopAfterSteps)) {
+      result.report.interrupted = true;
+      break;
+    }
+    const float factor = learningRateAt(o, step) / o.learningRate;
+    for (size_t g = 0; g < baseLr.size(); ++g) setGroupLr(opt, g, baseLr[g] * factor);
+    torch::Tensor total = torch::zeros({});
+    for (size_t c = 0; c < C; ++c) {
+      torch::Tensor idx = schedules[c].batch(step);
+      torch::Tensor l = reconstructionLoss(forward(c, idx), idx, data[c], o.loss);
+      if (o.loss.latent > 0.0f) l = l + o.loss.latent * latents[c].pow(2).mean();
+      if (adapterFloats > 0 && so.adapterPrior > 0.0f) l = l + so.adapterPrior * film[c].pow(2).mean();
+      total = total + l / double(C);
+    }
+    if (!std::isfinite(total.item<double>())) {
+      restoreLastFinite();
+      break;
+    }
+    opt.zero_grad();
+    total.backward();
+    opt.step();
+    loss = total.item<double>();
+    ++step;
+    ++stepsThisCall;
+    if (step % o.evalEvery == 0 || step == o.maxSteps) {
+      err = evaluate();
+      if (!std::isfinite(err)) {
+        restoreLastFinite();
+        break;
+      }
+      lastFinite = snapshotOf(trainable);
+      if (o.showProgress)
+        std::fprintf(stderr, "\n%s: step %d loss %.5f irradiance rel RMS %.4f (target %.4f)\n", label, step, loss,
+                     err, o.irradianceErrorTarget);
+      if (err <= o.irradianceErrorTarget) done = true;
+    }
+    if (!o.checkpoint.empty() && step % o.checkpointEvery == 0 && !done) saveCheckpoint();
+    if (progress) progress->update(size_t(step));
+  }
+  if (progress) progress->finish();
+  closeCheckpoint(result.report.interrupted, o.checkpoint, saveCheckpoint);
+
+  result.weights = exportWeights(gen, o.arch);
+  const uint64_t sharedHash = weightsContentHash(result.weights);
+  double irr = 0.0, rad = 0.0, psnrDb = 0.0;
+  for (size_t c = 0; c < C; ++c) {
+    CellAdaptation a;
+    a.latents = toVector(latentsOf(c));
+    a.adapter.stages = so.adapterStages;
+    if (adapterFloats > 0) {
+      const torch::Tensor f = filmOf(c);
+      a.adapter.scale = toVector(f[0]);
+      a.adapter.shift = toVector(f[1]);
+    }
+    a.scale = data[c].scale;
+    a.sharedWeightsHash = sharedHash;
+    a.report.steps = step;
+    a.report.resumedFromStep = result.report.resumedFromStep;
+    a.report.interrupted = result.report.interrupted;
+    a.report.diverged = result.report.diverged;
+    a.report.finalLoss = loss;
+    const CodecError ce = evaluateGenerator(a.folded(result.weights), sets[c]);
+    a.report.irradianceRelativeRms = ce.irradianceRelativeRms;
+    a.report.radianceRelativeRms = ce.radianceRelativeRms;
+    a.report.radiancePsnrDb = ce.radiancePsnrDb;
+    a.report.reachedTarget = ce.irradianceRelativeRms <= o.irradianceErrorTarget;
+    irr += ce.irradianceRelativeRms / double(C);
+    rad += ce.radianceRelativeRms / double(C);
+    psnrDb += ce.radiancePsnrDb / double(C);
+    result.cells.push_back(std::move(a));
+  }
+  result.report.steps = step;
+  result.report.finalLoss = loss;
+  result.report.irradianceRelativeRms = irr;
+  result.report.radianceRelativeRms = rad;
+  result.report.radiancePsnrDb = psnrDb;
+  result.report.reachedTarget = irr <= o.irradianceErrorTarget;
+  result.report.seconds = secondsSince(t0);
+  for (CellAdaptation& a : result.cells) a.report.seconds = result.report.seconds;
+  return result;
+}
+
+}  // namespace
+
+SharedGenerator pretrainSharedGenerator(std::span<const GeneratorTrainingSet> cells,
+                                        const SharedTrainingOptions& options) {
+  return trainShared(cells, nullptr, options);
+}
+
+CellAdaptation fitCellToSharedGenerator(const GeneratorWeights& shared, const GeneratorTrainingSet& cell,
+                                        const SharedTrainingOptions& options) {
+  SharedGenerator r = trainShared(std::span<const GeneratorTrainingSet>(&cell, 1), &shared, options);
+  return std::move(r.cells.front());
+}
+
 std::vector<float> torchGeneratorForward(const GeneratorWeights& weights, std::span<const float> latents,
-                                         std::span<const float> cond, size_t count) {
+                                         std::span<const float> cond, size_t count, const GeneratorAdapter* adapter) {
   weights.validate();
   const GeneratorArch& a = weights.arch;
   if (latents.size() != count * size_t(a.latentDim))
@@ -623,7 +944,12 @@ std::vector<float> torchGeneratorForward(const GeneratorWeights& weights, std::s
                           .expand({int64_t(count), a.condDim});
     z = torch::cat({z, c}, 1);
   }
-  return toVector(net->forward(z));
+  if (!adapter) return toVector(net->forward(z));
+  adapter->validate(a);
+  if (adapter->scale.empty()) return toVector(net->forward(z));
+  const int64_t n = int64_t(adapter->scale.size());
+  torch::Tensor film = torch::cat({fromVector(adapter->scale, {1, n}), fromVector(adapter->shift, {1, n})}, 0);
+  return toVector(net->forward(z, film, adapter->stages));
 }
 
 // ---- metrics ---------------------------------------------------------------------------------------

@@ -15,9 +15,12 @@
 // the sun floor. Pooled rows (scene "kind" per scene kind, scene "all" over every scene): bytes = total
 // bytes / total probes, errors = mean of the per-scene errors.
 //
-// The generative codec ("gan" rows, GanCodec below; --no-gan skips its training) fills summary.json's codec_*
-// keys: the cheapest gan setting at SH L2's irradiance error, else the most accurate gan row
-// (gan_reached_sh_l2_error false). The best baseline at SH L2's error is reported beside it.
+// The generative codecs ("gan" rows: a per-cell generator, GanCodec below, --no-gan skips its training;
+// "shared_adapter" rows: latents + FiLM adapter against one world-shared generator, SharedAdapterCodec,
+// --no-shared) fill summary.json's codec_* keys: the cheapest of their settings at SH L2's irradiance error
+// (shared rows with the shared model's bytes spread over the default world), else the most accurate row
+// (codec_reached_sh_l2_error false). The best baseline at SH L2's error is reported beside it, and
+// summary.json "shared_generator" holds the shared rows over all scenes and over the synthetic cells alone.
 #include <CLI/CLI.hpp>
 #include <cblas.h>
 #include <spdlog/spdlog.h>
@@ -255,6 +258,52 @@ class ReferenceFp32 final : public ProbeCodec {
   }
 };
 
+// The bench probes of one scene as a one-key training set (bench captures keep radiance and irradiance
+// only: distance, normal and albedo are placeholders that the bench's training options weight zero).
+bake::GeneratorTrainingSet trainingSetOf(const ProbeField& f, float timeOfDay) {
+  const size_t P = size_t(f.probeCount());
+  const int n = f.resolution, m = f.irradianceResolution;
+  const size_t T = size_t(n) * size_t(n);
+  ProbeField withIrr = f;
+  if (withIrr.irradiance.empty()) deriveIrradiance(withIrr);
+  glm::vec3 lo(1e30f), hi(-1e30f);
+  for (size_t i = 0; i < P; ++i) {
+    lo = glm::min(lo, f.probePosition(int64_t(i)));
+    hi = glm::max(hi, f.probePosition(int64_t(i)));
+  }
+  bake::GeneratorTrainingSet set;
+  bake::LightingKey key;
+  key.timeOfDayHours = timeOfDay;
+  for (size_t i = 0; i < P; ++i) {
+    const glm::vec3 p = f.probePosition(int64_t(i)), ext = hi - lo;
+    set.positions01.push_back(glm::vec3(ext.x > 0 ? (p.x - lo.x) / ext.x : 0.5f, ext.y > 0 ? (p.y - lo.y) / ext.y : 0.5f,
+                                        ext.z > 0 ? (p.z - lo.z) / ext.z : 0.5f));
+    bake::ProbeCapture c;
+    c.position = p;
+    c.resolution = n;
+    c.irradianceResolution = m;
+    c.radiance.assign(f.radiance.begin() + ptrdiff_t(i * T * 3), f.radiance.begin() + ptrdiff_t((i + 1) * T * 3));
+    c.radianceStdError.assign(T * 3, 0.0f);
+    c.distance.assign(T * 2, 1.0f);
+    c.normal.assign(T * 3, 0.0f);
+    c.albedo.assign(T * 3, 0.0f);
+    const size_t M = size_t(m) * size_t(m) * 3;
+    c.irradiance.assign(withIrr.irradiance.begin() + ptrdiff_t(i * M), withIrr.irradiance.begin() + ptrdiff_t((i + 1) * M));
+    key.probes.push_back(std::move(c));
+  }
+  set.keys.push_back(std::move(key));
+  return set;
+}
+
+// Training options of every bench model: radiance / irradiance losses only (see trainingSetOf), 1 thread.
+bake::GeneratorTrainingOptions benchTrainingOptions(int maxSteps) {
+  bake::GeneratorTrainingOptions o;
+  o.maxSteps = maxSteps;
+  o.threads = 1;
+  o.loss.distance = o.loss.normal = o.loss.albedo = 0.0f;
+  return o;
+}
+
 // The generative codec (issue 7): the cell's probes are a one-key training set; bake::chooseCellModel picks
 // SH L1 ("no network") when it meets the target, else the cheapest of a few generators; weights and latents
 // are int8 and the bytes are the whole OpenVDB cell file (core/cell_file.h), ~11 KB of it fixed OpenVDB
@@ -267,37 +316,9 @@ class GanCodec final : public ProbeCodec {
   std::string setting() const override { return fmt::format("target {}", target_); }
 
   std::vector<std::byte> encode(const ProbeField& f) const override {
+    const int n = f.resolution;
     const size_t P = size_t(f.probeCount());
-    const int n = f.resolution, m = f.irradianceResolution;
-    const size_t T = size_t(n) * size_t(n);
-    ProbeField withIrr = f;
-    if (withIrr.irradiance.empty()) deriveIrradiance(withIrr);
-    glm::vec3 lo(1e30f), hi(-1e30f);
-    for (size_t i = 0; i < P; ++i) {
-      lo = glm::min(lo, f.probePosition(int64_t(i)));
-      hi = glm::max(hi, f.probePosition(int64_t(i)));
-    }
-    bake::GeneratorTrainingSet set;
-    bake::LightingKey key;
-    key.timeOfDayHours = timeOfDay_;
-    for (size_t i = 0; i < P; ++i) {
-      const glm::vec3 p = f.probePosition(int64_t(i)), ext = hi - lo;
-      set.positions01.push_back(glm::vec3(ext.x > 0 ? (p.x - lo.x) / ext.x : 0.5f, ext.y > 0 ? (p.y - lo.y) / ext.y : 0.5f,
-                                          ext.z > 0 ? (p.z - lo.z) / ext.z : 0.5f));
-      bake::ProbeCapture c;
-      c.position = p;
-      c.resolution = n;
-      c.irradianceResolution = m;
-      c.radiance.assign(f.radiance.begin() + ptrdiff_t(i * T * 3), f.radiance.begin() + ptrdiff_t((i + 1) * T * 3));
-      c.radianceStdError.assign(T * 3, 0.0f);
-      c.distance.assign(T * 2, 1.0f);
-      c.normal.assign(T * 3, 0.0f);
-      c.albedo.assign(T * 3, 0.0f);
-      const size_t M = size_t(m) * size_t(m) * 3;
-      c.irradiance.assign(withIrr.irradiance.begin() + ptrdiff_t(i * M), withIrr.irradiance.begin() + ptrdiff_t((i + 1) * M));
-      key.probes.push_back(std::move(c));
-    }
-    set.keys.push_back(std::move(key));
+    bake::GeneratorTrainingSet set = trainingSetOf(f, timeOfDay_);
     bake::ModelSizingOptions so;
     so.irradianceErrorTarget = target_;
     so.noNetworkKinds = {bake::CellModelKind::kShL1};
@@ -307,9 +328,7 @@ class GanCodec final : public ProbeCodec {
       a.convChannels = {c0, c0 / 2, kGeneratorChannels};
       so.candidates.push_back(a);
     }
-    so.training.maxSteps = maxSteps_;
-    so.training.threads = 1;
-    so.training.loss.distance = so.training.loss.normal = so.training.loss.albedo = 0.0f;
+    so.training = benchTrainingOptions(maxSteps_);
     bake::CellModelChoice choice = bake::chooseCellModel(set, {}, so);
     CellFile cf;
     cf.grid = f.grid;
@@ -371,7 +390,191 @@ class GanCodec final : public ProbeCodec {
   float timeOfDay_;
 };
 
-std::vector<std::unique_ptr<ProbeCodec>> makeBenchCodecs(bool quick, bool skipGan, float timeOfDay) {
+// ------------------------------------------------------------------------- world-shared generator
+// One generator pre-trained on cells of the default world that the bench does not measure (one of each
+// kind; bake/generator_training.h pretrainSharedGenerator), stored once per world as int8 weights. Every
+// measured scene is held out: its encode fits only latents + a FiLM adapter against the frozen, already
+// dequantized int8 shared weights (what every decoder runs), bake::fitCellToSharedGenerator.
+struct SharedModel {
+  GeneratorWeights weights;          // dequantized int8: the decoders' shared model
+  uint64_t hash = 0;                 // weightsContentHash(weights): what a cell refers to
+  size_t bytes = 0;                  // stored once per world: int8 weights + scales + float biases + arch
+  double pretrainSeconds = 0.0;      // 0 when loaded from the cache
+  double pretrainIrrRelRms = 0.0;
+  int steps = 0;
+  std::vector<std::string> cells;    // pre-training scenes
+};
+
+constexpr int kSharedAdapterStages = 1;  // FiLM on the linear layer's C0 channels only (see bake/OVERVIEW.md)
+
+bake::SharedTrainingOptions sharedOptions(const GeneratorArch& arch, int steps, int latentQatBits) {
+  bake::SharedTrainingOptions o;
+  o.training = benchTrainingOptions(steps);
+  o.training.arch = arch;
+  o.training.batchSize = 512;
+  o.training.evalEvery = std::max(1, steps / 4);
+  o.training.irradianceErrorTarget = 0.0;  // a fixed budget: every cell pays the same fit
+  o.training.latentQuantBits = latentQatBits;
+  o.adapterStages = kSharedAdapterStages;
+  o.adapterQuantBits = latentQatBits > 0 ? 8 : 0;
+  return o;
+}
+
+// Per-cell byte string of the shared codec (bench-only layout; the OpenVDB cell-file variant is not
+// written yet, bench/OVERVIEW.md): "LFSA", u8 version, u64 shared model hash, u32 probes, u8 latent dim,
+// u8 latent bits, f32 exposure, f32 range, latent scales (dim f32), packed latent codes, u8 adapter stages,
+// u32 adapter channels, 2 f32 adapter scales, int8 adapter codes.
+class ByteWriter {
+ public:
+  template <typename T>
+  void put(T v) {
+    const auto* b = reinterpret_cast<const std::byte*>(&v);
+    bytes.insert(bytes.end(), b, b + sizeof(T));
+  }
+  std::vector<std::byte> bytes;
+};
+class ByteReader {
+ public:
+  explicit ByteReader(std::span<const std::byte> b) : b_(b) {}
+  template <typename T>
+  T get() {
+    if (pos_ + sizeof(T) > b_.size()) fail("shared_adapter cell: truncated at byte {} of {}", pos_, b_.size());
+    T v;
+    std::memcpy(&v, b_.data() + pos_, sizeof(T));
+    pos_ += sizeof(T);
+    return v;
+  }
+  bool done() const { return pos_ == b_.size(); }
+
+ private:
+  std::span<const std::byte> b_;
+  size_t pos_ = 0;
+};
+
+void putCodes(ByteWriter& w, const std::vector<int8_t>& codes, int bits) {
+  if (bits == 8) {
+    for (int8_t c : codes) w.put(c);
+    return;
+  }
+  for (size_t i = 0; i < codes.size(); i += 2) {  // 4-bit two's complement, low nibble first
+    const uint8_t lo = uint8_t(codes[i]) & 0xf, hi = i + 1 < codes.size() ? uint8_t(uint8_t(codes[i + 1]) & 0xf) : 0;
+    w.put(uint8_t(lo | (hi << 4)));
+  }
+}
+std::vector<int8_t> getCodes(ByteReader& r, size_t n, int bits) {
+  std::vector<int8_t> codes(n);
+  if (bits == 8) {
+    for (int8_t& c : codes) c = r.get<int8_t>();
+    return codes;
+  }
+  for (size_t i = 0; i < n; i += 2) {
+    const uint8_t b = r.get<uint8_t>();
+    auto nib = [](int v) { return int8_t(v >= 8 ? v - 16 : v); };
+    codes[i] = nib(b & 0xf);
+    if (i + 1 < n) codes[i + 1] = nib(b >> 4);
+  }
+  return codes;
+}
+
+// Fits by (scene content hash, bits quantized in the loop): the QAT-off fit serves the int8 and the 4-bit
+// rows, and bestSeconds' repeated encodes reuse the fit (its time is the fit's own, lastFitSeconds).
+using SharedFitCache = std::map<std::pair<uint64_t, int>, bake::CellAdaptation>;
+
+class SharedAdapterCodec final : public ProbeCodec {
+ public:
+  // latentBits: stored latent width; qat: train with that quantizer in the loop.
+  SharedAdapterCodec(const SharedModel& model, int latentBits, bool qat, int steps, float timeOfDay,
+                     std::shared_ptr<SharedFitCache> cache)
+      : model_(model), bits_(latentBits), qat_(qat), steps_(steps), timeOfDay_(timeOfDay), cache_(std::move(cache)) {}
+  std::string name() const override { return "shared_adapter"; }
+  std::string setting() const override {
+    return fmt::format("z{} int{} qat {}", model_.weights.arch.latentDim, bits_, qat_ ? "on" : "off");
+  }
+  double lastFitSeconds() const { return lastFitSeconds_; }
+
+  std::vector<std::byte> encode(const ProbeField& f) const override {
+    const bake::GeneratorTrainingSet set = trainingSetOf(f, timeOfDay_);
+    const int qatBits = qat_ ? bits_ : 0;
+    const std::pair<uint64_t, int> key{set.contentHash(), qatBits};
+    auto it = cache_->find(key);
+    if (it == cache_->end())
+      it = cache_->emplace(key, bake::fitCellToSharedGenerator(model_.weights, set,
+                                                               sharedOptions(model_.weights.arch, steps_, qatBits)))
+               .first;
+    const bake::CellAdaptation& a = it->second;
+    lastFitSeconds_ = a.report.seconds;
+    const QuantizedLatents q = quantizeLatents(a.latents, model_.weights.arch.latentDim, bits_);
+    const QuantizedAdapter qa = quantizeAdapter(a.adapter, 8);
+    ByteWriter w;
+    for (char c : {'L', 'F', 'S', 'A'}) w.put(c);
+    w.put(uint8_t(1));
+    w.put(model_.hash);
+    w.put(uint32_t(q.count));
+    w.put(uint8_t(q.dim));
+    w.put(uint8_t(q.bits));
+    w.put(a.scale.exposure);
+    w.put(a.scale.range);
+    for (float v : q.scales) w.put(v);
+    putCodes(w, q.codes, q.bits);
+    w.put(uint8_t(qa.stages));
+    w.put(uint32_t(qa.channels));
+    for (float v : qa.scales) w.put(v);
+    putCodes(w, qa.codes, qa.bits);
+    return w.bytes;
+  }
+
+  void decode(std::span<const std::byte> bytes, ProbeField& out) const override {
+    ByteReader r(bytes);
+    if (r.get<char>() != 'L' || r.get<char>() != 'F' || r.get<char>() != 'S' || r.get<char>() != 'A' ||
+        r.get<uint8_t>() != 1)
+      fail("shared_adapter cell: bad magic or version");
+    const uint64_t hash = r.get<uint64_t>();
+    if (hash != model_.hash)
+      fail("shared_adapter cell: refers to shared model {:016x}, this world's is {:016x}", hash, model_.hash);
+    QuantizedLatents q;
+    q.count = r.get<uint32_t>();
+    q.dim = r.get<uint8_t>();
+    q.bits = r.get<uint8_t>();
+    if (q.count != out.probeCount() || q.dim != model_.weights.arch.latentDim || (q.bits != 8 && q.bits != 4))
+      fail("shared_adapter cell: {} latents of {} x {} bits for {} probes of a z{} model", q.count, q.dim, q.bits,
+           out.probeCount(), model_.weights.arch.latentDim);
+    GeneratorOutputScale scale;
+    scale.exposure = r.get<float>();
+    scale.range = r.get<float>();
+    for (int i = 0; i < q.dim; ++i) q.scales.push_back(r.get<float>());
+    q.codes = getCodes(r, size_t(q.count) * size_t(q.dim), q.bits);
+    QuantizedAdapter qa;
+    qa.stages = r.get<uint8_t>();
+    qa.channels = r.get<uint32_t>();
+    if (qa.channels != int64_t(adapterChannels(model_.weights.arch, qa.stages)))
+      fail("shared_adapter cell: adapter of {} channels for {} stages", qa.channels, qa.stages);
+    if (qa.channels > 0) {
+      qa.scales = {r.get<float>(), r.get<float>()};
+      qa.codes = getCodes(r, size_t(2 * qa.channels), 8);
+    }
+    if (!r.done()) fail("shared_adapter cell: trailing bytes");
+    q.validate("shared_adapter cell latents");
+    GeneratorCpu decoder(applyAdapter(model_.weights, dequantizeAdapter(qa)));
+    const std::vector<float> latents = dequantizeLatents(q);
+    const auto c = conditioningVector(timeOfDay_, 0.0f);
+    ProbeField tmp = out;
+    decodeProbeField(decoder, latents, std::span<const float>(c.data(), size_t(decoder.arch().condDim)), scale, tmp);
+    out.radiance = std::move(tmp.radiance);
+    out.irradiance.clear();
+  }
+
+ private:
+  const SharedModel& model_;
+  int bits_;
+  bool qat_;
+  int steps_;
+  float timeOfDay_;
+  std::shared_ptr<SharedFitCache> cache_;
+  mutable double lastFitSeconds_ = 0.0;
+};
+
+std::vector<std::unique_ptr<ProbeCodec>> makeBenchCodecs(bool quick, bool skipGan, float timeOfDay,
+                                                         const SharedModel* shared, int fitSteps) {
   std::vector<std::unique_ptr<ProbeCodec>> c;
   c.push_back(std::make_unique<ReferenceFp32>());
   c.push_back(makeRawFp16Codec());
@@ -387,7 +590,91 @@ std::vector<std::unique_ptr<ProbeCodec>> makeBenchCodecs(bool quick, bool skipGa
   if (!skipGan)
     for (double t : quick ? std::vector<double>{0.05} : std::vector<double>{0.05, 0.02})
       c.push_back(std::make_unique<GanCodec>(t, quick ? 300 : 800, timeOfDay));
+  if (shared) {
+    auto cache = std::make_shared<SharedFitCache>();
+    for (int bits : {8, 4})
+      for (bool qat : {true, false})
+        c.push_back(std::make_unique<SharedAdapterCodec>(*shared, bits, qat, fitSteps, timeOfDay, cache));
+  }
   return c;
+}
+
+// The shared model, pre-trained (or read back from the cache: same captures, options and arch give the
+// same key) on `sets`, then stored as int8 per channel and dequantized: the model every fit and decode uses.
+SharedModel makeSharedModel(const std::vector<bake::GeneratorTrainingSet>& sets, const std::vector<std::string>& names,
+                            const GeneratorArch& arch, int steps, const fs::path& cacheDir) {
+  const bake::SharedTrainingOptions o = sharedOptions(arch, steps, 0);
+  uint64_t key = 1469598103934665603ull;
+  for (const auto& set : sets) {
+    const uint64_t h = set.contentHash();
+    key = fnv(key, &h, sizeof h);
+  }
+  const int ints[5] = {arch.latentDim, int(arch.convChannels.size()), arch.convChannels[0], steps, o.adapterStages};
+  key = fnv(key, ints, sizeof ints);
+  const fs::path file = cacheDir / fmt::format("shared_generator_{:016x}.bin", key);
+  SharedModel m;
+  m.cells = names;
+  m.weights.arch = arch;
+  // layout: the dequantized arrays in GeneratorWeights order, then f64 pretrain irr rel RMS, i32 steps.
+  std::vector<std::vector<float>*> arrays;
+  GeneratorWeights shape = randomGeneratorWeights(arch, 1);
+  m.weights = shape;
+  arrays.push_back(&m.weights.linearWeight);
+  arrays.push_back(&m.weights.linearBias);
+  for (int i = 0; i < arch.layers(); ++i) {
+    arrays.push_back(&m.weights.convWeight[size_t(i)]);
+    arrays.push_back(&m.weights.convBias[size_t(i)]);
+  }
+  size_t floats = 0;
+  for (auto* a : arrays) floats += a->size();
+  bool loaded = false;
+  if (fs::exists(file)) {
+    const std::vector<std::byte> b = readFileBytes(file);
+    if (b.size() == floats * 4 + 12) {
+      size_t off = 0;
+      for (auto* a : arrays) {
+        std::memcpy(a->data(), b.data() + off, a->size() * 4);
+        off += a->size() * 4;
+      }
+      std::memcpy(&m.pretrainIrrRelRms, b.data() + off, 8);
+      std::memcpy(&m.steps, b.data() + off + 8, 4);
+      loaded = true;
+      spdlog::info("shared generator from the cache {}", file.string());
+    } else {
+      spdlog::warn("{}: stale shared generator cache, training again", file.string());
+    }
+  }
+  if (!loaded) {
+    bake::SharedTrainingOptions po = o;
+    po.training.showProgress = true;
+    const bake::SharedGenerator g = bake::pretrainSharedGenerator(sets, po);
+    m.weights = dequantizeWeights(quantizeWeights(g.weights, WeightPrecision::Int8));
+    m.pretrainSeconds = g.report.seconds;
+    m.pretrainIrrRelRms = g.report.irradianceRelativeRms;
+    m.steps = g.report.steps;
+    std::vector<std::byte> b;
+    auto put = [&](const void* p, size_t n) {
+      const auto* c = static_cast<const std::byte*>(p);
+      b.insert(b.end(), c, c + n);
+    };
+    for (auto* a : {&m.weights.linearWeight, &m.weights.linearBias}) put(a->data(), a->size() * 4);
+    for (int i = 0; i < arch.layers(); ++i) {
+      put(m.weights.convWeight[size_t(i)].data(), m.weights.convWeight[size_t(i)].size() * 4);
+      put(m.weights.convBias[size_t(i)].data(), m.weights.convBias[size_t(i)].size() * 4);
+    }
+    put(&m.pretrainIrrRelRms, 8);
+    put(&m.steps, 4);
+    fs::create_directories(file.parent_path());
+    writeFileAtomic(file, b);
+    spdlog::info("shared generator: {} steps on {} cells in {:.1f} s, mean irradiance rel RMS {:.4f} -> {}", m.steps,
+                 sets.size(), m.pretrainSeconds, m.pretrainIrrRelRms, file.string());
+  }
+  m.weights.validate();
+  m.hash = weightsContentHash(m.weights);
+  // Stored once per world: the int8 tensors (codes + per-channel scales + float biases) and the architecture
+  // (latent dim, cond dim, k + 1 channel counts as u16, a u64 hash).
+  m.bytes = quantizeWeights(m.weights, WeightPrecision::Int8).bytes() + 2 + 2 * arch.convChannels.size() + 8;
+  return m;
 }
 
 std::string familyOf(const std::string& name) {
@@ -413,6 +700,10 @@ struct Result {
   std::string scene, kind, codec, family, setting;
   size_t probes = 0;
   double bytes = 0, irr = 0, irrCodec = 0, rad = 0, psnr = 0, encUs = 0, decUs = 0;
+  // All-in bytes per probe with a world-shared model's bytes spread over the probes of the default 256 m
+  // world / of a 16 km^2 world of the same probe density (= bytes for codecs without a shared model).
+  double bytesWorld = 0, bytes16km2 = 0;
+  double encodeSPerScene = 0;  // pooled rows: the mean over their scenes
   bool direct = false;
 };
 
@@ -442,6 +733,11 @@ int main(int argc, char** argv) {
   app.add_flag("--quick", quick, "Fewer probes, fewer codec settings, lower capture samples");
   bool noGan = false;
   app.add_flag("--no-gan", noGan, "Skip the generative codec (it trains a model per scene: minutes)");
+  bool noShared = false;
+  int sharedSteps = 0, fitSteps = 0;
+  app.add_flag("--no-shared", noShared, "Skip the world-shared generator + per-cell adapter rows");
+  app.add_option("--shared-steps", sharedSteps, "Pre-training steps of the shared generator (default 1000 quick, 3000 full)");
+  app.add_option("--fit-steps", fitSteps, "Steps of each held-out cell's latent + adapter fit (default 400 quick, 800 full)");
   std::string sunMode = "separate";
   app.add_option("--sun", sunMode, "separate: probes store radiance without the sun disc plus a visibility bit; "
                                    "in-map: the sun stays in its radiance texel")
@@ -477,7 +773,39 @@ int main(int argc, char** argv) {
     for (const worlds::CellCoord c : cells) specs.push_back([&world, c, cellProbes] { return worldCell(world, c, cellProbes); });
 
     openblas_set_num_threads(1);
-    const auto codecs = makeBenchCodecs(quick, noGan, timeOfDay);
+    // World-shared generator: pre-trained on the first cell of each kind (field, suburb, city, park) of
+    // another world (seed 2), so every measured scene is held out; stored once per world.
+    std::optional<SharedModel> shared;
+    size_t worldProbes = 0;
+    if (!noShared) {
+      const worlds::SyntheticWorld pretrainWorld(worlds::WorldParams::smallDefault(2));
+      std::vector<bake::GeneratorTrainingSet> sets;
+      std::vector<std::string> names, kindsUsed;
+      for (int z = 0; z < pretrainWorld.cellsX() && sets.size() < 4; ++z)
+        for (int x = 0; x < pretrainWorld.cellsX() && sets.size() < 4; ++x) {
+          const worlds::CellCoord c{x, z};
+          const std::string kind(worlds::cellKindName(pretrainWorld.cellKind(c)));
+          if (std::find(kindsUsed.begin(), kindsUsed.end(), kind) != kindsUsed.end()) continue;
+          SceneSpec spec = worldCell(pretrainWorld, c, cellProbes);
+          spec.name = "seed2_" + spec.name;
+          names.push_back(spec.name);
+          Captured cap = capture(spec, co, sky, timeOfDay, cacheDir);
+          if (sunMode == "separate") splitSun(cap, sky.sun);
+          sets.push_back(trainingSetOf(fieldOf(cap), timeOfDay));
+          kindsUsed.push_back(kind);
+        }
+      GeneratorArch arch;
+      arch.latentDim = 8;
+      arch.convChannels = {32, 16, kGeneratorChannels};
+      shared = makeSharedModel(sets, names, arch, sharedSteps > 0 ? sharedSteps : (quick ? 1000 : 3000), cacheDir);
+      for (int z = 0; z < world.cellsX(); ++z)
+        for (int x = 0; x < world.cellsX(); ++x) worldProbes += worlds::buildCell(world, {x, z}).stats.probesActive;
+      spdlog::info("shared generator: {} B (int8) on {}; default world {} active probes", shared->bytes,
+                   fmt::join(names, ", "), worldProbes);
+    }
+    const double worldKm2 = std::pow(double(world.cellsX()) * world.cellSizeM() * 1e-3, 2.0);
+    const int sharedFitSteps = fitSteps > 0 ? fitSteps : (quick ? 400 : 800);
+    const auto codecs = makeBenchCodecs(quick, noGan, timeOfDay, shared ? &*shared : nullptr, sharedFitSteps);
     std::vector<Result> results;
     for (auto& make : specs) {
       SceneSpec spec = make();
@@ -518,8 +846,15 @@ int main(int argc, char** argv) {
         r.rad = relativeRms(dec.radiance, cap.radiance);
         r.psnr = psnr(dec.radiance, cap.radiance, double(peak));
         r.encUs = enc * 1e6 / double(P);
+        if (const auto* sa = dynamic_cast<const SharedAdapterCodec*>(codec.get())) r.encUs = sa->lastFitSeconds() * 1e6 / double(P);
         r.decUs = decS * 1e6 / double(P);
         r.direct = codec->decodesIrradiance();
+        r.encodeSPerScene = r.encUs * double(P) * 1e-6;
+        r.bytesWorld = r.bytes16km2 = r.bytes;
+        if (shared && r.codec == "shared_adapter") {
+          r.bytesWorld += double(shared->bytes) / double(worldProbes);
+          r.bytes16km2 += double(shared->bytes) / (double(worldProbes) * 16.0 / worldKm2);
+        }
         spdlog::info("{:<22} {:<15} {:<16} {:>9.1f} B/probe  irr {:7.4f} (codec {:7.4f})  rad {:7.4f}  {:6.1f} dB  "
                      "enc {:9.1f} us  dec {:7.2f} us",
                      sceneName, r.codec, r.setting, r.bytes, r.irr, r.irrCodec, r.rad, r.psnr, r.encUs, r.decUs);
@@ -531,17 +866,21 @@ int main(int argc, char** argv) {
     auto pool = [&](const std::string& scene, const std::string& kind) {
       std::map<std::pair<std::string, std::string>, std::vector<const Result*>> byCodec;
       for (const Result& r : results)
-        if (kind == "all" || r.kind == kind) byCodec[{r.codec, r.setting}].push_back(&r);
+        if (kind == "all" || r.kind == kind || (kind == "cells" && r.scene.rfind("cell_", 0) == 0))
+          byCodec[{r.codec, r.setting}].push_back(&r);
       std::vector<Result> pooled;
       for (const auto& [key, rs] : byCodec) {
         Result a = *rs[0];
         a.scene = scene;
         a.kind = kind;
-        double bytes = 0, enc = 0, dec = 0;
+        double bytes = 0, enc = 0, dec = 0, bytesWorld = 0, bytes16 = 0;
         size_t probes = 0;
-        a.irr = a.irrCodec = a.rad = a.psnr = 0;
+        a.irr = a.irrCodec = a.rad = a.psnr = a.encodeSPerScene = 0;
         for (const Result* r : rs) {
           bytes += r->bytes * double(r->probes);
+          bytesWorld += r->bytesWorld * double(r->probes);
+          bytes16 += r->bytes16km2 * double(r->probes);
+          a.encodeSPerScene += r->encodeSPerScene / double(rs.size());
           enc += r->encUs * double(r->probes);
           dec += r->decUs * double(r->probes);
           probes += r->probes;
@@ -552,6 +891,8 @@ int main(int argc, char** argv) {
         }
         a.probes = probes;
         a.bytes = bytes / double(probes);
+        a.bytesWorld = bytesWorld / double(probes);
+        a.bytes16km2 = bytes16 / double(probes);
         a.encUs = enc / double(probes);
         a.decUs = dec / double(probes);
         pooled.push_back(a);
@@ -566,16 +907,22 @@ int main(int argc, char** argv) {
 
     o.setColumns({"scene", "kind", "codec", "family", "setting", "probes", "bytes_per_probe", "irr_rel_rms",
                   "rad_rel_rms", "rad_psnr_db", "encode_us_per_probe", "decode_us_per_probe", "irr_direct",
-                  "irr_codec_rel_rms"});
+                  "irr_codec_rel_rms", "bytes_per_probe_shared_256m", "bytes_per_probe_shared_16km2",
+                  "encode_s_per_scene"});
     auto add = [&](const Result& r) {
       o.addRow({r.scene, r.kind, r.codec, r.family, r.setting, std::to_string(r.probes), bench::num(r.bytes),
                 bench::num(r.irr), bench::num(r.rad), bench::num(r.psnr), bench::num(r.encUs), bench::num(r.decUs),
-                r.direct ? "1" : "0", bench::num(r.irrCodec)});
+                r.direct ? "1" : "0", bench::num(r.irrCodec), bench::num(r.bytesWorld), bench::num(r.bytes16km2),
+                bench::num(r.encodeSPerScene)});
     };
     for (const Result& r : results) add(r);
     for (const std::string& k : kinds)
       for (const Result& r : pool("kind", k)) add(r);
     for (const Result& r : all) add(r);
+    // The synthetic cells of the default world only (every one held out from the shared generator's
+    // pre-training): scene "cells", kind "cells".
+    const std::vector<Result> cellRows = pool("cells", "cells");
+    for (const Result& r : cellRows) add(r);
 
     // Headline (BENCHMARKS.md keys), from the "all" rows.
     const Result* sh2 = nullptr;
@@ -587,24 +934,117 @@ int main(int argc, char** argv) {
       const Result* best = nullptr;
       for (const Result& r : all) {
         if ((!anyFamily && r.family != family) || r.codec == "reference_fp32" || r.codec == "sh_l2") continue;
+        if (anyFamily && (r.family == "gan" || r.family == "shared_adapter")) continue;  // baselines only
         if (r.irr <= sh2->irr && (!best || r.bytes < best->bytes)) best = &r;
       }
       return best;
     };
     auto& s = o.summary();
-    const Result* gan = cheapestAtShL2("gan", false);
-    bool haveGan = false, ganAtShL2 = gan != nullptr;
-    for (const Result& r : all) haveGan |= r.family == "gan";
-    // No gan setting reached SH L2's error: report the most accurate gan row instead, flagged.
+    const nlohmann::ordered_json null;
+    // SH bytes at a given irradiance error: log-log interpolation between the two SH orders (L1, L2, L4,
+    // L7 "all" rows) whose errors bracket it; nullopt outside [error of the most accurate order, error of
+    // SH L1] (no extrapolation).
+    std::vector<const Result*> shRows;
+    for (const Result& r : all)
+      if (r.family == "sh") shRows.push_back(&r);
+    std::sort(shRows.begin(), shRows.end(), [](const Result* a, const Result* b) { return a->bytes < b->bytes; });
+    auto shBytesAt = [&](double err) -> std::optional<double> {
+      for (size_t i = 0; i + 1 < shRows.size(); ++i) {
+        const Result &a = *shRows[i], &b = *shRows[i + 1];
+        if (err <= a.irr && err >= b.irr && a.irr > b.irr) {
+          const double t = (std::log(err) - std::log(a.irr)) / (std::log(b.irr) - std::log(a.irr));
+          return std::exp(std::log(a.bytes) + t * (std::log(b.bytes) - std::log(a.bytes)));
+        }
+      }
+      return std::nullopt;
+    };
+    // Headline codec: the cheapest row of the generative families (per-cell gan, shared_adapter with the
+    // shared weights spread over the default world) at SH L2's irradiance error or better, else the most
+    // accurate of them (codec_reached_sh_l2_error false).
+    const Result* gan = nullptr;
+    bool haveGan = false;
+    for (const Result& r : all) {
+      if (r.family != "gan" && r.family != "shared_adapter") continue;
+      haveGan = true;
+      if (r.irr <= sh2->irr && (!gan || r.bytesWorld < gan->bytesWorld)) gan = &r;
+    }
+    const bool ganAtShL2 = gan != nullptr;
     if (!gan)
       for (const Result& r : all)
-        if (r.family == "gan" && (!gan || r.irr < gan->irr)) gan = &r;
-    const nlohmann::ordered_json null;
-    s["codec_bytes_per_probe"] = gan ? nlohmann::ordered_json(gan->bytes) : null;
+        if ((r.family == "gan" || r.family == "shared_adapter") && (!gan || r.irr < gan->irr)) gan = &r;
+    s["codec_bytes_per_probe"] = gan ? nlohmann::ordered_json(gan->bytesWorld) : null;
     s["sh_l2_bytes_per_probe"] = sh2->bytes;
-    s["bytes_ratio_vs_sh_l2_at_equal_error"] = ganAtShL2 ? nlohmann::ordered_json(sh2->bytes / gan->bytes) : null;
+    // Equal error = at SH L2's error: SH L2 bytes / codec bytes, only for a codec at least as accurate.
+    s["bytes_ratio_vs_sh_l2_at_equal_error"] =
+        ganAtShL2 ? nlohmann::ordered_json(sh2->bytes / gan->bytesWorld) : null;
     s["codec_irr_rel_rms"] = gan ? nlohmann::ordered_json(gan->irr) : null;
     s["sh_l2_irr_rel_rms"] = sh2->irr;
+    auto shCurveRatio = [&](const Result& r, double bytes) {
+      const std::optional<double> b = shBytesAt(r.irr);
+      return b ? nlohmann::ordered_json(*b / bytes) : null;
+    };
+    if (gan) {
+      s["codec_family"] = gan->family;
+      s["bytes_ratio_vs_sh_curve_at_codec_error"] = shCurveRatio(*gan, gan->bytesWorld);
+    }
+    if (shared) {
+      nlohmann::ordered_json j;
+      j["model"] = "z8 C32-16, FiLM on the linear layer, int8 weights";
+      j["model_bytes"] = shared->bytes;
+      j["pretrain_cells"] = shared->cells;
+      j["pretrain_steps"] = shared->steps;
+      j["pretrain_seconds"] = shared->pretrainSeconds;  // 0: read from the cache
+      j["pretrain_irr_rel_rms"] = shared->pretrainIrrRelRms;
+      j["fit_steps"] = sharedFitSteps;
+      j["world_probes_256m"] = worldProbes;
+      j["world_probes_16km2"] = double(worldProbes) * 16.0 / worldKm2;
+      // SH curve over the synthetic cells only (the "cells" rows), for the cells block below.
+      std::vector<const Result*> allShRows = shRows;
+      shRows.clear();
+      for (const Result& r : cellRows)
+        if (r.family == "sh") shRows.push_back(&r);
+      std::sort(shRows.begin(), shRows.end(), [](const Result* a, const Result* b) { return a->bytes < b->bytes; });
+      const Result* cellSh2 = nullptr;
+      for (const Result& r : cellRows)
+        if (r.codec == "sh_l2") cellSh2 = &r;
+      for (const Result& r : cellRows) {
+        if (r.family == "sh") j["cells"]["sh"][r.codec] = {{"bytes_per_probe", r.bytes}, {"irr_rel_rms", r.irr}};
+        if (r.family == "gan")
+          j["cells"]["per_cell_gan"][r.setting] = {{"bytes_per_probe", r.bytes}, {"irr_rel_rms", r.irr},
+                                                   {"encode_s_per_scene", r.encodeSPerScene}};
+        if (r.family != "shared_adapter" || !cellSh2) continue;
+        j["cells"]["rows"][r.setting] = {
+            {"bytes_per_probe_cell_only", r.bytes},
+            {"bytes_per_probe_shared_256m", r.bytesWorld},
+            {"bytes_per_probe_shared_16km2", r.bytes16km2},
+            {"irr_rel_rms", r.irr},
+            {"fit_s_per_scene", r.encodeSPerScene},
+            {"bytes_ratio_vs_sh_l2_at_equal_error_256m",
+             r.irr <= cellSh2->irr ? nlohmann::ordered_json(cellSh2->bytes / r.bytesWorld) : null},
+            {"bytes_ratio_vs_sh_curve_at_codec_error_256m", shCurveRatio(r, r.bytesWorld)},
+            {"bytes_ratio_vs_sh_curve_at_codec_error_16km2", shCurveRatio(r, r.bytes16km2)},
+            {"bytes_ratio_vs_sh_curve_at_codec_error_cell_only", shCurveRatio(r, r.bytes)}};
+      }
+      shRows = allShRows;
+      for (const Result& r : all) {
+        if (r.family == "gan")
+          j["per_cell_gan"][r.setting] = {{"bytes_per_probe", r.bytes}, {"irr_rel_rms", r.irr},
+                                          {"encode_s_per_scene", r.encodeSPerScene}};
+        if (r.family != "shared_adapter") continue;
+        j["rows"][r.setting] = {{"bytes_per_probe_cell_only", r.bytes},
+                                {"bytes_per_probe_shared_256m", r.bytesWorld},
+                                {"bytes_per_probe_shared_16km2", r.bytes16km2},
+                                {"irr_rel_rms", r.irr},
+                                {"irr_codec_rel_rms", r.irrCodec},
+                                {"fit_s_per_scene", r.encodeSPerScene},
+                                {"bytes_ratio_vs_sh_l2_at_equal_error_256m",
+                                 r.irr <= sh2->irr ? nlohmann::ordered_json(sh2->bytes / r.bytesWorld) : null},
+                                {"bytes_ratio_vs_sh_curve_at_codec_error_256m", shCurveRatio(r, r.bytesWorld)},
+                                {"bytes_ratio_vs_sh_curve_at_codec_error_16km2", shCurveRatio(r, r.bytes16km2)},
+                                {"bytes_ratio_vs_sh_curve_at_codec_error_cell_only", shCurveRatio(r, r.bytes)}};
+      }
+      s["shared_generator"] = j;
+    }
     s["gpu_decode_probes_per_s"] = null;             // GPU decode: the generator helper's gpu/ kernels
     s["gpu_decode_fraction_of_gemm_ceiling"] = null;
     s["cpu_decode_probes_per_s"] = gan ? nlohmann::ordered_json(1e6 / gan->decUs) : null;
@@ -612,6 +1052,7 @@ int main(int argc, char** argv) {
     s["cells_without_network"] = null;
     s["gan_in_run"] = haveGan;
     s["gan_reached_sh_l2_error"] = ganAtShL2;
+    s["codec_reached_sh_l2_error"] = ganAtShL2;
     if (gan) s["gan_setting"] = gan->setting;
     if (const Result* b = cheapestAtShL2("", true)) {
       s["best_baseline_at_sh_l2_error"] = b->codec + (b->setting.empty() ? "" : " " + b->setting);

@@ -80,6 +80,82 @@ void GeneratorWeights::validate() const {
   }
 }
 
+uint64_t weightsContentHash(const GeneratorWeights& w) {
+  uint64_t h = 14695981039346656037ull;
+  auto mix = [&](const void* data, size_t size) {
+    const auto* b = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < size; ++i) h = (h ^ b[i]) * 1099511628211ull;
+  };
+  const GeneratorArch& a = w.arch;
+  for (int v : {a.latentDim, a.condDim, int(a.latentSource), a.fourierOctaves}) mix(&v, sizeof v);
+  for (int c : a.convChannels) mix(&c, sizeof c);
+  auto floats = [&](const std::vector<float>& v) {
+    const uint64_t n = v.size();
+    mix(&n, sizeof n);
+    mix(v.data(), v.size() * sizeof(float));
+  };
+  floats(w.linearWeight);
+  floats(w.linearBias);
+  for (const auto& v : w.convWeight) floats(v);
+  for (const auto& v : w.convBias) floats(v);
+  return h;
+}
+
+size_t adapterChannels(const GeneratorArch& arch, int stages) {
+  size_t n = 0;
+  for (int s = 0; s < stages && s < int(arch.convChannels.size()); ++s) n += size_t(arch.convChannels[size_t(s)]);
+  return n;
+}
+
+GeneratorAdapter identityAdapter(const GeneratorArch& arch, int stages) {
+  GeneratorAdapter a;
+  a.stages = stages;
+  a.scale.assign(adapterChannels(arch, stages), 0.0f);
+  a.shift = a.scale;
+  a.validate(arch);
+  return a;
+}
+
+void GeneratorAdapter::validate(const GeneratorArch& arch) const {
+  if (stages < 0 || stages > arch.layers() + 1)
+    fail("GeneratorAdapter.stages = {} outside [0, {}] (layers + 1) of the shared model", stages, arch.layers() + 1);
+  const size_t want = adapterChannels(arch, stages);
+  if (scale.size() != want || shift.size() != want)
+    fail("GeneratorAdapter holds {} scale and {} shift floats, {} stages of the shared model need {}", scale.size(),
+         shift.size(), stages, want);
+  if (!allFinite(scale) || !allFinite(shift)) fail("GeneratorAdapter holds a non-finite value");
+}
+
+GeneratorWeights applyAdapter(const GeneratorWeights& shared, const GeneratorAdapter& adapter) {
+  shared.validate();
+  const GeneratorArch& a = shared.arch;
+  adapter.validate(a);
+  GeneratorWeights w = shared;
+  size_t base = 0;
+  for (int s = 0; s < adapter.stages; ++s) {
+    const size_t channels = size_t(a.convChannels[size_t(s)]);
+    for (size_t c = 0; c < channels; ++c) {
+      const float g = 1.0f + adapter.scale[base + c], b = adapter.shift[base + c];
+      if (s == 0) {
+        const size_t in = size_t(a.inputDim());
+        for (size_t r = c * size_t(kBase * kBase); r < (c + 1) * size_t(kBase * kBase); ++r) {
+          for (size_t i = 0; i < in; ++i) w.linearWeight[r * in + i] *= g;
+          w.linearBias[r] = g * w.linearBias[r] + b;
+        }
+      } else {
+        // ConvTranspose2d weight [in][out][4][4]: output channel c is strided over the inputs.
+        std::vector<float>& cw = w.convWeight[size_t(s - 1)];
+        const size_t ci = size_t(a.convChannels[size_t(s - 1)]);
+        for (size_t i = 0; i < ci; ++i)
+          for (size_t t = 0; t < size_t(kTaps); ++t) cw[(i * channels + c) * size_t(kTaps) + t] *= g;
+        w.convBias[size_t(s - 1)][c] = g * w.convBias[size_t(s - 1)][c] + b;
+      }
+    }
+    base += channels;
+  }
+  return w;
+}
+
 std::array<float, kConditioningDim> conditioningVector(float timeOfDayHours, float weather) {
   double a = 2.0 * std::numbers::pi * double(timeOfDayHours) / 24.0;
   return {float(std::sin(a)), float(std::cos(a)), std::clamp(weather, 0.0f, 1.0f)};

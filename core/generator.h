@@ -73,11 +73,39 @@ struct GeneratorWeights {
   void validate() const;
 };
 
+// FNV-1a of the architecture and every weight and bias bit pattern: the identity of a shared model that
+// cells refer to.
+uint64_t weightsContentHash(const GeneratorWeights& weights);
+
 // Decoding constants of one cell (stored in the cell file next to the weights).
 struct GeneratorOutputScale {
   float exposure = 1.0f;   // radiance unit of channel 0..2 (> 0)
   float range = 64.0f;     // metres; distance normaliser of channels 3..4 (> 0)
 };
+
+// Per-cell adapter of a world-shared generator (bake/generator_training.h, "shared generator"): FiLM
+// (Perez et al. 2018) on the pre-activations of the first `stages` stages. Stage 0 is the linear layer's
+// output (channel c = rows c*16 .. c*16+15 of [C0][4][4]), stage s >= 1 the output of transposed conv
+// s-1 (C(s) channels; s = layers() is the network's output). Stage s computes
+//   h'[c] = (1 + scale[c]) * h[c] + shift[c]            (before the ReLU, where there is one)
+// scale and shift hold the stages' channels back to back (stage 0 first). Zero scale and shift are the
+// identity. Because FiLM is affine per output channel it folds exactly into that layer's weights and bias
+// (applyAdapter), so every decoder (CPU, GPU) runs a shared model + adapter as a plain GeneratorWeights.
+struct GeneratorAdapter {
+  int stages = 0;                     // [0, layers() + 1]
+  std::vector<float> scale, shift;    // adapterChannels(arch, stages) each
+  // Throws lfgi::Error unless stages is in range for arch, both arrays have adapterChannels() floats and
+  // every value is finite.
+  void validate(const GeneratorArch& arch) const;
+};
+// Channels the first `stages` stages of arch have in total (C0 + C1 + ... ).
+size_t adapterChannels(const GeneratorArch& arch, int stages);
+// The identity adapter (zeros) of `stages` stages.
+GeneratorAdapter identityAdapter(const GeneratorArch& arch, int stages);
+// The shared weights with the adapter folded in: W'[c] = (1 + scale[c]) W[c], b'[c] = (1 + scale[c]) b[c]
+// + shift[c] per output channel c of each adapted stage. Equal to running FiLM after the layer up to float
+// rounding (~1 ulp per element).
+GeneratorWeights applyAdapter(const GeneratorWeights& shared, const GeneratorAdapter& adapter);
 
 // c = (sin(2 pi t / 24), cos(2 pi t / 24), weather), t in hours, weather in [0, 1] (0 clear, 1 overcast).
 std::array<float, kConditioningDim> conditioningVector(float timeOfDayHours, float weather);

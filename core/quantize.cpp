@@ -286,4 +286,36 @@ std::vector<float> dequantizeLatents(const QuantizedLatents& q) {
   return dequantizePerChannel(q.codes, q.scales, q.count, q.dim, 1);
 }
 
+size_t QuantizedAdapter::bytes() const {
+  return 1 + scales.size() * 4 + (codes.size() * size_t(bits) + 7) / 8;
+}
+
+QuantizedAdapter quantizeAdapter(const GeneratorAdapter& adapter, int bits) {
+  if (adapter.scale.size() != adapter.shift.size())
+    fail("quantizeAdapter: {} scale and {} shift floats", adapter.scale.size(), adapter.shift.size());
+  QuantizedAdapter q;
+  q.stages = adapter.stages;
+  q.bits = bits;
+  q.channels = int64_t(adapter.scale.size());
+  if (q.channels == 0) return q;
+  std::vector<float> x = adapter.scale;
+  x.insert(x.end(), adapter.shift.begin(), adapter.shift.end());
+  PerChannelCodes c = quantizePerChannel(x, 1, 2, q.channels, bits, "adapter");
+  q.codes = std::move(c.codes);
+  q.scales = std::move(c.scales);
+  return q;
+}
+
+GeneratorAdapter dequantizeAdapter(const QuantizedAdapter& q) {
+  GeneratorAdapter a;
+  a.stages = q.stages;
+  if (q.channels == 0) return a;
+  if (q.codes.size() != size_t(2 * q.channels) || q.scales.size() != 2)
+    fail("QuantizedAdapter: {} codes and {} scales for {} channels", q.codes.size(), q.scales.size(), q.channels);
+  const std::vector<float> x = dequantizePerChannel(q.codes, q.scales, 1, 2, q.channels);
+  a.scale.assign(x.begin(), x.begin() + q.channels);
+  a.shift.assign(x.begin() + q.channels, x.end());
+  return a;
+}
+
 }  // namespace lfgi

@@ -100,4 +100,19 @@ GeneratorWeights dequantizeWeights(const QuantizedWeights& weights);
 QuantizedLatents quantizeLatents(std::span<const float> latents, int dim, int bits = 8);
 std::vector<float> dequantizeLatents(const QuantizedLatents& latents);
 
+// A per-cell generator adapter (core/generator.h GeneratorAdapter) as stored: its scale and shift
+// arrays as two channels of one symmetric per-channel tensor (one scale each), `bits` in [2, 8].
+struct QuantizedAdapter {
+  int stages = 0;
+  int bits = 8;
+  int64_t channels = 0;         // adapterChannels(arch, stages): floats per array
+  std::vector<float> scales;    // 2: of the scale array, of the shift array
+  std::vector<int8_t> codes;    // 2 * channels: scale codes, then shift codes
+
+  // Stored bytes: 1 (stages) + 4 per scale + ceil(2 * channels * bits / 8) packed codes.
+  size_t bytes() const;
+};
+QuantizedAdapter quantizeAdapter(const GeneratorAdapter& adapter, int bits = 8);
+GeneratorAdapter dequantizeAdapter(const QuantizedAdapter& adapter);
+
 }  // namespace lfgi

@@ -192,3 +192,40 @@ TEST(Quantize, RejectsNonFiniteAndOutOfRangeWithAClearError) {
 
 }  // namespace
 }  // namespace lfgi
+
+namespace lfgi {
+namespace {
+
+// A per-cell adapter: one scale for the scale array, one for the shift array; error <= half a step,
+// bytes = 1 + 8 + packed codes; the identity adapter (all zero) comes back exactly.
+TEST(Quantize, AdapterTwoScalesHalfAStepAndBytes) {
+  GeneratorArch arch;
+  arch.latentDim = 4;
+  arch.convChannels = {16, 8, kGeneratorChannels};
+  GeneratorAdapter a = identityAdapter(arch, 2);
+  ASSERT_EQ(a.scale.size(), 24u);
+  std::mt19937 rng(3);
+  std::normal_distribution<float> nd(0.0f, 0.2f);
+  for (float& v : a.scale) v = nd(rng);
+  for (float& v : a.shift) v = 3.0f * nd(rng);  // a larger range: its own scale
+  for (int bits : {8, 4}) {
+    const QuantizedAdapter q = quantizeAdapter(a, bits);
+    EXPECT_EQ(q.bytes(), 1u + 8u + (48u * size_t(bits) + 7) / 8);
+    const GeneratorAdapter b = dequantizeAdapter(q);
+    ASSERT_EQ(b.scale.size(), a.scale.size());
+    EXPECT_EQ(b.stages, 2);
+    for (size_t i = 0; i < a.scale.size(); ++i) {
+      EXPECT_LE(std::abs(b.scale[i] - a.scale[i]), 0.5f * q.scales[0] * 1.0001f);
+      EXPECT_LE(std::abs(b.shift[i] - a.shift[i]), 0.5f * q.scales[1] * 1.0001f);
+    }
+    EXPECT_GT(q.scales[1], 2.0f * q.scales[0]);  // max 1.29 vs 0.55 for this seed
+  }
+  const GeneratorAdapter id = dequantizeAdapter(quantizeAdapter(identityAdapter(arch, 3), 8));
+  EXPECT_EQ(id.scale, identityAdapter(arch, 3).scale);
+  GeneratorAdapter bad = a;
+  bad.shift[3] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THROW(quantizeAdapter(bad), Error);
+}
+
+}  // namespace
+}  // namespace lfgi
