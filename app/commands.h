@@ -163,6 +163,8 @@ struct FlyOptions {
   int loadsPerFrame = 2;
   int loadDelayUs = 0;
   int resolution = 8;
+  std::string relight = "codec";  // codec: CellSource::relightInto as is; vir: VIR relight of the surfels
+  float weatherStart = 0.0f, weatherEnd = 0.0f;  // overcast sweep
   std::string outDir;
   bool profile = false;
 };
