@@ -91,10 +91,10 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
   }
   if (near_.empty() && !o.noSurfelsIsSky) fail("virProbeField: no surfel within {} m of the active probes", o.maxRange);
 
-  VirOptions vo;
+  VirOptions vo = o.vir;
   vo.resolution = n;
   vo.maxRange = o.maxRange;
-  RelightOptions ro;
+  RelightOptions ro = o.relight;
   ro.irradianceResolution = m;
   const float miss = ro.missDistance;
 

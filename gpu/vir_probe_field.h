@@ -48,6 +48,9 @@ struct VirFieldOptions {
   bool noSurfelsIsSky = false;   // no surfel within maxRange: every active probe sees only the sky
                                  // (else lfgi::Error)
   bool checkInterrupt = true;    // core/progress.h InterruptGuard between frames (lfgi::Error)
+  // The passes' own options; resolution, irradianceResolution and maxRange above override theirs.
+  VirOptions vir{};
+  RelightOptions relight{};
 };
 
 struct VirFieldStats {

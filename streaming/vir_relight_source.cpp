@@ -191,6 +191,7 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
   vo.storeOffsets = false;
   vo.noSurfelsIsSky = true;
   vo.checkInterrupt = false;
+  vo.relight.chebyshev = options_.gatherChebyshev;
   relighter_->run(cs->surfels, current.grid, offsets, current.active, sky.params, vo, out, seed, &fieldStats_);
   // Geometry as the cell holds it: same active flags, offsets and optional channels; inactive probes keep
   // current's values.
