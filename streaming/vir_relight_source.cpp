@@ -206,6 +206,10 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
     std::copy_n(current.irradiance.begin() + ptrdiff_t(i * m2 * 3), m2 * 3,
                 out.irradiance.begin() + ptrdiff_t(i * m2 * 3));
   }
+  spdlog::info("streaming: VIR relight of cell {},{} at {:.2f} h overcast {:.2f}: {} probes, {} surfels, {} frame(s){}, "
+               "{:.0f} ms ({:.0f} ms on the device)",
+               cell.x, cell.y, timeOfDayHours, weather, fieldStats_.probes, fieldStats_.surfels, vo.frames,
+               seed ? " seeded" : "", msSince(t0), fieldStats_.gpuMs);
   Record rec;
   rec.hash = lightingHash(out);
   rec.sky = sky.params;
