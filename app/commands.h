@@ -166,6 +166,8 @@ struct FlyOptions {
   int loadDelayUs = 0;
   int resolution = 8;
   std::string decoder = "auto";  // baked cells' generator decode: cpu | gpu | auto (streaming/generator_backend.h)
+  std::string relight = "codec";  // codec: CellSource::relightInto as is; vir: VIR relight of the surfels
+  float weatherStart = 0.0f, weatherEnd = 0.0f;  // overcast sweep
   std::string outDir;
   bool profile = false;
 };

@@ -1,7 +1,9 @@
 // `lfgi fly` and `lfgi profile`: the streaming manager over a whole world along a camera path.
 // Cells come from the baked cell files when --world DIR has DIR/baked/cells (CellFileSource: OpenVDB
 // cell files decoded at load by --decoder cpu | gpu | auto), else from SyntheticCellSource (an analytic light field on the
-// world's cell layout, or the 4096 m default without --world). The summary says which.
+// world's cell layout, or the 4096 m default without --world). The summary says which. --relight vir
+// wraps the source in streaming::VirRelightSource (GPU VIR relight of the world's surfels, relit on
+// arrival and when the time of day / weather moves).
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -20,7 +22,9 @@
 #include "core/progress.h"
 #include "core/trace.h"
 #include "streaming/cell_file_source.h"
+#include "gpu/context.h"
 #include "streaming/flythrough.h"
+#include "streaming/vir_relight_source.h"
 #include "worlds/world_cells.h"
 
 namespace lfgi::app {
@@ -129,12 +133,25 @@ int runFly(const FlyOptions& opt) {
   src.loadDelayUs = opt.loadDelayUs;
   std::unique_ptr<streaming::SyntheticCellSource> synthetic;
   if (!fileSource) synthetic = std::make_unique<streaming::SyntheticCellSource>(src);
-  streaming::CellSource& source = fileSource ? static_cast<streaming::CellSource&>(*fileSource) : *synthetic;
-  const std::string sourceText =
+  streaming::CellSource& inner = fileSource ? static_cast<streaming::CellSource&>(*fileSource) : *synthetic;
+  std::unique_ptr<gpu::Context> ctx;
+  std::unique_ptr<streaming::VirRelightSource> virSource;
+  if (opt.relight == "vir") {
+    if (opt.world.empty()) fail("--relight vir needs --world DIR (the surfels come from the world's cells)");
+    ctx = gpu::createContext();
+    streaming::VirRelightOptions vo;
+    vo.weather = opt.weatherStart;
+    virSource = std::make_unique<streaming::VirRelightSource>(inner, *ctx, vo, streaming::worldSurfelProvider(opt.world));
+  } else if (opt.relight != "codec") {
+    fail("--relight '{}': expected codec or vir", opt.relight);
+  }
+  streaming::CellSource& source = virSource ? static_cast<streaming::CellSource&>(*virSource) : inner;
+  std::string sourceText =
       fileSource ? fmt::format("cell files from {} ({} valid, {} missing, {} corrupt; {} decode at load, --decoder {})",
                                cellsDir.string(), fileSource->validCells(), fileSource->missingCells(),
                                fileSource->corruptCells(), fileSource->selection().backend, opt.decoder)
                  : std::string("synthetic analytic cells (raw FP32 probe fields) on the world's cell layout");
+  if (virSource) sourceText += "; relight: VIR of the world's surfels on the GPU";
   std::printf("source: %s\n", sourceText.c_str());
 
   streaming::FlythroughOptions fo;
@@ -144,6 +161,9 @@ int runFly(const FlyOptions& opt) {
   fo.fps = opt.fps;
   fo.todStart = opt.todStart;
   fo.todEnd = opt.todEnd;
+  fo.weatherStart = opt.weatherStart;
+  fo.weatherEnd = opt.weatherEnd;
+  fo.streaming.relightOnActivate = virSource != nullptr;  // the load's codec lighting is the one to replace
   fo.streaming.ioThreads = opt.ioThreads;
   fo.realtime = opt.realtime;
   fo.streaming.maxInlineLoadsPerFrame = opt.loadsPerFrame;
@@ -199,6 +219,19 @@ int runFly(const FlyOptions& opt) {
   j["cells_relit"] = s.cellsRelit;
   j["cells_failed"] = s.cellsFailed;
   j["peak_rss_mb"] = peakRssMb();
+  j["relight"] = opt.relight;
+  j["weather_start"] = opt.weatherStart;
+  j["weather_end"] = opt.weatherEnd;
+  if (virSource) {
+    const streaming::VirRelightStats vs = virSource->stats();
+    j["vir_relights"] = vs.relights;
+    j["vir_relights_seeded"] = vs.seeded;
+    j["vir_relight_ms_mean"] = vs.relights ? vs.relightMsTotal / double(vs.relights) : 0.0;
+    j["vir_gpu_ms_mean"] = vs.relights ? vs.gpuMsTotal / double(vs.relights) : 0.0;
+    j["vir_surfel_provider_ms_total"] = vs.providerMsTotal;
+    j["vir_surfel_cache_bytes"] = vs.cacheBytes;
+    j["vir_record_bytes"] = vs.recordBytes;
+  }
   // Sizes the memory regression tests pin (tests/baselines/memory.json).
   const size_t cellBytes = source.maxCellBytes();
   size_t cellProbes = size_t(src.layout.cellSize / src.probeSpacing) * size_t(src.layout.cellSize / src.probeSpacing) *

@@ -196,6 +196,9 @@ int main(int argc, char** argv) {
     c->add_option("--resolution", o.resolution, "Probe octahedral resolution of the synthetic cells")->check(CLI::Range(2, 64))->capture_default_str();
     c->add_option("--tod-start", o.todStart, "Time of day at the start of the flight, hours")->check(CLI::Range(0.0, 24.0))->capture_default_str();
     c->add_option("--tod-end", o.todEnd, "Time of day at the end of the flight, hours (= --tod-start: no relight)")->check(CLI::Range(0.0, 24.0))->capture_default_str();
+    c->add_option("--relight", o.relight, "Relight of resident cells: codec (re-decode) or vir (GPU VIR relight of the world's surfels; needs --world)")->check(CLI::IsMember({"codec", "vir"}))->capture_default_str();
+    c->add_option("--weather-start", o.weatherStart, "Overcast at the start of the flight, [0, 1]")->check(CLI::Range(0.0, 1.0))->capture_default_str();
+    c->add_option("--weather-end", o.weatherEnd, "Overcast at the end of the flight, [0, 1]")->check(CLI::Range(0.0, 1.0))->capture_default_str();
     c->add_option("--out", o.outDir, "Output directory (default out/fly or out/profile)");
     c->add_option("--decoder", o.decoder, "Generator decode of baked cells: cpu, gpu or auto (the faster, timed once)")
         ->check(CLI::IsMember({"cpu", "gpu", "auto"}))->capture_default_str();

@@ -13,7 +13,7 @@
 #include "core/progress.h"
 #include "core/quantize.h"
 #include "core/sh.h"
-#include "gpu/relight_pass.h"
+#include "gpu/vir_probe_field.h"
 #include "shared/octahedral.h"
 #include "shared/relight.h"
 #include "shared/vir.h"
@@ -32,123 +32,24 @@ worlds::TriangleMesh meshWithBackFaces(const worlds::TriangleMesh& mesh) {
   return out;
 }
 
-namespace {
-
-void checkGridInputs(const ProbeGrid& grid, std::span<const glm::vec3> offsets, std::span<const uint8_t> active,
-                     const char* what) {
-  grid.validate();
-  const size_t count = size_t(grid.probeCount());
-  if (!offsets.empty() && offsets.size() != count)
-    fail("{}: {} probe offsets for a grid of {} probes", what, offsets.size(), count);
-  if (!active.empty() && active.size() != count)
-    fail("{}: {} active flags for a grid of {} probes", what, active.size(), count);
-}
-
-}  // namespace
-
 ProbeField virProbeField(gpu::Context& ctx, std::span<const worlds::Surfel> surfels, const ProbeGrid& grid,
                          std::span<const glm::vec3> offsets, std::span<const uint8_t> active,
                          const worlds::SkyModel& sky, const VirProbeOptions& o, VirProbeStats* stats) {
-  const auto t0 = std::chrono::steady_clock::now();
-  checkGridInputs(grid, offsets, active, "virProbeField");
-  if (o.resolution < 4 || o.resolution > 64) fail("virProbeField: resolution {} outside [4, 64]", o.resolution);
-  if (o.frames < 1 || o.frames > 64) fail("virProbeField: frames {} outside [1, 64]", o.frames);
-  if (!(o.maxRange > 0.0f)) fail("virProbeField: maxRange {} must be > 0", o.maxRange);
-  if (surfels.empty()) fail("virProbeField: no surfels");
-
-  // Only the box of lattice indices that holds active probes is relit and splatted (VIR's cost is per
-  // (surfel, probe) pair), and only surfels within maxRange of that box.
-  const size_t count = size_t(grid.probeCount());
-  auto isActive = [&](size_t i) { return active.empty() || active[i] != 0; };
-  glm::ivec3 lo(INT32_MAX), hi(INT32_MIN);
-  for (size_t i = 0; i < count; ++i)
-    if (isActive(i)) {
-      const glm::ivec3 c = grid.probeCoord(int64_t(i));
-      lo = glm::min(lo, c);
-      hi = glm::max(hi, c);
-    }
-  ProbeField f;
-  f.grid = grid;
-  f.resolution = o.resolution;
-  f.irradianceResolution = o.irradianceResolution;
-  f.offsets.assign(offsets.begin(), offsets.end());
-  f.active.assign(count, 0);
-  const int n = o.resolution, m = o.irradianceResolution;
-  const size_t n2 = size_t(n) * size_t(n), m2 = size_t(m) * size_t(m);
-  f.radiance.assign(count * n2 * 3, 0.0f);
-  f.distance.assign(count * n2 * 2, 0.0f);
-  f.irradiance.assign(count * m2 * 3, 0.0f);
-  if (lo.x == INT32_MAX) return f;  // nothing active
-
-  ProbeGrid sub = grid;
-  sub.dims = hi - lo + 1;
-  sub.origin = grid.probePosition(lo);
-  gpu::RelightProbes probes;
-  probes.grid = sub;
-  std::vector<size_t> toFull;
-  glm::vec3 boxLo(1e30f), boxHi(-1e30f);
-  for (int64_t k = 0; k < sub.probeCount(); ++k) {
-    const size_t i = size_t(grid.linearIndex(lo + sub.probeCoord(k)));
-    toFull.push_back(i);
-    const glm::vec3 p = grid.probePosition(grid.probeCoord(int64_t(i))) + (offsets.empty() ? glm::vec3(0.0f) : offsets[i]);
-    probes.positions.push_back(p);
-    probes.active.push_back(isActive(i) ? 1 : 0);
-    boxLo = glm::min(boxLo, p);
-    boxHi = glm::max(boxHi, p);
-  }
-  std::vector<worlds::Surfel> near;
-  for (const worlds::Surfel& s : surfels) {
-    const glm::vec3 p(s.positionRadius);
-    const glm::vec3 d = glm::max(glm::max(boxLo - p, p - boxHi), glm::vec3(0.0f));
-    if (glm::dot(d, d) <= o.maxRange * o.maxRange) near.push_back(s);
-  }
-  if (near.empty()) fail("virProbeField: no surfel within {} m of the active probes", o.maxRange);
-
-  gpu::RelightPass relight(ctx);
-  gpu::VirPass vir(ctx);
-  gpu::VirOptions vo;
-  vo.resolution = n;
+  gpu::VirFieldOptions vo;
+  vo.resolution = o.resolution;
+  vo.irradianceResolution = o.irradianceResolution;
+  vo.frames = o.frames;
   vo.maxRange = o.maxRange;
-  gpu::RelightOptions ro;
-  ro.irradianceResolution = m;
-  gpu::CellLighting state;
-  double gpuMs = 0.0;
-  for (int frame = 0; frame < o.frames; ++frame) {
-    if (InterruptGuard::interrupted()) fail("VIR probes interrupted after {} of {} frames", frame, o.frames);
-    const gpu::RelightResult r = gpu::relightFrame(relight, vir, near, probes, sky.params, vo, ro, state);
-    gpuMs += r.shadowMs + r.lightMs + state.atlas.gpuMs + state.probes.gpuMs;
-  }
-
-  const gpu::ProbeAtlas& atlas = state.atlas;
-  std::vector<glm::vec3> skyDir(n2);
-  std::vector<glm::vec3> skyL(n2);
-  for (size_t t = 0; t < n2; ++t) {
-    skyDir[t] = shared::octTexelDirection(glm::uvec2(uint32_t(t % size_t(n)), uint32_t(t / size_t(n))), uint32_t(n));
-    skyL[t] = worlds::skyRadiance(sky, skyDir[t]);
-  }
-  for (size_t k = 0; k < toFull.size(); ++k) {
-    const size_t i = toFull[k];
-    if (!probes.active[k]) continue;
-    f.active[i] = 1;
-    for (size_t t = 0; t < n2; ++t) {
-      const size_t a = k * n2 + t;
-      // As the relight convolution: texels no surfel covered, or only the hole fill covered, see the sky.
-      const bool covered = atlas.normal[a].w == LFGI_VIR_COVERED;
-      const glm::vec3 L = covered ? glm::vec3(atlas.radiance[a]) : skyL[t];
-      for (int c = 0; c < 3; ++c) f.radiance[(i * n2 + t) * 3 + size_t(c)] = L[c];
-      f.distance[(i * n2 + t) * 2] = state.probes.moments[a].x;
-      f.distance[(i * n2 + t) * 2 + 1] = state.probes.moments[a].y;
-    }
-    for (size_t t = 0; t < m2; ++t)
-      for (int c = 0; c < 3; ++c) f.irradiance[(i * m2 + t) * 3 + size_t(c)] = state.probes.irradiance[k * m2 + t][c];
-  }
+  gpu::VirFieldRelighter relighter(ctx);
+  gpu::VirFieldStats st;
+  ProbeField f;
+  relighter.run(surfels, grid, offsets, active, sky.params, vo, f, nullptr, &st);
   if (stats) {
-    stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    stats->gpuMs = gpuMs;
-    stats->surfels = near.size();
-    stats->probes = probes.positions.size();
+    stats->seconds = st.seconds;
+    stats->gpuMs = st.gpuMs;
+    stats->surfels = st.surfels;
+    stats->probes = st.probes;
   }
-  f.validate();
   return f;
 }
 

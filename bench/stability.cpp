@@ -45,7 +45,9 @@
 #include "core/error.h"
 #include "core/generator.h"
 #include "core/probe_codecs.h"
+#include "core/octahedral.h"
 #include "gpu/relight_pass.h"
+#include "gpu/vir_probe_field.h"
 #include "streaming/flythrough.h"
 #include "streaming/streaming_manager.h"
 #include "worlds/probe_placement.h"
@@ -458,6 +460,7 @@ struct CellSetup {
 struct UnseenSummary {
   double betweenRelRms = 0.0;               // mean over 10 h and 15 h (between the keys: interpolation)
   std::map<std::string, double> generator;  // per evaluation ("10h", "6h", "12h_overcast1", ...)
+  std::map<std::string, double> vir;        // VIR relight (the streaming relight) per evaluation
   size_t nonFiniteValues = 0;
 };
 
@@ -484,6 +487,61 @@ ProbeField decodeTarget(const CellSetup& cs, const bake::CaptureOptions& co) {
   f.radiance.assign(P * n2 * 3, 0.0f);
   f.distance.assign(P * n2 * 2, 0.0f);
   return f;
+}
+
+// The streaming manager's VIR relight (gpu::VirFieldRelighter with the discs, as
+// streaming::VirRelightSource runs it from a codec field: 3 frames, no seed) of the cell's surfels at
+// (tod, weather): radiance maps of probes cs.idx in the capture layout, the disc energy deposited over
+// three texels as the capture does (worlds::skyOctahedralMap) where the probe sees the disc.
+std::vector<float> virRelightRadiance(Ctx& c, CellSetup& cs, const bake::CaptureOptions& co, float tod, float weather,
+                                      double* ms) {
+  worlds::SurfelOptions so;
+  so.spacing = worlds::surfelSpacingForProbeSpacing(cs.grid.spacing.x);
+  const std::vector<worlds::Surfel> surfels = worlds::sampleSurfels(cs.scene.mesh, so);
+  const worlds::SkyModel sky = worlds::makeSky(worlds::SkyState{tod, 45.0f, 172, 3.0f, weather});
+  gpu::VirFieldOptions vo;
+  vo.resolution = co.resolution;
+  vo.irradianceResolution = co.irradianceResolution;
+  vo.frames = 3;
+  vo.maxRange = 32.0f;
+  vo.discs = true;
+  gpu::VirFieldRelighter relighter(c.gpu);
+  ProbeField f;
+  gpu::VirFieldStats st;
+  const auto t0 = std::chrono::steady_clock::now();
+  relighter.run(surfels, cs.grid, cs.placement.offsets, cs.placement.active, sky.params, vo, f, nullptr, &st);
+  if (ms) *ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const int n = co.resolution;
+  const size_t n2 = size_t(n) * size_t(n);
+  const std::vector<double> omega = octTexelSolidAngles(n);
+  const worlds::DiscLight* discs[] = {&sky.sun, &sky.moon};
+  std::vector<float> deposit[2];  // per disc: the capture's deposit (map with it - map without)
+  for (int d = 0; d < 2; ++d) {
+    worlds::SkyModel only = sky;
+    worlds::DiscLight& other = d == 0 ? only.moon : only.sun;
+    other.radiance = glm::vec3(0.0f);
+    other.visibleFraction = 0.0f;
+    deposit[d] = worlds::skyOctahedralMap(only, n, true);
+    const std::vector<float> without = worlds::skyOctahedralMap(only, n, false);
+    for (size_t q = 0; q < deposit[d].size(); ++q) deposit[d][q] -= without[q];
+  }
+  std::vector<float> out;
+  for (int64_t i : cs.idx) {
+    std::vector<float> map(f.radiance.begin() + std::ptrdiff_t(size_t(i) * n2 * 3),
+                           f.radiance.begin() + std::ptrdiff_t(size_t(i + 1) * n2 * 3));
+    for (int d = 0; d < 2; ++d) {
+      if (!(st.discVisible[size_t(i)] & (1u << d))) continue;
+      // Replace the one-texel deposit VirFieldRelighter made by the capture's three-texel one.
+      const glm::ivec2 t = octDirectionTexel(discs[d]->direction, n);
+      const size_t k = size_t(t.y * n + t.x);
+      const glm::vec3 e = discs[d]->irradianceNormal();
+      for (int ch = 0; ch < 3; ++ch) map[k * 3 + size_t(ch)] -= e[ch] / float(omega[k]);
+      for (size_t q = 0; q < n2 * 3; ++q) map[q] += deposit[d][q];
+    }
+    for (float& v : map) v = std::max(v, 0.0f);
+    out.insert(out.end(), map.begin(), map.end());
+  }
+  return out;
 }
 
 UnseenSummary unseenSection(Ctx& c, CellSetup& cs, const bake::EmbreeScene& scene) {
@@ -539,6 +597,13 @@ UnseenSummary unseenSection(Ctx& c, CellSetup& cs, const bake::EmbreeScene& scen
     for (size_t i = 0; i < ra.size(); ++i) ra[i] = (1.0f - w) * ra[i] + w * rb[i];
     std::vector<std::vector<float>> blend = {ra};
     const double blendErr = bake::codecError(one, blend).irradianceRelativeRms;
+    double virMs = 0.0;
+    std::vector<std::vector<float>> virMaps = {virRelightRadiance(c, cs, co, evals[e].tod, evals[e].weather, &virMs)};
+    const double virErr = bake::codecError(one, virMaps).irradianceRelativeRms;
+    c.row("unseen", "vir_relight", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather, "irr_rel_rms",
+          virErr);
+    c.row("unseen", "vir_relight", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather, "relight_ms",
+          virMs);
     c.row("unseen", "generator", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather, "irr_rel_rms",
           gen);
     c.row("unseen", "nearest_key", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather,
@@ -549,10 +614,11 @@ UnseenSummary unseenSection(Ctx& c, CellSetup& cs, const bake::EmbreeScene& scen
           "nonfinite_values", double(bad));
     spdlog::info(
         "unseen {} h overcast {} ({}): generator irr rel RMS {:.4f}, nearest key {:.4f}, key blend {:.4f}, "
-        "{} non-finite",
-        evals[e].tod, evals[e].weather, evals[e].kind, gen, nearestErr, blendErr, bad);
+        "VIR relight {:.4f} ({:.0f} ms), {} non-finite",
+        evals[e].tod, evals[e].weather, evals[e].kind, gen, nearestErr, blendErr, virErr, virMs, bad);
     if (evals[e].kind != "trained") {
       sum.generator[fmt::format("{}h{}", evals[e].tod, evals[e].weather > 0.0f ? "_overcast1" : "")] = gen;
+      sum.vir[fmt::format("{}h{}", evals[e].tod, evals[e].weather > 0.0f ? "_overcast1" : "")] = virErr;
       if (evals[e].kind == "between") {
         betweenSum += gen;
         ++betweenN;
@@ -977,6 +1043,7 @@ int main(int argc, char** argv) {
         const UnseenSummary un = unseenSection(c, cs, scene);
         s["unseen_time_irr_rel_rms"] = un.betweenRelRms;  // times between the keys (10, 15 h)
         for (const auto& [k, v] : un.generator) s["unseen_irr_rel_rms_" + k] = v;
+        for (const auto& [k, v] : un.vir) s["unseen_vir_relight_irr_rel_rms_" + k] = v;
         s["train_irr_rel_rms"] = cs.model.report.irradianceRelativeRms;
         s["nonfinite_decoded_values"] = un.nonFiniteValues;
       }

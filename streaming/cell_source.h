@@ -64,6 +64,14 @@ class CellSource {
     (void)timeOfDayHours;
     load(cell, out);
   }
+  // The relight the manager calls: as relightInto, for a time of day and a weather (overcast in [0, 1],
+  // FrameInput::weather). Default: relightInto(cell, current, out, timeOfDayHours) (sources whose cells
+  // do not follow the weather: the codec's conditioning weather is fixed per source). Same threading.
+  virtual void relightWeatherInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out,
+                                  float timeOfDayHours, float weather) {
+    (void)weather;
+    relightInto(cell, current, out, timeOfDayHours);
+  }
 };
 
 // An analytic light field: every cell has the same probe lattice (spacing, layers), and a probe's

@@ -85,6 +85,8 @@ void FlythroughOptions::validate() const {
   if (!(seconds > 0.0f && seconds <= 3600.0f)) fail("--seconds {}: expected (0, 3600]", seconds);
   if (!(fps >= 1.0f && fps <= 1000.0f)) fail("--fps {}: expected 1..1000", fps);
   if (!(shadeDistance > 0.0f)) fail("shadeDistance {} must be > 0", shadeDistance);
+  if (!(weatherStart >= 0.0f && weatherStart <= 1.0f && weatherEnd >= 0.0f && weatherEnd <= 1.0f))
+    fail("weather {} -> {}: expected overcast in [0, 1]", weatherStart, weatherEnd);
   if (sampleRaysX < 1 || sampleRaysY < 1) fail("sample ray grid {}x{} must be >= 1x1", sampleRaysX, sampleRaysY);
   streaming.validate();
 }
@@ -115,6 +117,7 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
     FrameInput in;
     in.position = {p0.x, o.altitude, p0.y};
     in.timeOfDayHours = o.todStart;
+    in.weather = o.weatherStart;
     in.dtSeconds = 1e3f;  // completes every cross-fade
     for (int i = 0; i < 10000; ++i) {
       FrameStats st = manager.update(in);
@@ -142,6 +145,7 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
     in.direction = glm::vec3(fwd2.x * std::cos(pitch), std::sin(pitch), fwd2.y * std::cos(pitch));
     in.velocity = glm::vec3(fwd2.x, 0.0f, fwd2.y) * o.speed;
     in.timeOfDayHours = fr.timeOfDay;
+    in.weather = o.weatherStart + (o.weatherEnd - o.weatherStart) * float(f) / float(std::max(1, frames - 1));
     in.dtSeconds = float(dt);
     const double frameStartUs = trace ? trace->nowUs() : 0.0;
     auto t0 = Clock::now();

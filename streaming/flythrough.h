@@ -27,6 +27,7 @@ struct FlythroughOptions {
   float altitude = 12.0f;        // m above y = 0
   float pitchDeg = -12.0f;       // view pitch
   float todStart = 6.0f, todEnd = 20.0f;  // time-of-day sweep over the flight (hours)
+  float weatherStart = 0.0f, weatherEnd = 0.0f;  // overcast sweep over the flight, [0, 1] (FrameInput::weather)
   float shadeDistance = 120.0f;  // m: visible samples farther away use the far-field fallback by design
   int sampleRaysX = 24, sampleRaysY = 12;  // view rays of the visible-sample grid (90 x 50 deg)
   // Pace frames to 1/fps of wall time (sleep the rest of each frame), so IO-thread loads and relights race

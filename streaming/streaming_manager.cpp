@@ -41,6 +41,9 @@ void StreamingConfig::validate() const {
   if (!(fadeSeconds >= 0.0f)) fail("StreamingConfig.fadeSeconds = {} must be >= 0", fadeSeconds);
   if (maxRelightsPerFrame < 0) fail("StreamingConfig.maxRelightsPerFrame = {} must be >= 0", maxRelightsPerFrame);
   if (maxRelightsInFlight < 1) fail("StreamingConfig.maxRelightsInFlight = {} must be >= 1", maxRelightsInFlight);
+  if (!(relightThresholdWeather >= 0.0f))
+    fail("StreamingConfig.relightThresholdWeather = {} must be >= 0", relightThresholdWeather);
+  if (!(relightFadeSeconds >= 0.0f)) fail("StreamingConfig.relightFadeSeconds = {} must be >= 0", relightFadeSeconds);
 }
 
 StreamingManager::StreamingManager(CellSource& source, const StreamingConfig& config)
@@ -114,7 +117,7 @@ void StreamingManager::runRelight(int i) {
   const Slot& slot = slots_[size_t(st.slot)];
   auto t0 = Clock::now();
   try {
-    source_.relightInto(slot.cell, slot.field, st.field, st.timeOfDay);
+    source_.relightWeatherInto(slot.cell, slot.field, st.field, st.timeOfDay, st.weather);
     if (st.field.bytes() > source_.maxCellBytes())
       fail("cell {},{}: relit field of {} bytes exceeds the source's slot size {}", slot.cell.x, slot.cell.y,
            st.field.bytes(), source_.maxCellBytes());
@@ -130,7 +133,9 @@ void StreamingManager::finishRelight(int i, FrameStats& stats) {
   Staging& st = staging_[size_t(i)];
   Slot& slot = slots_[size_t(st.slot)];
   slot.relight = -1;
+  slot.stale = false;
   stats.relightIoMs += st.ioMs;
+  bool blend = false;
   if (st.cancelled) {
     // Evicted meanwhile (Draining): free the slot now. cellSlot_ was cleared at eviction and may already
     // name another slot holding a new load of the same cell.
@@ -141,17 +146,35 @@ void StreamingManager::finishRelight(int i, FrameStats& stats) {
     spdlog::warn("streaming: relight of cell {},{} failed, keeping its lighting: {}", slot.cell.x, slot.cell.y,
                  st.error);
     slot.litTimeOfDay = st.timeOfDay;  // no retry every frame: the next try waits for the next threshold
+    slot.litWeather = st.weather;
   } else {
     std::swap(slot.field, st.field);  // the old lighting stays in the staging field for reuse
     slot.litTimeOfDay = st.timeOfDay;
+    slot.litWeather = st.weather;
+    if (config_.relightFadeSeconds > 0.0f) {  // blend from the old lighting, still in st.field
+      blend = true;
+      slot.blendFrom = i;
+      slot.relightBlend = 0.0f;
+    }
     if (onRelight) onRelight(slot.cell, slot.field, st.timeOfDay);
     ++stats.relit;
     record(StreamingEventType::Relight, slot.cell);
   }
   st.busy = false;
-  st.slot = -1;
+  st.blending = blend;
+  if (!blend) st.slot = -1;
   st.cancelled = false;
   st.error.clear();
+}
+
+void StreamingManager::endBlend(int s) {
+  Slot& slot = slots_[size_t(s)];
+  if (slot.blendFrom < 0) return;
+  Staging& st = staging_[size_t(slot.blendFrom)];
+  st.blending = false;
+  st.slot = -1;
+  slot.blendFrom = -1;
+  slot.relightBlend = 1.0f;
 }
 
 void StreamingManager::ioWorker() {
@@ -205,6 +228,7 @@ void StreamingManager::startLoad(int s, glm::ivec2 cell, float priority, FrameSt
 }
 
 void StreamingManager::freeSlot(int s) {
+  endBlend(s);
   Slot& slot = slots_[size_t(s)];
   cellSlot_[size_t(layout_.linear(slot.cell))] = -1;
   if (slot.relight >= 0) {  // a relight reads the field: keep it until the job returns
@@ -264,9 +288,16 @@ FrameStats StreamingManager::update(const FrameInput& in) {
   const glm::vec3 predicted = in.position + ahead;
 
   // Fade in what is visible (before this frame's activations, which start at 0).
-  for (Slot& slot : slots_)
-    if (slot.state == SlotState::Active)
-      slot.fade = config_.fadeSeconds > 0.0f ? std::min(1.0f, slot.fade + in.dtSeconds / config_.fadeSeconds) : 1.0f;
+  for (size_t s = 0; s < slots_.size(); ++s) {
+    Slot& slot = slots_[s];
+    if (slot.state != SlotState::Active) continue;
+    slot.fade = config_.fadeSeconds > 0.0f ? std::min(1.0f, slot.fade + in.dtSeconds / config_.fadeSeconds) : 1.0f;
+    // Relight cross-fade (swaps of this frame start at 0 below).
+    if (slot.blendFrom >= 0) {
+      slot.relightBlend = std::min(1.0f, slot.relightBlend + in.dtSeconds / config_.relightFadeSeconds);
+      if (slot.relightBlend >= 1.0f) endBlend(int(s));
+    }
+  }
 
   // Drop what is beyond the keep radius of both the camera and its prediction.
   for (size_t s = 0; s < slots_.size(); ++s) {
@@ -350,6 +381,10 @@ FrameStats StreamingManager::update(const FrameInput& in) {
     slot.state = SlotState::Active;
     slot.fade = config_.fadeSeconds > 0.0f ? 0.0f : 1.0f;
     slot.litTimeOfDay = in.timeOfDayHours;
+    slot.litWeather = in.weather;
+    slot.stale = config_.relightOnActivate;
+    slot.blendFrom = -1;
+    slot.relightBlend = 1.0f;
     ++stats.activated;
     record(StreamingEventType::Activate, slot.cell);
   }
@@ -363,13 +398,14 @@ FrameStats StreamingManager::update(const FrameInput& in) {
   for (int n = 0; n < config_.maxRelightsPerFrame && !yield; ++n) {
     int st = -1;
     for (size_t i = 0; i < staging_.size() && st < 0; ++i)
-      if (!staging_[i].busy) st = int(i);
+      if (!staging_[i].busy && !staging_[i].blending) st = int(i);
     if (st < 0) break;
     int best = -1;
     for (size_t s = 0; s < slots_.size(); ++s) {
       const Slot& slot = slots_[s];
-      if (slot.state == SlotState::Active && slot.relight < 0 &&
-          hoursApart(slot.litTimeOfDay, in.timeOfDayHours) > config_.relightThresholdHours &&
+      const bool stale = slot.stale || hoursApart(slot.litTimeOfDay, in.timeOfDayHours) > config_.relightThresholdHours ||
+                         std::fabs(slot.litWeather - in.weather) > config_.relightThresholdWeather;
+      if (slot.state == SlotState::Active && slot.relight < 0 && slot.blendFrom < 0 && stale &&
           (best < 0 || slot.priority < slots_[size_t(best)].priority))
         best = int(s);
     }
@@ -378,6 +414,7 @@ FrameStats StreamingManager::update(const FrameInput& in) {
     stage.busy = true;
     stage.slot = best;
     stage.timeOfDay = in.timeOfDayHours;
+    stage.weather = in.weather;
     stage.cancelled = false;
     stage.error.clear();
     slots_[size_t(best)].relight = st;
@@ -402,12 +439,13 @@ FrameStats StreamingManager::update(const FrameInput& in) {
     if (slot.state == SlotState::Loading) stats.bytesResident += source_.maxCellBytes();
     else if (slot.state != SlotState::Free) stats.bytesResident += slot.field.bytes();
   }
-  // A staging field in use belongs to its IO thread: count it at the slot size too.
-  for (const Staging& st : staging_)
-    if (st.busy) {
-      ++stats.relighting;
-      stats.bytesResident += source_.maxCellBytes();
-    }
+  // A staging field in use belongs to its IO thread (or holds a cross-fade's old lighting): count it at
+  // the slot size too.
+  for (const Staging& st : staging_) {
+    if (st.busy) ++stats.relighting;
+    if (st.blending) ++stats.relightBlending;
+    if (st.busy || st.blending) stats.bytesResident += source_.maxCellBytes();
+  }
   stats.updateMs = msSince(t0);
   return stats;
 }
@@ -422,8 +460,10 @@ float StreamingManager::fade(glm::ivec2 cell) const {
   return isResident(cell) ? slots_[size_t(cellSlot_[size_t(layout_.linear(cell))])].fade : 0.0f;
 }
 
-glm::vec3 StreamingManager::sampleCell(int s, glm::vec3 p, glm::vec3 n) const {
-  const ProbeField& f = slots_[size_t(s)].field;
+namespace {
+
+// Irradiance of field f at p for normal n: trilinear over probes, bilinear within the octahedral map.
+glm::vec3 sampleField(const ProbeField& f, glm::vec3 p, glm::vec3 n) {
   TrilinearProbes tri = f.grid.trilinear(p);
   const int m = f.irradianceResolution, bm = octBorderedSize(m);
   thread_local std::vector<float> bordered;  // one probe's irradiance map with its border, reused
@@ -440,6 +480,27 @@ glm::vec3 StreamingManager::sampleCell(int s, glm::vec3 p, glm::vec3 n) const {
     e += tri.weights[size_t(k)] * glm::vec3(v[0], v[1], v[2]);
   }
   return e;
+}
+
+}  // namespace
+
+glm::vec3 StreamingManager::sampleCell(int s, glm::vec3 p, glm::vec3 n) const {
+  const Slot& slot = slots_[size_t(s)];
+  const glm::vec3 e = sampleField(slot.field, p, n);
+  if (slot.blendFrom < 0) return e;
+  const float b = slot.relightBlend;
+  return b * e + (1.0f - b) * sampleField(staging_[size_t(slot.blendFrom)].field, p, n);
+}
+
+float StreamingManager::relightBlend(glm::ivec2 cell) const {
+  if (!isResident(cell)) return 1.0f;
+  return slots_[size_t(cellSlot_[size_t(layout_.linear(cell))])].relightBlend;
+}
+
+const ProbeField* StreamingManager::previousLighting(glm::ivec2 cell) const {
+  if (!isResident(cell)) return nullptr;
+  const Slot& slot = slots_[size_t(cellSlot_[size_t(layout_.linear(cell))])];
+  return slot.blendFrom >= 0 ? &staging_[size_t(slot.blendFrom)].field : nullptr;
 }
 
 // The cell's value at p: full field blended with the (bilinear-over-cell-centres) fallback by fade.

@@ -19,6 +19,13 @@
 //      evicted while its relight runs waits in a Draining slot (its field is the job's `current`) until
 //      the job returns, then the result is dropped. The staging fields come out of the memory budget:
 //      slots = floor(budget / maxCellBytes) - maxRelightsInFlight (when relight is on).
+//      The weather (FrameInput::weather, overcast) is a second trigger (relightThresholdWeather) and reaches
+//      the source with the time of day (CellSource::relightWeatherInto); relightOnActivate makes a freshly
+//      activated cell stale at once (a VIR relight replacing the codec's lighting). After the swap the old
+//      lighting stays in its staging field and sample() cross-fades from it to the new one over
+//      relightFadeSeconds (relightBlend / previousLighting for a GPU shading pass); that staging field is
+//      busy until the blend ends (counted in bytesResident), so relights per second are bounded by
+//      maxRelightsInFlight / relightFadeSeconds.
 // Every cell's coarse fallback (SH L1, CellSource::fallback) is resident from construction on, so a point
 // inside the world is never without GI. A cell whose load fails is logged, keeps its fallback and is
 // never requested again.
@@ -66,6 +73,14 @@ struct StreamingConfig {
   int maxActivationsPerFrame = 8;
   float fadeSeconds = 0.5f;
   float relightThresholdHours = 0.25f;
+  float relightThresholdWeather = 0.05f;  // overcast change that makes a cell stale
+  // Cross-fade from the old to the new lighting after a relight swap (sample() and relightBlend(); 0: at
+  // once). The old field stays in its staging field until the blend ends, so that staging field starts no
+  // relight meanwhile.
+  float relightFadeSeconds = 0.5f;
+  // A freshly activated cell is stale at once (relit at the first chance): for relights that are better
+  // than the load's lighting (VIR relight of codec cells at an unseen time or weather).
+  bool relightOnActivate = false;
   int maxRelightsPerFrame = 1;        // relights started per frame (0: no relight)
   int maxRelightsInFlight = 1;        // staging fields (each maxCellBytes of the budget)
   // IO threads: start no relight while a load is in flight (loads fill holes, relights only refresh;
@@ -81,6 +96,7 @@ struct FrameInput {
   glm::vec3 direction{0.0f, 0.0f, -1.0f};
   glm::vec3 velocity{0.0f};
   float timeOfDayHours = 12.0f;
+  float weather = 0.0f;  // overcast [0, 1]: relights target it (CellSource::relightWeatherInto)
   float dtSeconds = 1.0f / 60.0f;
 };
 
@@ -90,6 +106,7 @@ struct FrameStats {
   int loading = 0;           // queued, loading or loaded-not-yet-active
   int requested = 0, activated = 0, evicted = 0, relit = 0, failed = 0;  // this frame (relit: swapped in)
   int relighting = 0;        // relights started and not yet swapped in / dropped
+  int relightBlending = 0;   // cells cross-fading from their previous lighting (relightFadeSeconds)
   size_t bytesResident = 0;  // slots in use x their field bytes (<= memoryBudgetBytes)
   double ioMs = 0.0;         // IO-thread time of loads that completed this frame
   double relightIoMs = 0.0;  // relightInto time of relights that completed this frame (IO thread or inline)
@@ -137,6 +154,11 @@ class StreamingManager {
 
   bool isResident(glm::ivec2 cell) const;  // active (visible, maybe still fading in)
   float fade(glm::ivec2 cell) const;       // 0 not resident .. 1 fully faded in
+  // Relight cross-fade of a resident cell: 1 when its field is all there is; below 1 right after a relight
+  // swap, while previousLighting(cell) (the field before the swap) still blends in as (1 - blend). What a
+  // GPU shading pass reads after onRelight: lerp(previousLighting, field, relightBlend).
+  float relightBlend(glm::ivec2 cell) const;
+  const ProbeField* previousLighting(glm::ivec2 cell) const;  // null when relightBlend is 1
   int slotCount() const { return int(slots_.size()); }
   int stagingCount() const { return int(staging_.size()); }
   const std::vector<StreamingEvent>& events() const { return events_; }
@@ -155,6 +177,10 @@ class StreamingManager {
     ProbeField field;
     float fade = 0.0f;
     float litTimeOfDay = 0.0f;
+    float litWeather = 0.0f;
+    bool stale = false;       // relightOnActivate: relight at the first chance
+    int blendFrom = -1;       // staging index holding the lighting before the last swap, or -1
+    float relightBlend = 1.0f;
     float priority = 0.0f;
     bool cancelled = false;
     int relight = -1;    // staging index of the relight reading this slot's field, or -1
@@ -163,8 +189,10 @@ class StreamingManager {
   };
   struct Staging {
     bool busy = false;
+    bool blending = false;   // holds slot `slot`'s previous lighting for the relight cross-fade
     int slot = -1;
     float timeOfDay = 0.0f;
+    float weather = 0.0f;
     bool cancelled = false;  // the slot was evicted: drop the result
     ProbeField field;
     std::string error;       // set by the IO thread on failure
@@ -184,6 +212,7 @@ class StreamingManager {
   void freeSlot(int slot);
   void record(StreamingEventType type, glm::ivec2 cell);
   glm::vec3 sampleCell(int slot, glm::vec3 p, glm::vec3 n) const;
+  void endBlend(int slot);
   glm::vec3 cellValue(glm::ivec2 cell, glm::vec3 p, glm::vec3 n, float& fallbackWeight) const;
   void ioWorker();
 

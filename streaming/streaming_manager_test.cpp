@@ -199,6 +199,7 @@ TEST(StreamingManager, RelightIsAmortisedNearestFirst) {
   SyntheticCellSource source(smallWorld());
   StreamingConfig c = inlineConfig();
   c.maxRelightsPerFrame = 2;
+  c.relightFadeSeconds = 0.0f;  // a cross-fade holds its staging field (CrossFadeAtTheSwap... tests that)
   StreamingManager m(source, c);
   std::vector<glm::ivec2> order;
   m.onRelight = [&](glm::ivec2 cell, ProbeField&, float) { order.push_back(cell); };

@@ -99,7 +99,7 @@ class GatedSource final : public CellSource {
 void settle(StreamingManager& m, glm::vec3 p, float tod) {
   for (int f = 0; f < 200; ++f) {
     FrameStats s = m.update(at(p, tod));
-    if (f > 1 && s.relighting == 0 && s.relit == 0 && s.loading == 0) return;
+    if (f > 1 && s.relighting == 0 && s.relightBlending == 0 && s.relit == 0 && s.loading == 0) return;
     m.drainIo();
   }
   FAIL() << "relights did not settle";
@@ -293,6 +293,90 @@ TEST(StreamingRelight, BudgetMustHoldTheStagingFields) {
   c.maxRelightsPerFrame = 1;
   c.maxRelightsInFlight = 1;
   EXPECT_EQ(StreamingManager(source, c).slotCount(), 1);
+}
+
+// The swap of a relit field blends from the old lighting over relightFadeSeconds: the per-frame change of
+// sample() at the swap is at most the lighting step x dt / relightFadeSeconds, and the new lighting is
+// reached exactly; with relightFadeSeconds = 0 the whole step lands in one frame (what the blend removes).
+TEST(StreamingRelight, CrossFadeAtTheSwapBoundsThePerFrameChange) {
+  const glm::vec3 p(520.0f, 1.0f, 520.0f), n(0.0f, 1.0f, 0.0f);
+  for (float fadeS : {0.5f, 0.0f}) {
+    SyntheticCellSource source(todWorld());
+    StreamingConfig c = baseConfig(0);
+    c.relightFadeSeconds = fadeS;
+    StreamingManager m(source, c);
+    settle(m, p, 12.0f);
+    const float before = m.sample(p, n).irradiance.x;
+    const float after = before * source.timeOfDayScale(16.0f) / source.timeOfDayScale(12.0f);
+    const float step = after - before;
+    ASSERT_GT(step, 0.1f * before);
+    float last = before, maxChange = 0.0f;
+    bool sawBlend = false;
+    for (int f = 0; f < 200; ++f) {
+      const FrameStats st = m.update(at(p, 16.0f));
+      EXPECT_LE(st.bytesResident, c.memoryBudgetBytes);
+      if (m.previousLighting(m.layout().cellOf(p))) {
+        sawBlend = true;
+        EXPECT_LT(m.relightBlend(m.layout().cellOf(p)), 1.0f);
+      }
+      const float v = m.sample(p, n).irradiance.x;
+      maxChange = std::max(maxChange, std::abs(v - last));
+      last = v;
+    }
+    EXPECT_NEAR(last, after, 1e-5f * after) << "fade " << fadeS;
+    EXPECT_EQ(m.relightBlend(m.layout().cellOf(p)), 1.0f);
+    EXPECT_EQ(m.previousLighting(m.layout().cellOf(p)), nullptr);
+    if (fadeS > 0.0f) {
+      EXPECT_TRUE(sawBlend);
+      // dt 0.1 s over 0.5 s: 5 frames of at most step / 5 each (+ float slack).
+      EXPECT_LE(maxChange, step * 0.1f / fadeS * 1.001f + 1e-6f * after);
+      EXPECT_GT(maxChange, step * 0.1f / fadeS * 0.9f);
+    } else {
+      EXPECT_FALSE(sawBlend);
+      EXPECT_NEAR(maxChange, step, 1e-5f * after);
+    }
+  }
+}
+
+// Weather is a relight trigger of its own (FrameInput::weather, relightThresholdWeather) and reaches
+// CellSource::relightWeatherInto; relightOnActivate relights a cell right after it arrives.
+TEST(StreamingRelight, WeatherChangeAndActivationTriggerRelights) {
+  class WeatherSource final : public CellSource {
+   public:
+    explicit WeatherSource(SyntheticSourceOptions o) : inner(std::move(o)) {}
+    WorldLayout layout() const override { return inner.layout(); }
+    ShL1 fallback(glm::ivec2 cell) const override { return inner.fallback(cell); }
+    size_t maxCellBytes() const override { return inner.maxCellBytes(); }
+    void load(glm::ivec2 cell, ProbeField& out) override { inner.load(cell, out); }
+    void relightWeatherInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out, float hours,
+                            float weather) override {
+      weathers.push_back(weather);
+      inner.relightInto(cell, current, out, hours);
+    }
+    SyntheticCellSource inner;
+    std::vector<float> weathers;
+  };
+  for (bool onActivate : {false, true}) {
+    WeatherSource source(todWorld());
+    StreamingConfig c = baseConfig(0);
+    c.relightOnActivate = onActivate;
+    c.relightFadeSeconds = 0.0f;
+    StreamingManager m(source, c);
+    const glm::vec3 p(520.0f, 1.0f, 520.0f);
+    size_t resident = 0;
+    for (int f = 0; f < 100; ++f) resident = size_t(m.update(at(p, 12.0f)).resident);
+    ASSERT_GT(resident, 4u);
+    EXPECT_EQ(source.weathers.size(), onActivate ? resident : 0u);
+    source.weathers.clear();
+    FrameInput in = at(p, 12.0f);
+    in.weather = 0.03f;  // under the threshold
+    for (int f = 0; f < 10; ++f) m.update(in);
+    EXPECT_TRUE(source.weathers.empty());
+    in.weather = 0.8f;
+    for (int f = 0; f < 100; ++f) m.update(in);
+    EXPECT_EQ(source.weathers.size(), resident);
+    for (float w : source.weathers) EXPECT_EQ(w, 0.8f);
+  }
 }
 
 }  // namespace

@@ -1,5 +1,7 @@
 #include "worlds/world_cells.h"
 
+#include "worlds/cell_probe_file.h"
+
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -237,6 +239,28 @@ void writeCell(const std::filesystem::path& dir, const BuiltCell& cell) {
   j["probe_grid"] = {{"origin", {cell.probes.grid.origin.x, cell.probes.grid.origin.y, cell.probes.grid.origin.z}},
                      {"spacing_m", cell.probes.grid.spacing.x}};
   writeFileAtomic(cellJsonPath(dir, c), j.dump(2) + "\n");  // last: marks the cell finished
+}
+
+std::optional<CellProbeFile> readCellProbes(const std::filesystem::path& dir, CellCoord c) {
+  const std::filesystem::path file = dir / "cells" / (cellName(c) + ".probes");
+  if (!std::filesystem::exists(file)) return std::nullopt;
+  const std::vector<std::byte> bytes = readFileBytes(file);
+  uint32_t header[3] = {};
+  if (bytes.size() < sizeof(header)) fail("{}: truncated ({} bytes, header needs {})", file.string(), bytes.size(), sizeof(header));
+  std::memcpy(header, bytes.data(), sizeof(header));
+  if (header[0] != 0x5250464cu || header[1] != 1u)
+    fail("{}: not a version-1 probe file (magic {:#x}, version {})", file.string(), header[0], header[1]);
+  const size_t count = header[2];
+  if (bytes.size() != sizeof(header) + count * (1 + sizeof(glm::vec3)))
+    fail("{}: {} bytes, {} probes need {}", file.string(), bytes.size(), count, sizeof(header) + count * (1 + sizeof(glm::vec3)));
+  CellProbeFile out;
+  out.flags.resize(count);
+  out.offsets.resize(count);
+  std::memcpy(out.flags.data(), bytes.data() + sizeof(header), count);
+  std::memcpy(out.offsets.data(), bytes.data() + sizeof(header) + count, count * sizeof(glm::vec3));
+  for (const glm::vec3& o : out.offsets)
+    if (!std::isfinite(o.x + o.y + o.z)) fail("{}: non-finite probe offset", file.string());
+  return out;
 }
 
 nlohmann::ordered_json readCellJson(const std::filesystem::path& dir, CellCoord c) {

@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "worlds/cell_probe_file.h"
 
 namespace lfgi::worlds {
 namespace {
@@ -85,8 +86,29 @@ TEST(WorldCells, DirectoryRoundTripAndResumeMarker) {
 
   SyntheticWorld w(p);
   EXPECT_FALSE(cellDone(dir, {1, 0}));
-  writeCell(dir, buildCell(w, {1, 0}));
+  EXPECT_FALSE(readCellProbes(dir, {1, 0}).has_value());
+  const BuiltCell built = buildCell(w, {1, 0});
+  writeCell(dir, built);
   EXPECT_TRUE(cellDone(dir, {1, 0}));
+  // The probe file reads back what was written; a truncated one names the file.
+  const std::optional<CellProbeFile> probes = readCellProbes(dir, {1, 0});
+  ASSERT_TRUE(probes.has_value());
+  EXPECT_EQ(probes->flags, built.probes.flags);
+  EXPECT_EQ(probes->offsets, built.probes.offsets);
+  {
+    const std::filesystem::path file = dir / "cells" / "cell_1_0.probes";
+    std::vector<std::byte> bytes = readFileBytes(file);
+    bytes.pop_back();
+    const std::filesystem::path cut = tmpDir("world_cells_probes_cut");
+    std::filesystem::create_directories(cut / "cells");
+    writeFileAtomic(cut / "cells" / "cell_1_0.probes", bytes);
+    try {
+      readCellProbes(cut, {1, 0});
+      ADD_FAILURE() << "no throw";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("cell_1_0.probes"), std::string::npos) << e.what();
+    }
+  }
   nlohmann::ordered_json j = readCellJson(dir, {1, 0});
   EXPECT_EQ(j["cell"][0], 1);
   EXPECT_TRUE(std::filesystem::exists(dir / "cells" / "cell_1_0.surfels"));
