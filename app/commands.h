@@ -194,6 +194,10 @@ int runDebugWriteCell(const DebugWriteCellOptions& options);
 struct WorldBakeOptions {
   std::string world;
   std::vector<std::string> cells;  // "X,Z" or linear index ranges "A-B"; empty: every cell
+  // --path loop|line: instead of --cells, the cells within pathRadius of that fly-through path
+  // (streaming::flightPathCells, in flight order) — a km-scale world baked only where `lfgi fly` goes.
+  std::string path;
+  float pathRadius = 128.0f;          // m; >= the fly's shade distance (120 m) keeps visible samples baked
   int arrayIndex = 0, arraySize = 0;  // arraySize > 0: bake share arrayIndex of arraySize
   std::string outDir;                 // default WORLD/baked
   bake::WorldBakeSettings settings;   // capture + training settings (they enter the input hash)

@@ -154,6 +154,9 @@ int main(int argc, char** argv) {
   auto addBakeFlags = [](CLI::App* c, lfgi::app::WorldBakeOptions& o) {
     c->add_option("--world", o.world, "World directory (lfgi world generate)")->required();
     c->add_option("--cells", o.cells, "Cells: X,Z or linear index ranges A-B (default: all)");
+    c->add_option("--path", o.path, "Instead of --cells: the cells within --path-radius of the fly-through path loop or line (lfgi fly --path), in flight order")
+        ->check(CLI::IsMember({"loop", "line"}));
+    c->add_option("--path-radius", o.pathRadius, "With --path: metres around the path")->check(CLI::Range(0.0, 100000.0))->capture_default_str();
     c->add_option("--array-index", o.arrayIndex, "Slurm job-array task index (with --array-size)")->check(CLI::NonNegativeNumber);
     c->add_option("--array-size", o.arraySize, "Split the selected cells into this many contiguous shares")->check(CLI::Range(1, 1000000));
     c->add_option("--out", o.outDir, "Output directory (default WORLD/baked)");
@@ -165,6 +168,10 @@ int main(int argc, char** argv) {
     c->add_option("--max-steps", o.settings.maxSteps, "Training steps per candidate model")->check(CLI::Range(1, 1000000))->capture_default_str();
     c->add_option("--threads", o.settings.threads, "Training threads")->check(CLI::Range(1, 256))->capture_default_str();
     c->add_option("--seed", o.settings.seed, "Seed (capture and training)")->capture_default_str();
+    c->add_option("--model-widths", o.settings.modelWidths, "Generator search: only these base widths (8,16,32,64; default all)")
+        ->delimiter(',')->check(CLI::IsMember({8, 16, 32, 64}));
+    c->add_option("--model-latents", o.settings.modelLatents, "Generator search: only these latent sizes (4,8,16; default all)")
+        ->delimiter(',')->check(CLI::IsMember({4, 8, 16}));
   };
   addBakeFlags(bakeCmd, bakeOpt);
   bakeCmd->add_flag("--reproducible", bakeOpt.reproducible, "No timings in the cell files (the default; training seconds 0, real ones in cells/cell_X_Z.json): byte-identical files for the same inputs");

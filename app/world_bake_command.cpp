@@ -21,6 +21,7 @@
 #include "core/cell_file.h"
 #include "core/error.h"
 #include "core/progress.h"
+#include "streaming/flythrough.h"
 #include "worlds/world_cells.h"
 
 namespace lfgi::app {
@@ -58,7 +59,16 @@ std::vector<worlds::CellCoord> selectCells(const worlds::SyntheticWorld& world, 
 }  // namespace
 
 std::vector<worlds::CellCoord> selectBakeCells(const worlds::SyntheticWorld& world, const WorldBakeOptions& opt) {
-  std::vector<worlds::CellCoord> cells = selectCells(world, opt.cells);
+  std::vector<worlds::CellCoord> cells;
+  if (!opt.path.empty()) {
+    if (!opt.cells.empty()) fail("--path {} and --cells: give one of them", opt.path);
+    streaming::FlythroughOptions fo;
+    fo.path = opt.path;
+    const streaming::WorldLayout layout{{0.0f, 0.0f}, float(world.params().cellM), {world.cellsX(), world.cellsZ()}};
+    for (glm::ivec2 c : streaming::flightPathCells(layout, fo, opt.pathRadius)) cells.push_back({c.x, c.y});
+  } else {
+    cells = selectCells(world, opt.cells);
+  }
   if (opt.arraySize > 0) cells = bake::arrayShare(cells, opt.arrayIndex, opt.arraySize);
   return cells;
 }

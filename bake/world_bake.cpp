@@ -1,5 +1,6 @@
 #include "bake/world_bake.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 
@@ -21,6 +22,10 @@ void WorldBakeSettings::validate() const {
   if (spp < 1 || bounces < 0 || maxSteps < 1 || threads < 1)
     fail("bake settings: spp {} >= 1, bounces {} >= 0, max steps {} >= 1, threads {} >= 1 required", spp, bounces,
          maxSteps, threads);
+  for (int w : modelWidths)
+    if (w != 8 && w != 16 && w != 32 && w != 64) fail("bake model width {}: expected 8, 16, 32 or 64", w);
+  for (int z : modelLatents)
+    if (z != 4 && z != 8 && z != 16) fail("bake model latent size {}: expected 4, 8 or 16", z);
   (void)parseLightingKeys(keys);
 }
 
@@ -95,6 +100,13 @@ uint64_t hashInputs(const worlds::SyntheticWorld& world, worlds::CellCoord c, co
   hasher.addValue(capture.resolution).addValue(capture.samplesPerTexel).addValue(capture.maxBounces);
   hasher.addValue(capture.seed).addValue(capture.maxDistance).add(settings.keys).addValue(settings.errorTarget);
   hasher.addValue(settings.maxSteps).addValue(settings.threads);
+  // Only when restricted, so the hashes of earlier bakes (all candidates) stay as they were.
+  if (!settings.modelWidths.empty() || !settings.modelLatents.empty()) {
+    hasher.add(std::string("models"));
+    for (int w : settings.modelWidths) hasher.addValue(w);
+    hasher.add(std::string("/"));
+    for (int z : settings.modelLatents) hasher.addValue(z);
+  }
   return hasher.digest();
 }
 
@@ -140,6 +152,12 @@ CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const 
   sizing.training.seed = settings.seed;
   sizing.training.threads = settings.threads;
   sizing.training.validate();
+  if (!settings.modelWidths.empty() || !settings.modelLatents.empty()) {
+    auto listed = [](const std::vector<int>& v, int x) { return v.empty() || std::find(v.begin(), v.end(), x) != v.end(); };
+    for (const GeneratorArch& a : sizingCandidates(settings.resolution, LatentSource::Stored))
+      if (listed(settings.modelWidths, a.convChannels.front()) && listed(settings.modelLatents, a.latentDim))
+        sizing.candidates.push_back(a);
+  }
 
   const worlds::CellCoord c = in.cell;
   const worlds::BuiltCell& cell = in.built;

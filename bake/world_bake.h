@@ -48,6 +48,10 @@ struct WorldBakeSettings {
   int maxSteps = 1500;                // training steps per candidate model
   int threads = 1;                    // training threads (1: bit-identical across processes)
   uint64_t seed = 1;
+  // Restrict the generator search to these base widths C0 (of 8, 16, 32, 64) and stored latent sizes (of
+  // 4, 8, 16); empty: all (12 candidates). A km-scale path bake fixes one model (--model-widths 16
+  // --model-latents 4) to train one candidate per cell instead of up to 12. Enter the input hash only when set.
+  std::vector<int> modelWidths, modelLatents;
   // Throws lfgi::Error naming the bad setting (keys are parsed here too).
   void validate() const;
 };

@@ -97,6 +97,48 @@ glm::vec3 flythroughPosition(const WorldLayout& layout, const FlythroughOptions&
   return {p.x, options.altitude, p.y};
 }
 
+double flightPathLength(const WorldLayout& layout, const FlythroughOptions& options) {
+  if (options.path != "loop" && options.path != "line") fail("--path '{}': expected loop or line", options.path);
+  return buildPath(layout, options).length.back();
+}
+
+std::vector<glm::ivec2> flightPathCells(const WorldLayout& layout, const FlythroughOptions& options, float radius) {
+  if (options.path != "loop" && options.path != "line") fail("--path '{}': expected loop or line", options.path);
+  if (!(radius >= 0.0f) || !std::isfinite(radius)) fail("path radius {} m: expected a finite value >= 0", radius);
+  const PathTable t = buildPath(layout, options);
+  std::vector<uint8_t> seen(size_t(layout.cells.x) * size_t(layout.cells.y), 0);
+  std::vector<glm::ivec2> out;
+  // Path points are ~1-2 m apart on a km-scale world (8 x 512 per loop); every segment is also walked in
+  // steps of at most a quarter cell so coarse paths over small worlds miss nothing.
+  const float step = 0.25f * layout.cellSize;
+  std::vector<std::pair<float, glm::ivec2>> fresh;
+  auto visit = [&](glm::vec2 q) {
+    const glm::vec3 p{q.x, 0.0f, q.y};
+    fresh.clear();
+    const glm::ivec2 lo = layout.cellOf(p - glm::vec3(radius, 0.0f, radius));
+    const glm::ivec2 hi = layout.cellOf(p + glm::vec3(radius, 0.0f, radius));
+    for (int z = std::max(lo.y, 0); z <= std::min(hi.y, layout.cells.y - 1); ++z)
+      for (int x = std::max(lo.x, 0); x <= std::min(hi.x, layout.cells.x - 1); ++x) {
+        uint8_t& s = seen[size_t(layout.linear({x, z}))];
+        const float d = layout.distanceToCell(p, {x, z});
+        if (!s && d <= radius) {
+          s = 1;
+          fresh.push_back({d, glm::ivec2(x, z)});
+        }
+      }
+    // Nearest first among the cells this point reaches first (the start's own cell leads the list).
+    std::stable_sort(fresh.begin(), fresh.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& f : fresh) out.push_back(f.second);
+  };
+  visit(t.points.front());
+  for (size_t i = 1; i < t.points.size(); ++i) {
+    const glm::vec2 a = t.points[i - 1], b = t.points[i];
+    const int n = std::max(1, int(std::ceil(glm::length(b - a) / step)));
+    for (int k = 1; k <= n; ++k) visit(glm::mix(a, b, float(k) / float(n)));
+  }
+  return out;
+}
+
 FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
                                 const std::function<void(const FlythroughFrame&)>& perFrame, TraceWriter* trace) {
   o.validate();

@@ -82,4 +82,14 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& opt
 // Camera position on the path at arc length s (metres, wraps for "loop").
 glm::vec3 flythroughPosition(const WorldLayout& layout, const FlythroughOptions& options, double s);
 
+// Length of the flight path of options.path over layout (metres; the loop's full circumference).
+double flightPathLength(const WorldLayout& layout, const FlythroughOptions& options);
+
+// The cells a flight along options.path needs: every cell of the world whose square lies within `radius`
+// (xz) of the path, each once, in the order the flight first comes within `radius` of it (the start
+// first, so a bake of this list interrupted half way covers the first half of the flight). Only the path
+// matters (not speed, time or fps). `lfgi bake --path` bakes these; `radius` >= shadeDistance keeps every
+// visible sample on baked cells. Throws lfgi::Error for a bad path name or radius < 0.
+std::vector<glm::ivec2> flightPathCells(const WorldLayout& layout, const FlythroughOptions& options, float radius);
+
 }  // namespace lfgi::streaming

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <set>
+#include <utility>
+
 #include "core/error.h"
 
 namespace lfgi::streaming {
@@ -76,6 +79,48 @@ TEST(Flythrough, LoopPathIsClosedAndBadOptionsAreNamed) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("--path 'zigzag'"), std::string::npos) << e.what();
   }
+}
+
+TEST(Flythrough, PathCellsCoverEveryCameraPositionAndNothingFar) {
+  const WorldLayout layout = world1km().layout;
+  for (const char* path : {"loop", "line"}) {
+    FlythroughOptions o = quickFlight(10.0f);
+    o.path = path;
+    const float radius = 100.0f;
+    const std::vector<glm::ivec2> cells = flightPathCells(layout, o, radius);
+    std::set<std::pair<int, int>> set;
+    for (glm::ivec2 c : cells) {
+      EXPECT_TRUE(layout.contains(c)) << path;
+      EXPECT_TRUE(set.insert({c.x, c.y}).second) << path << ": cell " << c.x << "," << c.y << " listed twice";
+    }
+    // The first cell holds the start; every cell within the radius of a camera position is listed.
+    const glm::vec3 start = flythroughPosition(layout, o, 0.0);
+    EXPECT_EQ(layout.distanceToCell(start, cells.front()), 0.0f) << path;  // (the line starts on a border)
+    const double length = flightPathLength(layout, o);
+    EXPECT_GT(length, 500.0) << path;
+    std::set<std::pair<int, int>> near;
+    for (double s = 0.0; s <= length; s += 0.5) {
+      const glm::vec3 p = flythroughPosition(layout, o, s);
+      for (int z = 0; z < layout.cells.y; ++z)
+        for (int x = 0; x < layout.cells.x; ++x)
+          if (layout.distanceToCell(p, {x, z}) <= radius - 0.5f) {
+            EXPECT_TRUE(set.count({x, z})) << path << ": cell " << x << "," << z << " at s = " << s << " missing";
+            near.insert({x, z});
+          } else if (layout.distanceToCell(p, {x, z}) <= radius + 0.5f) {
+            near.insert({x, z});
+          }
+    }
+    // ... and nothing farther: every listed cell is within the radius of some point of the path.
+    for (auto c : set) EXPECT_TRUE(near.count(c)) << path << ": cell " << c.first << "," << c.second << " is far from the path";
+    // A wider radius lists a superset; radius 0 lists only the cells the path crosses.
+    const std::vector<glm::ivec2> wide = flightPathCells(layout, o, 2.0f * radius), crossed = flightPathCells(layout, o, 0.0f);
+    EXPECT_GT(wide.size(), cells.size()) << path;
+    EXPECT_LT(crossed.size(), cells.size()) << path;
+  }
+  FlythroughOptions bad = quickFlight(10.0f);
+  EXPECT_THROW(flightPathCells(layout, bad, -1.0f), Error);
+  bad.path = "spiral";
+  EXPECT_THROW(flightPathCells(layout, bad, 10.0f), Error);
 }
 
 }  // namespace
