@@ -67,6 +67,12 @@ int runInspect(const InspectOptions& options) {
       j["model"] = {{"network", false}};
     }
     j["fallback"] = fallbackKind;
+    {
+      nlohmann::ordered_json keys = nlohmann::ordered_json::array();
+      for (size_t k = 0; k < c.fallback.keyCount(); ++k)
+        keys.push_back({{"hours", c.fallback.keyHours[k]}, {"overcast", c.fallback.keyOvercast[k]}});
+      j["fallback_keys"] = keys;
+    }
     j["exposure"] = c.outputScale.exposure;
     j["range_m"] = c.outputScale.range;
     j["bytes"] = {{"weights", bytes.weights},   {"latents", bytes.latents}, {"metadata", bytes.metadata()},
@@ -95,6 +101,11 @@ int runInspect(const InspectOptions& options) {
               double(c.grid.origin.x), double(c.grid.origin.y), double(c.grid.origin.z));
   std::printf("bytes: weights %zu, latents %zu, metadata %zu, fallback %zu (%s, FP16), total %zu (%.1f per probe)\n",
               bytes.weights, bytes.latents, bytes.metadata(), bytes.fallback, fallbackKind, bytes.total, perProbe);
+  std::string keys;
+  for (size_t k = 0; k < c.fallback.keyCount(); ++k)
+    keys += fmt::format("{}{} h{}", k ? ", " : "", c.fallback.keyHours[k],
+                        c.fallback.keyOvercast[k] > 0.0f ? fmt::format(" overcast {}", c.fallback.keyOvercast[k]) : "");
+  std::printf("fallback keys: %s\n", keys.c_str());
   std::printf("error reached: %.4g (target %.4g); training time: %.2f s; chosen model: %s\n", c.stats.errorAchieved,
               c.stats.errorTarget, c.stats.trainingSeconds, c.stats.model.empty() ? "-" : c.stats.model.c_str());
   std::printf("exposure %g, distance range %g m\n", double(c.outputScale.exposure), double(c.outputScale.range));

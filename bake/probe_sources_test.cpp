@@ -16,12 +16,16 @@
 #include "bake/shading_inputs.h"
 #include "bake/shading_view.h"
 #include "bake/world_bake.h"
+#include "core/cell_file.h"
 #include "core/error.h"
+#include "core/half.h"
 #include "core/generator_cpu.h"
 #include "core/metrics.h"
 #include "core/octahedral.h"
 #include "core/quantize.h"
 #include "core/sh.h"
+#include "streaming/cell_file_source.h"
+#include "worlds/world_cells.h"
 
 namespace lfgi::bake {
 namespace {
@@ -147,6 +151,58 @@ TEST(ProbeSources, CodecProbesMatchTheCaptureWithinTheBakedError) {
   // capture's), so they agree up to FP16 and the clamp of negative radiance. (The tiny bake picks SH L1:
   // the generator path is checked below.)
   EXPECT_NEAR(e, cf.stats.errorAchieved, 0.1 * cf.stats.errorAchieved + 0.005);
+}
+
+// The fallback of a baked tiny-world cell: one SH L1 per lighting key, sorted by hour whatever the
+// --keys order, and streamed at the time of day (CellFileSource): real captures move between keys.
+TEST(WorldBake, FallbackHasOneShPerKeyAndStreamsWithTheTimeOfDay) {
+  const worlds::SyntheticWorld world(worlds::WorldParams{3, 64.0, 32.0});
+  WorldBakeSettings s;
+  s.resolution = 8;
+  s.spp = 2;
+  s.bounces = 1;
+  s.maxSteps = 40;
+  s.keys = "17.5,8,12";
+  s.errorTarget = 1.0;  // SH L1 meets it: no training
+  const worlds::CellCoord cell{1, 0};
+  const CellFile cf = bakeCell(world, prepareCellBake(world, cell, s), s);
+  ASSERT_EQ(cf.fallback.kind, CellFallback::Kind::PerCell);
+  EXPECT_EQ(cf.fallback.keyHours, (std::vector<float>{8.0f, 12.0f, 17.5f}));
+  EXPECT_EQ(cf.fallback.keyOvercast, (std::vector<float>{0.0f, 0.0f, 0.0f}));
+  ASSERT_EQ(cf.fallback.shHalf.size(), 36u);
+  // Written and streamed: a world directory holding this one cell (the others stream its fallback).
+  const std::filesystem::path dir = std::filesystem::path(LFGI_TEST_TMP_DIR) / "world_bake_fallback_keys";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir / "baked" / "cells");
+  worlds::writeWorldManifest(dir, world.params());
+  writeCellFile(cellFilePath(dir / "baked", cell), cf);
+  streaming::CellFileSourceOptions o;
+  o.worldDir = dir;
+  streaming::CellFileSource source(o);
+  ASSERT_EQ(source.validCells(), 1);
+  EXPECT_TRUE(source.fallbackFollowsTimeOfDay());
+  auto stored = [&](size_t key) {
+    ShL1 sh;
+    for (int k = 0; k < 4; ++k)
+      for (int c = 0; c < 3; ++c) sh.c[size_t(k)][c] = halfToFloat(cf.fallback.shHalf[key * 12 + size_t(k) * 3 + size_t(c)]);
+    return sh;
+  };
+  const glm::ivec2 c{cell.x, cell.z};
+  source.setTimeOfDay(8.0f);
+  const ShL1 morning = source.fallback(c);
+  source.setTimeOfDay(17.5f);
+  const ShL1 evening = source.fallback(c);
+  double diff = 0.0, norm = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_EQ(morning.c[size_t(k)], stored(0).c[size_t(k)]);
+    EXPECT_EQ(evening.c[size_t(k)], stored(2).c[size_t(k)]);
+    const glm::vec3 d = evening.c[size_t(k)] - morning.c[size_t(k)];
+    diff += double(glm::dot(d, d));
+    norm += double(glm::dot(morning.c[size_t(k)], morning.c[size_t(k)]));
+  }
+  std::printf("[ measure  ] baked cell 1,0 fallback: DC red 8 h %.4g, 12 h %.4g, 17.5 h %.4g; |SH 17.5 - SH 8| / |SH 8| = %.3f\n",
+              double(morning.c[0].x), double(stored(1).c[0].x), double(evening.c[0].x), std::sqrt(diff / norm));
+  EXPECT_GT(std::sqrt(diff / norm), 0.05);  // the sun moved from east to west and sank
 }
 
 // The generator path: a cell file with random int8 weights and latents over a 2 x 2 x 2 grid with one

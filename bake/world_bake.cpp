@@ -73,18 +73,53 @@ std::vector<worlds::CellCoord> arrayShare(const std::vector<worlds::CellCoord>& 
 
 namespace {
 
-// SH L1 radiance of the whole cell at the first key: the mean of the probes' projections (FP16).
+// SH L1 radiance of the whole cell per lighting key: the mean of the probes' projections (FP16) of the
+// captured radiance maps, i.e. what the generator is trained on (sky, bounces and the capture's sun /
+// moon disc deposits), so the fallback at a key is comparable to the decoded cell there. Keys sorted by
+// (hours, overcast) as the cell file requires; a key repeated in --keys is stored once.
 CellFallback fallbackOf(const GeneratorTrainingSet& set) {
-  const LightingKey& key = set.keys.front();
-  ShL1 mean;
-  for (const ProbeCapture& p : key.probes) {
-    ShL1 sh = shProject<4>(p.radiance, p.resolution);
-    for (int k = 0; k < 4; ++k) mean.c[size_t(k)] += sh.c[size_t(k)] / float(key.probes.size());
-  }
+  std::vector<size_t> order(set.keys.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  auto less = [&](size_t a, size_t b) {
+    const LightingKey &x = set.keys[a], &y = set.keys[b];
+    return x.timeOfDayHours < y.timeOfDayHours || (x.timeOfDayHours == y.timeOfDayHours && x.weather < y.weather);
+  };
+  std::stable_sort(order.begin(), order.end(), less);
   CellFallback f;
   f.kind = CellFallback::Kind::PerCell;
-  for (int k = 0; k < 4; ++k)
-    for (int c = 0; c < 3; ++c) f.shHalf.push_back(floatToHalfClamped(mean.c[size_t(k)][c]));
+  f.keyHours.clear();
+  f.keyOvercast.clear();
+  for (size_t i = 0; i < order.size(); ++i) {
+    if (i > 0 && !less(order[i - 1], order[i])) continue;  // a duplicate key
+    const LightingKey& key = set.keys[order[i]];
+    ShL1 mean;
+    for (const ProbeCapture& p : key.probes) {
+      ShL1 sh = shProject<4>(p.radiance, p.resolution);
+      for (int k = 0; k < 4; ++k) mean.c[size_t(k)] += sh.c[size_t(k)] / float(key.probes.size());
+    }
+    f.keyHours.push_back(key.timeOfDayHours);
+    f.keyOvercast.push_back(key.weather);
+    for (int k = 0; k < 4; ++k)
+      for (int c = 0; c < 3; ++c) f.shHalf.push_back(floatToHalfClamped(mean.c[size_t(k)][c]));
+  }
+  return f;
+}
+
+// An empty cell's fallback: dark at every key (same keys as the other cells).
+CellFallback darkFallback(const std::vector<LightingKeySpec>& keys) {
+  CellFallback f;
+  f.kind = CellFallback::Kind::PerCell;
+  std::vector<std::pair<float, float>> sorted;
+  for (const LightingKeySpec& k : keys) sorted.emplace_back(k.timeOfDayHours, k.weather);
+  std::sort(sorted.begin(), sorted.end());
+  sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
+  f.keyHours.clear();
+  f.keyOvercast.clear();
+  for (auto [h, w] : sorted) {
+    f.keyHours.push_back(h);
+    f.keyOvercast.push_back(w);
+  }
+  f.shHalf.assign(12 * sorted.size(), floatToHalfClamped(0.0f));
   return f;
 }
 
@@ -92,7 +127,8 @@ uint64_t hashInputs(const worlds::SyntheticWorld& world, worlds::CellCoord c, co
                     const uint64_t (&neighbours)[9], const WorldBakeSettings& settings) {
   const CaptureOptions capture = worldBakeCaptureOptions(world, settings);
   ContentHasher hasher;
-  hasher.add(std::string("lfgi-bake-v2")).addValue(world.params().seed).addValue(c.x).addValue(c.z);
+  // v3: cell file version 2 (one fallback per lighting key), so an incremental bake rewrites v1 cells.
+  hasher.add(std::string("lfgi-bake-v3")).addValue(world.params().seed).addValue(c.x).addValue(c.z);
   for (uint64_t h : neighbours) hasher.addValue(h);
   hasher.addValue(cell.stats.meshHash).addValue(cell.probes.grid.origin).addValue(cell.probes.grid.spacing);
   hasher.addValue(cell.probes.grid.dims);
@@ -179,7 +215,7 @@ CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const 
   CellBakeReport r;
   r.probes = positions.size();
   if (positions.empty()) {  // every probe inside solid: an empty cell holds only a dark fallback
-    cf.fallback.shHalf.assign(12, floatToHalfClamped(0.0f));
+    cf.fallback = darkFallback(keys);
     cf.stats.model = "no probes";
   } else {
     const EmbreeScene scene(std::move(in.sceneMesh), fmt::format("cell {},{}", c.x, c.z));

@@ -281,9 +281,14 @@ std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::Cell
   m.insertMeta("fallback_kind",
                openvdb::StringMetadata(cell.fallback.kind == CellFallback::Kind::PerCell ? "sh_l1_per_cell" : "sh_l1_per_probe"));
   {
-    std::vector<uint8_t> sh;
+    std::vector<uint8_t> sh, hours, overcast;
     appendPod<uint16_t>(sh, cell.fallback.shHalf);
     putBlob(m, "fallback_sh", std::move(sh));
+    m.insertMeta("fallback_key_count", openvdb::Int32Metadata(int32_t(cell.fallback.keyCount())));
+    appendPod<float>(hours, cell.fallback.keyHours);
+    putBlob(m, "fallback_key_hours", std::move(hours));
+    appendPod<float>(overcast, cell.fallback.keyOvercast);
+    putBlob(m, "fallback_key_overcast", std::move(overcast));
   }
   m.insertMeta("error_achieved", openvdb::DoubleMetadata(cell.stats.errorAchieved));
   m.insertMeta("error_target", openvdb::DoubleMetadata(cell.stats.errorTarget));
@@ -293,6 +298,7 @@ std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::Cell
   for (const detail::CellFileOverride& o : overrides) {
     openvdb::Metadata::Ptr p = m[o.field];
     if (p) m.removeMeta(o.field);
+    if (o.erase) continue;
     if (p && p->typeName() == openvdb::Int32Metadata::staticTypeName())
       m.insertMeta(o.field, openvdb::Int32Metadata(int32_t(o.intValue)));
     else if (p && p->typeName() == openvdb::StringMetadata::staticTypeName())
@@ -398,8 +404,28 @@ void CellFile::validate(const std::string& what) const {
   size_t entries = fallback.kind == CellFallback::Kind::PerCell ? 1 : size_t(n);
   if (fallback.kind != CellFallback::Kind::PerCell && fallback.kind != CellFallback::Kind::PerProbe)
     fail("{}: unknown fallback kind {}", what, int(fallback.kind));
-  if (fallback.shHalf.size() != entries * kShHalves)
-    fail("{}: fallback holds {} halves, {} expected ({} x 12)", what, fallback.shHalf.size(), entries * kShHalves, entries);
+  const size_t keys = fallback.keyCount();
+  if (keys < 1 || keys > size_t(kCellFileMaxFallbackKeys))
+    fail("{}: {} fallback lighting keys (1 to {} allowed)", what, keys, kCellFileMaxFallbackKeys);
+  if (fallback.keyOvercast.size() != keys)
+    fail("{}: {} fallback key overcast values for {} key hours", what, fallback.keyOvercast.size(), keys);
+  for (size_t k = 0; k < keys; ++k) {
+    const float h = fallback.keyHours[k], w = fallback.keyOvercast[k];
+    if (!(std::isfinite(h) && h >= 0.0f && h <= 24.0f))
+      fail("{}: fallback key {} hours = {} (must be finite, in [0, 24])", what, k, h);
+    if (!(std::isfinite(w) && w >= 0.0f && w <= 1.0f))
+      fail("{}: fallback key {} overcast = {} (must be finite, in [0, 1])", what, k, w);
+    if (k > 0) {
+      const float ph = fallback.keyHours[k - 1], pw = fallback.keyOvercast[k - 1];
+      if (!(ph < h || (ph == h && pw < w)))
+        fail("{}: fallback keys not sorted strictly ascending by (hours, overcast): key {} ({} h, overcast {}) after "
+             "key {} ({} h, overcast {})",
+             what, k, h, w, k - 1, ph, pw);
+    }
+  }
+  if (fallback.shHalf.size() != keys * entries * kShHalves)
+    fail("{}: fallback holds {} halves, {} expected ({} keys x {} x 12)", what, fallback.shHalf.size(),
+         keys * entries * kShHalves, keys, entries);
   for (size_t i = 0; i < fallback.shHalf.size(); ++i)
     if ((fallback.shHalf[i] & 0x7c00u) == 0x7c00u) fail("{}: fallback SH half {} is Inf or NaN", what, i);
   auto nonNegative = [&](double v, const char* field) {
@@ -460,8 +486,9 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
   std::string magic = r.get<std::string>("lfgi_magic");
   if (magic != kMagic) fail("{}: lfgi_magic is '{}', expected '{}' (not a cell file)", name, magic, kMagic);
   int64_t version = r.get<int32_t>("lfgi_format_version");
-  if (version != kCellFileVersion)
-    fail("{}: cell file format version {}, this build reads version {} (rebake the cell)", name, version, kCellFileVersion);
+  if (version < 1 || version > kCellFileVersion)
+    fail("{}: cell file format version {}, this build reads versions 1 to {} (rebake the cell)", name, version,
+         kCellFileVersion);
 
   CellFile c;
   c.worldSeed = parseHex64(r.get<std::string>("world_seed"), name + ": world_seed");
@@ -570,13 +597,34 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
   if (fk == "sh_l1_per_cell") c.fallback.kind = CellFallback::Kind::PerCell;
   else if (fk == "sh_l1_per_probe") c.fallback.kind = CellFallback::Kind::PerProbe;
   else fail("{}: fallback_kind '{}' is unknown (sh_l1_per_cell, sh_l1_per_probe)", name, fk);
+  // Lighting keys of the fallback: version 1 has none (one key, read as 12 h overcast 0).
+  size_t keys = 1;
+  if (version >= 2) {
+    keys = size_t(r.getInt("fallback_key_count", 1, kCellFileMaxFallbackKeys));
+    std::vector<uint8_t> hb = r.blob("fallback_key_hours"), ob = r.blob("fallback_key_overcast");
+    if (hb.size() != keys * sizeof(float))
+      fail("{}: fallback_key_hours holds {} bytes, {} expected ({} keys x float32)", name, hb.size(),
+           keys * sizeof(float), keys);
+    if (ob.size() != keys * sizeof(float))
+      fail("{}: fallback_key_overcast holds {} bytes, {} expected ({} keys x float32)", name, ob.size(),
+           keys * sizeof(float), keys);
+    c.fallback.keyHours.resize(keys);
+    c.fallback.keyOvercast.resize(keys);
+    std::memcpy(c.fallback.keyHours.data(), hb.data(), hb.size());
+    std::memcpy(c.fallback.keyOvercast.data(), ob.data(), ob.size());
+    parts.fallback += hb.size() + ob.size();
+  } else {
+    for (const char* f : {"fallback_key_count", "fallback_key_hours", "fallback_key_overcast"})
+      if (r.has(f)) fail("{}: a version-1 cell file holds field '{}' (version 2 and later only)", name, f);
+  }
   std::vector<uint8_t> fb = r.blob("fallback_sh");
   size_t entries = c.fallback.kind == CellFallback::Kind::PerCell ? 1 : size_t(probeCount);
-  if (fb.size() != entries * kShHalves * 2)
-    fail("{}: fallback_sh holds {} bytes, {} expected ({} x 12 halves)", name, fb.size(), entries * kShHalves * 2, entries);
-  c.fallback.shHalf.resize(entries * kShHalves);
+  if (fb.size() != keys * entries * kShHalves * 2)
+    fail("{}: fallback_sh holds {} bytes, {} expected ({} keys x {} x 12 halves)", name, fb.size(),
+         keys * entries * kShHalves * 2, keys, entries);
+  c.fallback.shHalf.resize(keys * entries * kShHalves);
   if (!fb.empty()) std::memcpy(c.fallback.shHalf.data(), fb.data(), fb.size());
-  parts.fallback = fb.size();
+  parts.fallback += fb.size();
 
   c.stats.errorAchieved = r.getFiniteDouble("error_achieved");
   c.stats.errorTarget = r.getFiniteDouble("error_target");

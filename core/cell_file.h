@@ -7,7 +7,9 @@
 //                                    input hash, probe grid, model (arch or "none"), output scale, bake
 //                                    statistics, and binary blobs (OpenVDB metadata of the unregistered
 //                                    type "lfgi_bytes", which any OpenVDB reader keeps as raw bytes):
-//                                    generator weights, latents, fallback SH
+//                                    generator weights, latents, fallback SH; fallback lighting keys
+//                                    (version 2: fallback_key_count + fallback_key_hours and
+//                                    fallback_key_overcast blobs of float32)
 //                     grid "probes"  a MaskGrid in probe index space: active voxel (x, y, z) = probe
 //                                    (x, y, z) exists; its transform is index -> world of the ProbeGrid
 //   [trailer, 24 B]   "LFGICELL", u64 length of the OpenVDB stream, u64 XXH3-64 of the OpenVDB stream
@@ -29,6 +31,10 @@
 //
 // Files are deterministic: the same CellFile gives the same bytes (OpenVDB's random archive UUID is
 // replaced by one derived from the content).
+//
+// Versions: 2 (written) stores one fallback SH L1 per bake lighting key; 1 (read only) stored one, the
+// bake's first key, and has no key fields: it reads as one key at 12 h, overcast 0 (its true hour is not
+// recorded; with one key the fallback is the same at every time of day).
 #pragma once
 
 #include <cstddef>
@@ -46,15 +52,27 @@
 
 namespace lfgi {
 
-inline constexpr int kCellFileVersion = 1;
+inline constexpr int kCellFileVersion = 2;        // written; versions 1 .. kCellFileVersion are read
+inline constexpr int kCellFileMaxFallbackKeys = 64;
 inline constexpr int64_t kCellFileMaxProbes = int64_t(1) << 22;     // per cell (~4 M)
 inline constexpr size_t kCellFileMaxBytes = size_t(1) << 30;         // 1 GiB
 
-// SH L1 radiance (core/sh.h ShL1 order: coefficient k = l(l+1)+m, then rgb) in FP16: 12 halves per entry.
+// SH L1 radiance (core/sh.h ShL1 order: coefficient k = l(l+1)+m, then rgb) in FP16: 12 halves per entry,
+// one set of entries per lighting key of the bake (time of day, overcast). Entries per key: PerCell 1,
+// PerProbe the active probe count (latent order). Layout of shHalf, key-major:
+//   shHalf[(key * entries + entry) * 12 + k * 3 + rgb]
+// Keys are sorted strictly ascending by (hours, overcast), hours finite in [0, 24], overcast in [0, 1],
+// 1 .. kCellFileMaxFallbackKeys of them. The radiance is what the bake's captures hold at that key (sky,
+// bounces and the sun / moon disc deposits, the generator's training targets), so a fallback and a
+// decoded cell agree at a key. The default is one key at 12 h, overcast 0.
 struct CellFallback {
   enum class Kind : uint8_t { PerCell = 0, PerProbe = 1 };
   Kind kind = Kind::PerCell;
-  std::vector<uint16_t> shHalf;  // PerCell: 12; PerProbe: 12 * active probe count (latent order)
+  std::vector<float> keyHours{12.0f};     // time of day of each key
+  std::vector<float> keyOvercast{0.0f};   // weather of each key (same size as keyHours)
+  std::vector<uint16_t> shHalf;           // keys x entries x 12 (layout above)
+
+  size_t keyCount() const { return keyHours.size(); }
 };
 
 struct CellBakeStats {
@@ -94,7 +112,7 @@ struct CellFile {
 struct CellFileBytes {
   size_t weights = 0;   // quantized weights + scales
   size_t latents = 0;   // quantized latents + scales
-  size_t fallback = 0;  // SH halves
+  size_t fallback = 0;  // SH halves + the keys' hours and overcast
   size_t total = 0;     // whole file
   size_t metadata() const { return total - weights - latents - fallback; }  // header, topology, fields
 };
@@ -133,11 +151,13 @@ namespace detail {
 // checksum is computed, to build files that are intact but semantically wrong (bad version, huge
 // counts, NaN). Integer fields take `intValue`; string fields, vec3i fields ("X,Y,Z"), float/double
 // fields ("nan", "inf", "-1"; empty text: the field becomes int64) and blobs (raw bytes) take `text`; an
-// unknown field is added as int64.
+// unknown field is added as int64. erase: the field is removed instead (e.g. a version-1 file: version 1
+// and the fallback key fields erased).
 struct CellFileOverride {
   std::string field;
   int64_t intValue = 0;
   std::string text;
+  bool erase = false;
 };
 std::vector<std::byte> encodeCellFileWithOverrides(const CellFile& cell, std::span<const CellFileOverride> overrides);
 }  // namespace detail

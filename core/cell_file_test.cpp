@@ -67,7 +67,16 @@ CellFile makeCell(Variant v, uint32_t seed = 1) {
   c.fallback.kind = v == Variant::Int8Latents8 || v == Variant::NoNetwork ? CellFallback::Kind::PerProbe
                                                                          : CellFallback::Kind::PerCell;
   size_t entries = c.fallback.kind == CellFallback::Kind::PerCell ? 1 : size_t(n);
-  for (size_t i = 0; i < entries * 12; ++i) c.fallback.shHalf.push_back(floatToHalfClamped(0.25f * float(i % 7) - 0.5f));
+  // Int8Latents8: one lighting key (as a version-1 file); the others: 3 keys (NoNetwork with an overcast key).
+  if (v == Variant::Fp16Latents4 || v == Variant::PositionLatents) {
+    c.fallback.keyHours = {8.0f, 12.0f, 17.5f};
+    c.fallback.keyOvercast = {0.0f, 0.0f, 0.0f};
+  } else if (v == Variant::NoNetwork) {
+    c.fallback.keyHours = {8.0f, 12.0f, 12.0f};
+    c.fallback.keyOvercast = {0.0f, 0.0f, 1.0f};
+  }
+  for (size_t i = 0; i < c.fallback.keyCount() * entries * 12; ++i)
+    c.fallback.shHalf.push_back(floatToHalfClamped(0.25f * float(i % 7) - 0.5f + 0.125f * float(i / (entries * 12))));
   c.stats.errorAchieved = 0.0423;
   c.stats.errorTarget = 0.05;
   c.stats.trainingSeconds = 12.75;
@@ -122,6 +131,8 @@ void expectSameCell(const CellFile& a, const CellFile& b) {
   EXPECT_EQ(std::bit_cast<uint32_t>(a.outputScale.exposure), std::bit_cast<uint32_t>(b.outputScale.exposure));
   EXPECT_EQ(std::bit_cast<uint32_t>(a.outputScale.range), std::bit_cast<uint32_t>(b.outputScale.range));
   EXPECT_EQ(a.fallback.kind, b.fallback.kind);
+  EXPECT_EQ(bits(a.fallback.keyHours), bits(b.fallback.keyHours));
+  EXPECT_EQ(bits(a.fallback.keyOvercast), bits(b.fallback.keyOvercast));
   EXPECT_EQ(a.fallback.shHalf, b.fallback.shHalf);
   EXPECT_EQ(a.stats.errorAchieved, b.stats.errorAchieved);
   EXPECT_EQ(a.stats.errorTarget, b.stats.errorTarget);
@@ -152,14 +163,14 @@ TEST(CellFile, RoundTripIsBitExactForEveryVariant) {
     EXPECT_EQ(parts.total, bytes.size());
     EXPECT_EQ(parts.weights, c.generator ? c.generator->weights.bytes() : 0u);
     EXPECT_EQ(parts.latents, c.generator ? c.generator->latents.bytes() : 0u);
-    EXPECT_EQ(parts.fallback, c.fallback.shHalf.size() * 2);
+    EXPECT_EQ(parts.fallback, c.fallback.shHalf.size() * 2 + c.fallback.keyCount() * 8);
     std::printf("variant %d: %zu bytes = weights %zu + latents %zu + fallback %zu + metadata/topology %zu\n", int(v),
                 parts.total, parts.weights, parts.latents, parts.fallback, parts.metadata());
   }
   // All-active masks read back as the empty "all exist" form.
   CellFile c = makeCell(Variant::NoNetwork);
   c.active.assign(12, 1);
-  c.fallback.shHalf.resize(12 * 12);
+  c.fallback.shHalf.resize(c.fallback.keyCount() * 12 * 12);
   EXPECT_TRUE(decodeCellFile(encodeCellFile(c), "mem").active.empty());
 }
 
@@ -272,7 +283,8 @@ struct BadFileCase {
 TEST(CellFile, IntactButWrongFilesNameTheProblem) {
   CellFile c = makeCell(Variant::Int8Latents8);
   const std::vector<BadFileCase> cases = {
-      {{{"lfgi_format_version", 99, ""}}, "cell file format version 99, this build reads version 1"},
+      {{{"lfgi_format_version", 99, ""}}, "cell file format version 99, this build reads versions 1 to 2"},
+      {{{"lfgi_format_version", 0, ""}}, "cell file format version 0, this build reads versions 1 to 2"},
       {{{"lfgi_magic", 0, "not-a-cell"}}, "lfgi_magic is 'not-a-cell'"},
       {{{"latent_count", int64_t(1) << 40, ""}}, "field 'latent_count' = 1099511627776 outside [0, 4194304]"},
       {{{"latent_count", 9, ""}}, "latent_count = 9, but the file has 10 probes"},
@@ -446,6 +458,111 @@ TEST(CellFile, ConcurrentDecodesAgree) {
   t1.join();
   t2.join();
   EXPECT_EQ(mismatches.load(), 0);
+}
+
+// Raw float32 bytes, as a blob override's text.
+std::string floatBytes(std::initializer_list<float> v) {
+  std::string s(v.size() * sizeof(float), '\0');
+  std::memcpy(s.data(), std::data(v), s.size());
+  return s;
+}
+
+TEST(CellFile, FallbackKeysRoundTripBitExact) {
+  // Version 2: three keys of per-cell SH, each key's 12 halves distinct, read back bit for bit.
+  CellFile c = makeCell(Variant::Fp16Latents4);
+  ASSERT_EQ(c.fallback.keyCount(), 3u);
+  c.fallback.keyHours = {8.0f, 12.0f, 17.5f};
+  c.fallback.keyOvercast = {0.0f, 0.25f, 0.0f};
+  c.fallback.shHalf.clear();
+  for (int k = 0; k < 3; ++k)
+    for (int i = 0; i < 12; ++i) c.fallback.shHalf.push_back(floatToHalfClamped(0.1f * float(k + 1) + 0.01f * float(i)));
+  const std::vector<std::byte> bytes = encodeCellFile(c);
+  CellFileBytes parts;
+  const CellFile back = decodeCellFile(bytes, "keys.vdb", &parts);
+  expectSameCell(c, back);
+  ASSERT_EQ(back.fallback.keyCount(), 3u);
+  EXPECT_EQ(back.fallback.keyHours[2], 17.5f);
+  EXPECT_EQ(back.fallback.keyOvercast[1], 0.25f);
+  EXPECT_EQ(back.fallback.shHalf[24], floatToHalfClamped(0.3f));  // key 2, first half
+  EXPECT_EQ(parts.fallback, 3u * 12u * 2u + 3u * 8u);
+  EXPECT_EQ(bytes, encodeCellFile(back));
+}
+
+TEST(CellFile, VersionOneFilesStillRead) {
+  // A version-1 file: the fields the version-1 writer wrote (no fallback key fields, one key of SH).
+  const std::vector<detail::CellFileOverride> v1 = {{"lfgi_format_version", 1, ""},
+                                                    {"fallback_key_count", 0, "", true},
+                                                    {"fallback_key_hours", 0, "", true},
+                                                    {"fallback_key_overcast", 0, "", true}};
+  for (Variant v : {Variant::Int8Latents8}) {
+    CellFile c = makeCell(v);  // one key (per-probe SH)
+    c.fallback.keyHours = {12.0f};
+    c.fallback.keyOvercast = {0.0f};
+    CellFileBytes parts;
+    const CellFile back = decodeCellFile(detail::encodeCellFileWithOverrides(c, v1), "v1.vdb", &parts);
+    expectSameCell(c, back);
+    EXPECT_EQ(back.fallback.keyCount(), 1u);
+    EXPECT_EQ(parts.fallback, c.fallback.shHalf.size() * 2);  // no key blobs in a version-1 file
+  }
+  // A PerCell version-1 cell with its single key at another hour reads as 12 h (v1 records none).
+  CellFile c = makeCell(Variant::Fp16Latents4);
+  c.fallback.keyHours = {8.0f};
+  c.fallback.keyOvercast = {0.0f};
+  c.fallback.shHalf.resize(12);
+  const CellFile back = decodeCellFile(detail::encodeCellFileWithOverrides(c, v1), "v1.vdb");
+  EXPECT_EQ(back.fallback.keyHours, std::vector<float>{12.0f});
+  EXPECT_EQ(back.fallback.shHalf, c.fallback.shHalf);
+  // A version-1 file cannot hold several keys' SH, nor version-2 key fields.
+  std::string e = errorOf(detail::encodeCellFileWithOverrides(makeCell(Variant::Fp16Latents4), v1), "v1.vdb");
+  EXPECT_NE(e.find("v1.vdb: fallback_sh holds 72 bytes, 24 expected (1 keys x 1 x 12 halves)"), std::string::npos) << e;
+  const std::vector<detail::CellFileOverride> v1WithKeys = {{"lfgi_format_version", 1, ""}};
+  e = errorOf(detail::encodeCellFileWithOverrides(c, v1WithKeys), "v1.vdb");
+  EXPECT_NE(e.find("v1.vdb: a version-1 cell file holds field 'fallback_key_count'"), std::string::npos) << e;
+}
+
+TEST(CellFile, BadFallbackKeysAreRejectedByName) {
+  const CellFile c = makeCell(Variant::Fp16Latents4);  // keys 8, 12, 17.5 h
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const std::vector<BadFileCase> cases = {
+      {{{"fallback_key_hours", 0, floatBytes({8.0f, nan, 17.5f})}}, "fallback key 1 hours = nan (must be finite, in [0, 24])"},
+      {{{"fallback_key_hours", 0, floatBytes({8.0f, 12.0f, 24.5f})}}, "fallback key 2 hours = 24.5 (must be finite, in [0, 24])"},
+      {{{"fallback_key_hours", 0, floatBytes({-1.0f, 12.0f, 17.5f})}}, "fallback key 0 hours = -1"},
+      {{{"fallback_key_hours", 0, floatBytes({12.0f, 8.0f, 17.5f})}},
+       "fallback keys not sorted strictly ascending by (hours, overcast): key 1 (8 h, overcast 0) after key 0 (12 h"},
+      {{{"fallback_key_hours", 0, floatBytes({8.0f, 12.0f, 12.0f})}}, "not sorted strictly ascending"},
+      {{{"fallback_key_overcast", 0, floatBytes({0.0f, 2.0f, 0.0f})}}, "fallback key 1 overcast = 2"},
+      {{{"fallback_key_hours", 0, floatBytes({8.0f, 12.0f})}}, "fallback_key_hours holds 8 bytes, 12 expected (3 keys x float32)"},
+      {{{"fallback_key_overcast", 0, floatBytes({0.0f})}}, "fallback_key_overcast holds 4 bytes, 12 expected"},
+      {{{"fallback_key_count", 2, ""}}, "fallback_key_hours holds 12 bytes, 8 expected (2 keys x float32)"},
+      {{{"fallback_key_count", 0, ""}}, "field 'fallback_key_count' = 0 outside [1, 64]"},
+      {{{"fallback_key_count", 1000, ""}}, "field 'fallback_key_count' = 1000 outside [1, 64]"},
+      {{{"fallback_key_count", 2, ""}, {"fallback_key_hours", 0, floatBytes({8.0f, 12.0f})},
+        {"fallback_key_overcast", 0, floatBytes({0.0f, 0.0f})}},
+       "fallback_sh holds 72 bytes, 48 expected (2 keys x 1 x 12 halves)"},
+      {{{"fallback_key_hours", 0, "", true}}, "field 'fallback_key_hours' is missing"},
+  };
+  for (const BadFileCase& bc : cases) {
+    std::string e = errorOf(detail::encodeCellFileWithOverrides(c, bc.overrides), "keys.vdb");
+    EXPECT_EQ(e.rfind("keys.vdb: ", 0), 0u) << e;
+    EXPECT_NE(e.find(bc.expect), std::string::npos) << "field " << bc.overrides[0].field << ": '" << e << "'";
+  }
+  // The writer refuses the same cells.
+  CellFile w = c;
+  w.fallback.keyHours[1] = nan;
+  EXPECT_THROW(encodeCellFile(w), Error);
+  w = c;
+  w.fallback.keyHours = {17.5f, 12.0f, 8.0f};
+  EXPECT_THROW(encodeCellFile(w), Error);
+  w = c;
+  w.fallback.keyOvercast.pop_back();
+  EXPECT_THROW(encodeCellFile(w), Error);
+  w = c;
+  w.fallback.shHalf.resize(24);  // 2 keys' SH for 3 keys
+  EXPECT_THROW(encodeCellFile(w), Error);
+  w = c;
+  w.fallback.keyHours.clear();
+  w.fallback.keyOvercast.clear();
+  EXPECT_THROW(encodeCellFile(w), Error);
 }
 
 TEST(CellFile, ContentHasherIsDeterministicAndOrderSensitive) {

@@ -123,18 +123,101 @@ void CellFileSourceOptions::validate() const {
   if (!(weather >= 0.0f && weather <= 1.0f)) fail("CellFileSourceOptions.weather = {} outside [0, 1]", weather);
 }
 
-ShL1 cellFileFallback(const CellFile& cell) {
-  const std::vector<uint16_t>& h = cell.fallback.shHalf;
-  const size_t entries = h.size() / 12;
+FallbackKeyBlend fallbackKeyBlend(const CellFallback& f, float timeOfDayHours, float weather) {
+  const size_t K = std::min(f.keyHours.size(), f.keyOvercast.size());
+  if (K == 0) return {};
+  // The overcast value nearest to `weather` (ties: the lower), then the keys at it (ascending hours).
+  float best = f.keyOvercast[0];
+  for (size_t k = 1; k < K; ++k) {
+    const float d = std::fabs(f.keyOvercast[k] - weather), db = std::fabs(best - weather);
+    if (d < db || (d == db && f.keyOvercast[k] < best)) best = f.keyOvercast[k];
+  }
+  constexpr size_t npos = size_t(-1);
+  size_t first = npos, last = npos, lo = npos, hi = npos;
+  for (size_t k = 0; k < K; ++k) {
+    if (f.keyOvercast[k] != best) continue;
+    if (first == npos) first = k;
+    last = k;
+    if (f.keyHours[k] <= timeOfDayHours) lo = k;
+    if (f.keyHours[k] >= timeOfDayHours && hi == npos) hi = k;
+  }
+  if (lo == npos) return {first, first, 0.0f};  // before the first key (or NaN hours): clamped
+  if (hi == npos) return {last, last, 0.0f};    // after the last key: clamped
+  if (lo == hi) return {lo, lo, 0.0f};
+  const float t = (timeOfDayHours - f.keyHours[lo]) / (f.keyHours[hi] - f.keyHours[lo]);
+  return {lo, hi, std::clamp(t, 0.0f, 1.0f)};
+}
+
+ShL1 fallbackEntry(const CellFallback& f, size_t entries, size_t entry, const FallbackKeyBlend& blend) {
+  const ShL1 a = shFromHalves(f.shHalf.data() + (blend.a * entries + entry) * 12);
+  if (blend.a == blend.b || blend.t == 0.0f) return a;
+  const ShL1 b = shFromHalves(f.shHalf.data() + (blend.b * entries + entry) * 12);
+  ShL1 out;
+  for (int k = 0; k < 4; ++k) out.c[size_t(k)] = a.c[size_t(k)] * (1.0f - blend.t) + b.c[size_t(k)] * blend.t;
+  return out;
+}
+
+namespace {
+
+size_t fallbackEntries(const CellFile& cell) {
+  const size_t keys = cell.fallback.keyCount();
+  const size_t entries = keys ? cell.fallback.shHalf.size() / 12 / keys : 0;
   if (entries == 0) fail("cell {},{}: no fallback SH", cell.cellX, cell.cellZ);
-  if (cell.fallback.kind == CellFallback::Kind::PerCell || entries == 1) return shFromHalves(h.data());
+  return cell.fallback.kind == CellFallback::Kind::PerCell ? 1 : entries;
+}
+
+// Key `key`'s cell SH: the per-cell entry, or the mean of the per-probe entries.
+ShL1 cellKeySh(const CellFile& cell, size_t entries, size_t key) {
+  const uint16_t* h = cell.fallback.shHalf.data() + key * entries * 12;
+  if (entries == 1) return shFromHalves(h);
   ShL1 mean;
   for (size_t e = 0; e < entries; ++e) {
-    const ShL1 sh = shFromHalves(h.data() + e * 12);
+    const ShL1 sh = shFromHalves(h + e * 12);
     for (int k = 0; k < 4; ++k) mean.c[size_t(k)] += sh.c[size_t(k)];
   }
   for (glm::vec3& c : mean.c) c /= float(entries);
   return mean;
+}
+
+}  // namespace
+
+ShL1 cellFileFallback(const CellFile& cell, float timeOfDayHours, float weather) {
+  const size_t entries = fallbackEntries(cell);
+  const FallbackKeyBlend blend = fallbackKeyBlend(cell.fallback, timeOfDayHours, weather);
+  const ShL1 a = cellKeySh(cell, entries, blend.a);
+  if (blend.a == blend.b || blend.t == 0.0f) return a;
+  const ShL1 b = cellKeySh(cell, entries, blend.b);
+  ShL1 out;
+  for (int k = 0; k < 4; ++k) out.c[size_t(k)] = a.c[size_t(k)] * (1.0f - blend.t) + b.c[size_t(k)] * blend.t;
+  return out;
+}
+
+void cellFileFallbackKeys(const CellFile& cell, float weather, std::vector<float>& hours, std::vector<ShL1>& sh) {
+  const size_t entries = fallbackEntries(cell);
+  hours.clear();
+  sh.clear();
+  // The keys fallbackKeyBlend chooses from at this weather: those at the overcast nearest to it.
+  const FallbackKeyBlend any = fallbackKeyBlend(cell.fallback, 12.0f, weather);
+  const float overcast = cell.fallback.keyOvercast[any.a];
+  for (size_t k = 0; k < cell.fallback.keyCount(); ++k) {
+    if (cell.fallback.keyOvercast[k] != overcast) continue;
+    hours.push_back(cell.fallback.keyHours[k]);
+    sh.push_back(cellKeySh(cell, entries, k));
+  }
+}
+
+ShL1 interpolateFallback(std::span<const float> hours, std::span<const ShL1> sh, float timeOfDayHours) {
+  const size_t K = std::min(hours.size(), sh.size());
+  if (K == 0) return {};
+  if (!(timeOfDayHours > hours[0])) return sh[0];  // clamped (and NaN)
+  if (timeOfDayHours >= hours[K - 1]) return sh[K - 1];
+  size_t hi = 1;
+  while (hours[hi] < timeOfDayHours) ++hi;  // hours[hi - 1] < t <= hours[hi]
+  if (hours[hi] == timeOfDayHours) return sh[hi];
+  const float t = (timeOfDayHours - hours[hi - 1]) / (hours[hi] - hours[hi - 1]);
+  ShL1 out;
+  for (int k = 0; k < 4; ++k) out.c[size_t(k)] = sh[hi - 1].c[size_t(k)] * (1.0f - t) + sh[hi].c[size_t(k)] * t;
+  return out;
 }
 
 int decodedResolution(const CellFile& cell, int shOnlyResolution) {
@@ -213,7 +296,10 @@ void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, 
   out.distance.resize(size_t(P) * tn * 2);
   out.irradiance.resize(size_t(P) * tm * 3);
 
-  const ShL1 cellSh = cellFileFallback(cell);
+  // The fallback at this time of day and weather (the keys' SH interpolated, as CellFileSource::fallback).
+  const ShL1 cellSh = cellFileFallback(cell, timeOfDayHours, weather);
+  const FallbackKeyBlend blend = fallbackKeyBlend(cell.fallback, timeOfDayHours, weather);
+  const size_t entries = fallbackEntries(cell);
   const bool perProbe = cell.fallback.kind == CellFallback::Kind::PerProbe;
   const float range = cell.outputScale.range;
   const int64_t A = cell.activeProbeCount();
@@ -278,7 +364,7 @@ void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, 
   for (int64_t i = 0; i < P; ++i) {
     const bool own = perProbe && out.active[size_t(i)];
     if (own) {
-      fillFromSh(shFromHalves(cell.fallback.shHalf.data() + k * 12), range, out, size_t(i));
+      fillFromSh(fallbackEntry(cell.fallback, entries, k, blend), range, out, size_t(i));
     } else if (firstShared == size_t(-1)) {
       fillFromSh(cellSh, range, out, size_t(i));
       firstShared = size_t(i);
@@ -302,7 +388,9 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
 
   const size_t N = size_t(cells) * size_t(cells);
   info_.assign(N, {});
-  fallback_.assign(N, {});
+  keyRange_.assign(N, {0, 0});
+  std::vector<float> hours;
+  std::vector<ShL1> keySh;
   int maxGeneratorN = 0, logged = 0;
   // Auto: the first generator cell's model, latents and active count, for timing both backends.
   std::optional<GeneratorWeights> probeWeights;
@@ -321,7 +409,11 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
       try {
         CellFile file = readCellFile(path);
         checkCellFits(file, c, worldSeed_, layout_, path);
-        fallback_[size_t(layout_.linear(c))] = cellFileFallback(file);
+        cellFileFallbackKeys(file, options_.weather, hours, keySh);
+        keyRange_[size_t(layout_.linear(c))] = {uint32_t(keyHours_.size()), uint32_t(hours.size())};
+        keyHours_.insert(keyHours_.end(), hours.begin(), hours.end());
+        keySh_.insert(keySh_.end(), keySh.begin(), keySh.end());
+        inf.fallbackKeys = int(hours.size());
         inf.state = CellFileState::Valid;
         inf.network = file.generator.has_value();
         inf.probes = file.grid.probeCount();
@@ -352,28 +444,47 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
     maxCellBytes_ = std::max(maxCellBytes_, inf.fieldBytes);
   }
   // Cells without a usable file: the mean fallback of the nearest ring (Chebyshev distance r) holding a
-  // valid cell. Any ring reaches every cell by r = cells, and a valid cell exists.
+  // valid cell, per key: the keys are the union of the ring's key hours and each holds the mean of the
+  // ring's interpolated fallbacks there. Every valid cell's fallback is linear between its keys and
+  // constant outside them, so the mean is linear between the union's hours: interpolating these keys
+  // gives the ring's mean at every time of day. Any ring reaches every cell by r = cells, and a valid
+  // cell exists.
+  std::vector<glm::ivec2> ring;
   for (int z = 0; z < cells; ++z)
     for (int x = 0; x < cells; ++x) {
-      if (info_[size_t(layout_.linear({x, z}))].state == CellFileState::Valid) continue;
+      const size_t self = size_t(layout_.linear({x, z}));
+      if (info_[self].state == CellFileState::Valid) continue;
       for (int r = 1; r <= cells; ++r) {
-        ShL1 sum;
-        int count = 0;
+        ring.clear();
+        hours.clear();
         for (int dz = -r; dz <= r; ++dz)
           for (int dx = -r; dx <= r; ++dx) {
             const glm::ivec2 c{x + dx, z + dz};
             if (std::max(std::abs(dx), std::abs(dz)) != r || !layout_.contains(c) ||
                 info_[size_t(layout_.linear(c))].state != CellFileState::Valid)
               continue;
-            for (int k = 0; k < 4; ++k) sum.c[size_t(k)] += fallback_[size_t(layout_.linear(c))].c[size_t(k)];
-            ++count;
+            ring.push_back(c);
+            const auto [first, count] = keyRange_[size_t(layout_.linear(c))];
+            hours.insert(hours.end(), keyHours_.begin() + first, keyHours_.begin() + first + count);
           }
-        if (count == 0) continue;
-        for (glm::vec3& v : sum.c) v /= float(count);
-        fallback_[size_t(layout_.linear({x, z}))] = sum;
+        if (ring.empty()) continue;
+        std::sort(hours.begin(), hours.end());
+        hours.erase(std::unique(hours.begin(), hours.end()), hours.end());
+        keyRange_[self] = {uint32_t(keyHours_.size()), uint32_t(hours.size())};
+        for (float h : hours) {
+          ShL1 sum;
+          for (glm::ivec2 c : ring) {
+            const ShL1 v = keyFallback(c, h);
+            for (int k = 0; k < 4; ++k) sum.c[size_t(k)] += v.c[size_t(k)];
+          }
+          for (glm::vec3& v : sum.c) v /= float(ring.size());
+          keyHours_.push_back(h);
+          keySh_.push_back(sum);
+        }
         break;
       }
     }
+  for (const auto& range : keyRange_) fallbackFollowsTimeOfDay_ = fallbackFollowsTimeOfDay_ || range.second > 1;
   if (missingCells_ > 0)
     spdlog::warn("streaming: {} of {} cells have no cell file in {} (they stream their neighbours' mean fallback)",
                  missingCells_, N, options_.cellsDir.string());
@@ -400,9 +511,15 @@ fs::path CellFileSource::cellPath(glm::ivec2 cell) const {
   return options_.cellsDir / fmt::format("cell_{}_{}.vdb", cell.x, cell.y);
 }
 
+ShL1 CellFileSource::keyFallback(glm::ivec2 cell, float timeOfDayHours) const {
+  const auto [first, count] = keyRange_[size_t(layout_.linear(cell))];
+  return interpolateFallback(std::span<const float>(keyHours_).subspan(first, count),
+                             std::span<const ShL1>(keySh_).subspan(first, count), timeOfDayHours);
+}
+
 ShL1 CellFileSource::fallback(glm::ivec2 cell) const {
   if (!layout_.contains(cell)) fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, layout_.cells.x, layout_.cells.y);
-  return fallback_[size_t(layout_.linear(cell))];
+  return keyFallback(cell, timeOfDay_.load(std::memory_order_relaxed));
 }
 
 void CellFileSource::readAndDecode(glm::ivec2 cell, float timeOfDayHours, ProbeField& out) {
@@ -432,14 +549,19 @@ void CellFileSource::load(glm::ivec2 cell, ProbeField& out) {
   loads_.fetch_add(1);
 }
 
+bool CellFileSource::dependsOnTimeOfDay(glm::ivec2 cell) const {
+  const CellFileInfo& inf = info_[size_t(layout_.linear(cell))];
+  return inf.state == CellFileState::Valid && (inf.network || inf.fallbackKeys > 1);
+}
+
 bool CellFileSource::relight(glm::ivec2 cell, ProbeField& field, float timeOfDayHours) {
-  if (!layout_.contains(cell) || !info_[size_t(layout_.linear(cell))].network) return true;
+  if (!layout_.contains(cell) || !dependsOnTimeOfDay(cell)) return true;
   const fs::path path = cellPath(cell);
   try {
     const auto t0 = Clock::now();
     const CellFile file = readCellFile(path);
     checkCellFits(file, cell, worldSeed_, layout_, path);
-    if (!file.generator) return true;
+    if (!file.generator && file.fallback.keyCount() <= 1) return true;
     const auto t1 = Clock::now();
     readUs_.fetch_add(usSince(t0));
     // In place: past readCellFile's checks and this size check, decoding cannot fail halfway.
@@ -458,7 +580,7 @@ bool CellFileSource::relight(glm::ivec2 cell, ProbeField& field, float timeOfDay
 void CellFileSource::relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out,
                                  float timeOfDayHours) {
   if (!layout_.contains(cell)) fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, layout_.cells.x, layout_.cells.y);
-  if (!info_[size_t(layout_.linear(cell))].network) {
+  if (!dependsOnTimeOfDay(cell)) {
     out = current;  // copy-assignment keeps out's capacity when it fits: no allocation once warm
     return;
   }

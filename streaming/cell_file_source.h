@@ -4,11 +4,12 @@
 // Construction (game thread, once): the layout comes from the world manifest (worlds::readWorldManifest:
 // cells of cellM metres from (0, 0)). Every cell file is read once through readCellFile (its checksum
 // covers the whole stream, so a trusted fallback needs the whole file read; the weights are dropped at
-// once) to keep only what must stay resident or sizes the slots: the cell's SH L1 fallback (the per-cell
-// entry, or the mean of the per-probe entries), its probe count and model resolution. A file must also
+// once) to keep only what must stay resident or sizes the slots: the cell's SH L1 fallback per lighting
+// key at the source's weather (the per-cell entry, or the mean of the per-probe entries, as floats), its
+// probe count and model resolution. A file must also
 // name its own cell, the world's seed and a probe grid inside the cell's square, else it counts as
 // corrupt. A cell with no file or a corrupt one is logged and gets the mean fallback of its nearest ring
-// of valid cells (8 neighbours first, then wider rings): a smooth guess, never a hole. No valid cell at
+// of valid cells (8 neighbours first, then wider rings), per key: a smooth guess, never a hole. No valid cell at
 // all is an lfgi::Error naming the directory.
 //
 // load() (IO threads, concurrently): readCellFile again (every check: a file corrupted or deleted after
@@ -27,8 +28,13 @@
 //
 // Lighting: generator cells decode under the conditioning of the time of day the manager last set
 // (setTimeOfDay, called by StreamingManager::update) and options.weather; relight() re-decodes a resident
-// cell when the time of day has moved. The fallback is the bake's first lighting key (core/cell_file.h
-// stores one SH L1), so it does not follow the time of day.
+// cell when the time of day has moved. The fallback follows the time of day: core/cell_file.h (version 2)
+// stores one SH L1 per bake lighting key; fallback(cell) interpolates linearly between the two keys
+// bracketing the time of day last set (clamped outside the keys' range) among the keys at the overcast
+// nearest to options.weather (the generator's conditioning weather; FrameInput::weather does not reach
+// the fallback). Cells without a network decode from the same interpolated SH, so they follow the time
+// of day too when their file has more than one key (and relight like generator cells). A version-1 file
+// (one key) gives the same fallback at every time of day.
 #pragma once
 
 #include <atomic>
@@ -70,6 +76,7 @@ struct CellFileInfo {
   int64_t probes = 0;         // grid probe count
   int64_t activeProbes = 0;
   int resolution = 0;         // n the decoded field will have
+  int fallbackKeys = 0;       // lighting keys of the fallback at the source's weather (Valid cells)
   size_t fieldBytes = 0;      // ProbeField::bytes() of the decoded cell
 };
 
@@ -79,18 +86,22 @@ class CellFileSource final : public CellSource {
   explicit CellFileSource(CellFileSourceOptions options);
 
   WorldLayout layout() const override { return layout_; }
+  // The cell's fallback at the time of day last set (setTimeOfDay): per-key SH floats precomputed at
+  // construction, interpolated here (a key scan and a lerp; no allocation). Game thread.
   ShL1 fallback(glm::ivec2 cell) const override;
+  bool fallbackFollowsTimeOfDay() const override { return fallbackFollowsTimeOfDay_; }
   size_t maxCellBytes() const override { return maxCellBytes_; }
   void load(glm::ivec2 cell, ProbeField& out) override;
   void setTimeOfDay(float hours) override { timeOfDay_.store(hours); }
   // StreamingManager's relight (IO threads, or the game thread with ioThreads = 0): a generator cell is
-  // re-read (every check) and decoded under timeOfDayHours into `out` (the manager's staging field); a
-  // cell without a network does not depend on the time of day: `out` = `current`. Throws lfgi::Error
+  // re-read (every check) and decoded under timeOfDayHours into `out` (the manager's staging field), and
+  // so is an SH-only cell with several fallback keys; a cell that does not depend on the time of day (no
+  // network, one key): `out` = `current`. Throws lfgi::Error
   // naming the file (the manager logs it and keeps the old lighting).
   void relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out, float timeOfDayHours) override;
-  // Synchronous in-place relight (tests, tools): a generator cell is
-  // re-read and re-decoded under the new time of day into `field` (same size: no allocation); a cell
-  // without a network does not depend on it and is left as is. A file that fails now is logged and the
+  // Synchronous in-place relight (tests, tools): a generator cell (or an SH-only one with several
+  // fallback keys) is re-read and re-decoded under the new time of day into `field` (same size: no
+  // allocation); a cell that does not depend on it is left as is. A file that fails now is logged and the
   // field kept (returns false). The re-read is IO inside the relight stage: caching the quantized model
   // of resident cells would remove it.
   bool relight(glm::ivec2 cell, ProbeField& field, float timeOfDayHours);
@@ -119,11 +130,18 @@ class CellFileSource final : public CellSource {
   // Reads + validates cell's file and decodes it at timeOfDayHours into out (load and relightInto).
   void readAndDecode(glm::ivec2 cell, float timeOfDayHours, ProbeField& out);
   void recordDecode(std::chrono::steady_clock::time_point t0, const CellFile& file);
+  bool dependsOnTimeOfDay(glm::ivec2 cell) const;
+  ShL1 keyFallback(glm::ivec2 cell, float timeOfDayHours) const;
 
   CellFileSourceOptions options_;
   WorldLayout layout_;
   uint64_t worldSeed_ = 0;
-  std::vector<ShL1> fallback_;
+  // Fallback keys of every cell: cell i's are keyHours_ / keySh_ [first, first + count) of keyRange_[i],
+  // ascending hours (a cell without a usable file: its ring's union of hours).
+  std::vector<float> keyHours_;
+  std::vector<ShL1> keySh_;
+  std::vector<std::pair<uint32_t, uint32_t>> keyRange_;
+  bool fallbackFollowsTimeOfDay_ = false;
   std::vector<CellFileInfo> info_;
   size_t maxCellBytes_ = 0;
   int validCells_ = 0, missingCells_ = 0, corruptCells_ = 0;
@@ -136,9 +154,25 @@ class CellFileSource final : public CellSource {
   std::vector<DecodeSample> samples_;
 };
 
-// The cell's SH L1 fallback: the per-cell entry, or the mean of the per-probe entries (cell.fallback must
-// be valid, as readCellFile guarantees).
-ShL1 cellFileFallback(const CellFile& cell);
+// Which stored fallback keys give the fallback at (timeOfDayHours, weather): the keys at the overcast
+// nearest to `weather` (ties: the lower overcast), of which the two bracketing timeOfDayHours, SH =
+// (1 - t) key a + t key b; before the first / after the last of them: that key alone (a = b, t = 0).
+struct FallbackKeyBlend {
+  size_t a = 0, b = 0;
+  float t = 0.0f;
+};
+FallbackKeyBlend fallbackKeyBlend(const CellFallback& fallback, float timeOfDayHours, float weather);
+// Entry `entry` (of `entries` per key) of the fallback blended between the keys.
+ShL1 fallbackEntry(const CellFallback& fallback, size_t entries, size_t entry, const FallbackKeyBlend& blend);
+
+// The cell's SH L1 fallback at (timeOfDayHours, weather): per key the per-cell entry, or the mean of the
+// per-probe entries, blended by fallbackKeyBlend (cell.fallback must be valid, as readCellFile
+// guarantees).
+ShL1 cellFileFallback(const CellFile& cell, float timeOfDayHours, float weather);
+// The keys cellFileFallback interpolates at `weather`: their hours (ascending) and cell SH.
+void cellFileFallbackKeys(const CellFile& cell, float weather, std::vector<float>& hours, std::vector<ShL1>& sh);
+// Linear interpolation between the keys (hours ascending) bracketing timeOfDayHours, clamped outside.
+ShL1 interpolateFallback(std::span<const float> hours, std::span<const ShL1> sh, float timeOfDayHours);
 
 // The resolution n a decoded cell has: the generator's output resolution, else shOnlyResolution.
 int decodedResolution(const CellFile& cell, int shOnlyResolution);
@@ -150,7 +184,7 @@ int decodedResolution(const CellFile& cell, int shOnlyResolution);
 //     position (the cell file keeps no relocation offsets, so a relocated probe's latent differs from
 //     the bake's by its offset); irradiance = convolveIrradiance of the decoded radiance;
 //   cells without a network, and the inactive probes of any cell: the probe's SH L1 (its per-probe
-//     entry, else the cell's) evaluated: radiance max(0, shEvaluate) at texel centres, irradiance
+//     entry, else the cell's) at timeOfDayHours and weather (the keys blended as cellFileFallback) evaluated: radiance max(0, shEvaluate) at texel centres, irradiance
 //     shIrradiance at texel-centre normals, distance moments (range, range^2) (nothing occludes).
 // Throws lfgi::Error (starting with `name`) if the model cannot decode to a probe field.
 // backend: the generator network's backend (null: CpuGeneratorBackend); everything else is the same code

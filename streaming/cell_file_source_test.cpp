@@ -15,6 +15,7 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "core/file_util.h"
 #include "core/generator_cpu.h"
 #include "core/half.h"
 #include "core/octahedral.h"
@@ -136,7 +137,7 @@ TEST(CellFileSource, LoadEqualsADirectDecode) {
     for (int x = 0; x < 3; ++x) {
       SCOPED_TRACE(fmt::format("cell {},{}", x, z));
       const CellFile file = readCellFile(cellFile(world, x, z));
-      const ShL1 cellSh = cellFileFallback(file);
+      const ShL1 cellSh = cellFileFallback(file, 15.5f, 0.0f);
       const ShL1 fb = source.fallback({x, z});
       for (int k = 0; k < 4; ++k) EXPECT_EQ(fb.c[size_t(k)], cellSh.c[size_t(k)]);
       ProbeField f;
@@ -297,7 +298,8 @@ TEST(CellFileSource, MissingAndCorruptFilesGetTheirNeighboursFallback) {
   EXPECT_NE(source.info({2, 0}).error.find("cell_2_0.vdb"), std::string::npos) << source.info({2, 0}).error;
   EXPECT_NE(source.info({1, 2}).error.find("holds cell 1,1, expected 1,2"), std::string::npos) << source.info({1, 2}).error;
   // Cell (0, 2)'s valid 8-neighbours: (0, 1) and (1, 1) ((1, 2) is corrupt).
-  const ShL1 a = cellFileFallback(makeCell(0, 1)), b = cellFileFallback(makeCell(1, 1)), m = source.fallback({0, 2});
+  const ShL1 a = cellFileFallback(makeCell(0, 1), 12.0f, 0.0f), b = cellFileFallback(makeCell(1, 1), 12.0f, 0.0f),
+             m = source.fallback({0, 2});
   for (int k = 0; k < 4; ++k) EXPECT_EQ(m.c[size_t(k)], (a.c[size_t(k)] + b.c[size_t(k)]) / 2.0f);
   ProbeField f;
   try {
@@ -326,6 +328,219 @@ TEST(CellFileSource, NoReadableCellNamesTheDirectory) {
   }
   fs::remove_all(world / "baked");
   EXPECT_THROW(CellFileSource(options(world)), Error);
+}
+
+// Lighting keys 8, 12, 17.5 h: key k's SH = makeCell's SH x kKeyScale[k] (every entry).
+constexpr float kKeyHours[3] = {8.0f, 12.0f, 17.5f};
+constexpr float kKeyScale[3] = {0.5f, 1.0f, 1.5f};
+
+CellFile makeKeyedCell(int x, int z) {
+  CellFile c = makeCell(x, z);
+  const std::vector<uint16_t> one = c.fallback.shHalf;
+  c.fallback.keyHours.assign(std::begin(kKeyHours), std::end(kKeyHours));
+  c.fallback.keyOvercast.assign(3, 0.0f);
+  c.fallback.shHalf.clear();
+  for (float scale : kKeyScale)
+    for (uint16_t h : one) c.fallback.shHalf.push_back(floatToHalfClamped(halfToFloat(h) * scale));
+  return c;
+}
+
+fs::path makeKeyedWorld(const std::string& name) {
+  const fs::path dir = makeWorld(name);
+  for (int z = 0; z < 3; ++z)
+    for (int x = 0; x < 3; ++x) writeCellFile(cellFile(dir, x, z), makeKeyedCell(x, z));
+  return dir;
+}
+
+// Key k's cell SH straight from the stored halves (per-cell entry, or the mean of the per-probe ones).
+ShL1 storedKeySh(const CellFile& c, size_t key) {
+  const size_t entries = c.fallback.shHalf.size() / 12 / c.fallback.keyCount();
+  ShL1 sh;
+  for (size_t e = 0; e < entries; ++e)
+    for (int k = 0; k < 4; ++k)
+      for (int ch = 0; ch < 3; ++ch)
+        sh.c[size_t(k)][ch] += halfToFloat(c.fallback.shHalf[(key * entries + e) * 12 + size_t(k) * 3 + size_t(ch)]);
+  for (glm::vec3& v : sh.c) v /= float(entries);
+  return sh;
+}
+
+void expectShNear(const ShL1& a, const ShL1& b, float relTol, const std::string& what) {
+  for (int k = 0; k < 4; ++k)
+    for (int ch = 0; ch < 3; ++ch)
+      EXPECT_NEAR(a.c[size_t(k)][ch], b.c[size_t(k)][ch], relTol * (std::fabs(b.c[size_t(k)][ch]) + 1e-6f))
+          << what << " coefficient " << k << " channel " << ch;
+}
+
+TEST(CellFileSource, FallbackFollowsTheTimeOfDayBetweenKeys) {
+  const fs::path world = makeKeyedWorld("keys");
+  CellFileSource source(options(world));
+  EXPECT_TRUE(source.fallbackFollowsTimeOfDay());
+  // (1, 0): SH-only per cell; (2, 2): per probe (mean of its entries); (1, 1): a generator cell.
+  for (glm::ivec2 c : {glm::ivec2(1, 0), glm::ivec2(2, 2), glm::ivec2(1, 1)}) {
+    const std::string what = fmt::format("cell {},{}", c.x, c.y);
+    const CellFile file = readCellFile(cellFile(world, c.x, c.y));
+    ASSERT_EQ(file.fallback.keyCount(), 3u);
+    EXPECT_EQ(source.info(c).fallbackKeys, 3);
+    const ShL1 k8 = storedKeySh(file, 0), k12 = storedKeySh(file, 1), k175 = storedKeySh(file, 2);
+    // At a key: that key's stored SH (per cell exactly; per probe to the float mean's rounding).
+    source.setTimeOfDay(8.0f);
+    expectShNear(source.fallback(c), k8, 1e-6f, what + " at 8 h");
+    source.setTimeOfDay(12.0f);
+    expectShNear(source.fallback(c), k12, 1e-6f, what + " at 12 h");
+    source.setTimeOfDay(17.5f);
+    expectShNear(source.fallback(c), k175, 1e-6f, what + " at 17.5 h");
+    if (c == glm::ivec2(1, 0)) {
+      const ShL1 f = source.fallback(c);
+      for (int k = 0; k < 4; ++k) EXPECT_EQ(f.c[size_t(k)], k175.c[size_t(k)]);
+    }
+    // Halfway between two keys: their mean; a quarter of the way: the lerp.
+    ShL1 mid, quarter;
+    for (int k = 0; k < 4; ++k) {
+      mid.c[size_t(k)] = 0.5f * (k8.c[size_t(k)] + k12.c[size_t(k)]);
+      quarter.c[size_t(k)] = 0.75f * k12.c[size_t(k)] + 0.25f * k175.c[size_t(k)];
+    }
+    source.setTimeOfDay(10.0f);
+    expectShNear(source.fallback(c), mid, 1e-5f, what + " at 10 h");
+    source.setTimeOfDay(12.0f + 0.25f * 5.5f);
+    expectShNear(source.fallback(c), quarter, 1e-5f, what + " at 13.375 h");
+    // Outside the keys: clamped to the first / last.
+    source.setTimeOfDay(6.0f);
+    expectShNear(source.fallback(c), k8, 1e-6f, what + " at 6 h");
+    source.setTimeOfDay(23.0f);
+    expectShNear(source.fallback(c), k175, 1e-6f, what + " at 23 h");
+    // The keys really differ (k17.5 = 3 x k8 here), so the checks above can fail.
+    EXPECT_NEAR(k175.c[0].x, 3.0f * k8.c[0].x, 3e-3f * k175.c[0].x) << what;
+    // The free function agrees with the source.
+    expectShNear(cellFileFallback(file, 10.0f, 0.0f), mid, 1e-5f, what + " cellFileFallback at 10 h");
+  }
+  // A world of one-key files: the fallback does not move.
+  CellFileSource oneKey(options(makeWorld("one_key")));
+  EXPECT_FALSE(oneKey.fallbackFollowsTimeOfDay());
+  oneKey.setTimeOfDay(6.0f);
+  const ShL1 a = oneKey.fallback({1, 0});
+  oneKey.setTimeOfDay(20.0f);
+  const ShL1 b = oneKey.fallback({1, 0});
+  for (int k = 0; k < 4; ++k) EXPECT_EQ(a.c[size_t(k)], b.c[size_t(k)]);
+}
+
+TEST(CellFileSource, FallbackKeysWithOvercastUseTheSourcesWeather) {
+  // Keys 8 h, 12 h clear and 12 h overcast 1: a clear source interpolates the clear keys, an overcast
+  // source has only the overcast key (constant).
+  const fs::path world = makeWorld("overcast_keys");
+  CellFile c = makeCell(1, 0);
+  const std::vector<uint16_t> one = c.fallback.shHalf;
+  c.fallback.keyHours = {8.0f, 12.0f, 12.0f};
+  c.fallback.keyOvercast = {0.0f, 0.0f, 1.0f};
+  c.fallback.shHalf.clear();
+  for (float scale : {0.5f, 1.0f, 0.25f})
+    for (uint16_t h : one) c.fallback.shHalf.push_back(floatToHalfClamped(halfToFloat(h) * scale));
+  writeCellFile(cellFile(world, 1, 0), c);
+  CellFileSource clear(options(world));
+  CellFileSourceOptions o = options(world);
+  o.weather = 0.8f;
+  CellFileSource overcast(o);
+  const ShL1 k8 = storedKeySh(c, 0), k12 = storedKeySh(c, 1), k12o = storedKeySh(c, 2);
+  EXPECT_EQ(clear.info({1, 0}).fallbackKeys, 2);
+  EXPECT_EQ(overcast.info({1, 0}).fallbackKeys, 1);
+  clear.setTimeOfDay(10.0f);
+  overcast.setTimeOfDay(10.0f);
+  ShL1 mid;
+  for (int k = 0; k < 4; ++k) mid.c[size_t(k)] = 0.5f * (k8.c[size_t(k)] + k12.c[size_t(k)]);
+  expectShNear(clear.fallback({1, 0}), mid, 1e-5f, "clear at 10 h");
+  expectShNear(overcast.fallback({1, 0}), k12o, 1e-6f, "overcast at 10 h");
+}
+
+TEST(CellFileSource, MissingCellsGetTheirRingsMeanFallbackPerKey) {
+  const fs::path world = makeKeyedWorld("keys_missing");
+  fs::remove(cellFile(world, 0, 2));
+  // (1, 2) is a version-1 file (one key, scale 1 at every hour): the ring mixes 3-key and 1-key cells.
+  const std::vector<detail::CellFileOverride> v1 = {{"lfgi_format_version", 1, ""},
+                                                    {"fallback_key_count", 0, "", true},
+                                                    {"fallback_key_hours", 0, "", true},
+                                                    {"fallback_key_overcast", 0, "", true}};
+  writeFileAtomic(cellFile(world, 1, 2), detail::encodeCellFileWithOverrides(makeCell(1, 2), v1));
+  CellFileSource source(options(world));
+  ASSERT_EQ(source.info({1, 2}).state, CellFileState::Valid) << source.info({1, 2}).error;
+  EXPECT_EQ(source.info({1, 2}).fallbackKeys, 1);
+  EXPECT_EQ(source.validCells(), 8);
+  // Cell (0, 2)'s ring: (0, 1), (1, 1) (3 keys) and (1, 2) (version 1: one key).
+  const CellFile a = makeKeyedCell(0, 1), b = makeKeyedCell(1, 1), v = makeCell(1, 2);
+  for (float h : {6.0f, 8.0f, 10.0f, 12.0f, 15.0f, 17.5f, 20.0f}) {
+    source.setTimeOfDay(h);
+    const ShL1 fa = cellFileFallback(a, h, 0.0f), fb = cellFileFallback(b, h, 0.0f), fv = cellFileFallback(v, h, 0.0f);
+    ShL1 mean;
+    for (int k = 0; k < 4; ++k) mean.c[size_t(k)] = (fa.c[size_t(k)] + fb.c[size_t(k)] + fv.c[size_t(k)]) / 3.0f;
+    expectShNear(source.fallback({0, 2}), mean, 1e-5f, fmt::format("missing cell at {} h", h));
+    // The version-1 cell: its one key at every hour.
+    expectShNear(source.fallback({1, 2}), storedKeySh(v, 0), 1e-6f, fmt::format("version-1 cell at {} h", h));
+  }
+  source.setTimeOfDay(8.0f);
+  const ShL1 morning = source.fallback({0, 2});
+  source.setTimeOfDay(17.5f);
+  EXPECT_GT(source.fallback({0, 2}).c[0].x, 1.5f * morning.c[0].x);  // it moves with the keys
+}
+
+TEST(CellFileSource, ShOnlyCellsDecodeAndRelightAtTheTimeOfDay) {
+  const fs::path world = makeKeyedWorld("keys_decode");
+  CellFileSource source(options(world));
+  const glm::ivec2 c{1, 0};  // SH-only per cell
+  ASSERT_FALSE(source.info(c).network);
+  source.setTimeOfDay(8.0f);
+  ProbeField morning, evening, relit;
+  source.load(c, morning);
+  source.setTimeOfDay(17.5f);
+  source.load(c, evening);
+  // Probe 0's irradiance = shIrradiance of the fallback at that time (what a decode holds), checked at
+  // its brightest texel.
+  const int m = morning.irradianceResolution;
+  source.setTimeOfDay(8.0f);
+  const ShL1 f8 = source.fallback(c);
+  source.setTimeOfDay(17.5f);
+  const ShL1 f175 = source.fallback(c);
+  size_t best = 0;
+  for (size_t t = 0; t < size_t(m * m); ++t)
+    if (morning.irradiance[t * 3] > morning.irradiance[best * 3]) best = t;
+  const glm::vec3 dir = octTexelDirection(int(best % size_t(m)), int(best / size_t(m)), m);
+  const glm::vec3 e8 = glm::max(shIrradiance(f8, dir), glm::vec3(0.0f));
+  const glm::vec3 e175 = glm::max(shIrradiance(f175, dir), glm::vec3(0.0f));
+  ASSERT_GT(e8.x, 0.0f);
+  EXPECT_NEAR(morning.irradiance[best * 3], e8.x, 1e-5f * e8.x);
+  EXPECT_NEAR(evening.irradiance[best * 3], e175.x, 1e-5f * e175.x);
+  EXPECT_GT(evening.irradiance[best * 3], 2.0f * morning.irradiance[best * 3]);
+  // relightInto re-decodes it (no longer a copy of `current`): the same as a fresh load at that hour.
+  source.relightInto(c, morning, relit, 17.5f);
+  ASSERT_EQ(relit.irradiance.size(), evening.irradiance.size());
+  EXPECT_TRUE(sameBits(relit.irradiance.data(), evening.irradiance.data(), evening.irradiance.size()));
+  EXPECT_TRUE(sameBits(relit.radiance.data(), evening.radiance.data(), evening.radiance.size()));
+  // In place too.
+  ProbeField inPlace = morning;
+  EXPECT_TRUE(source.relight(c, inPlace, 17.5f));
+  EXPECT_TRUE(sameBits(inPlace.irradiance.data(), evening.irradiance.data(), evening.irradiance.size()));
+}
+
+StreamingConfig fileConfig(size_t cellBytes);
+
+TEST(CellFileStreaming, ManagerFallbackFollowsTheTimeOfDay) {
+  const fs::path world = makeKeyedWorld("keys_manager");
+  CellFileSource source(options(world));
+  StreamingManager m(source, fileConfig(source.maxCellBytes()));
+  // The camera in cell (0, 0); cell (2, 2)'s centre stays on its fallback (beyond the decode radius).
+  const glm::vec3 far(2.5f * kCell, 1.0f, 2.5f * kCell);
+  FrameInput in;
+  in.position = {8.0f, 10.0f, 8.0f};
+  in.dtSeconds = 0.1f;
+  in.timeOfDayHours = 8.0f;
+  m.update(in);
+  const IrradianceSample s8 = m.sample(far, {0, 1, 0});
+  ASSERT_EQ(s8.fallbackWeight, 1.0f);
+  in.timeOfDayHours = 17.5f;
+  m.update(in);
+  const IrradianceSample s175 = m.sample(far, {0, 1, 0});
+  ASSERT_EQ(s175.fallbackWeight, 1.0f);
+  // Every key is the 12 h SH scaled by 0.5 / 1 / 1.5: the evening fallback is 3x the morning one.
+  EXPECT_NEAR(s175.irradiance.x, 3.0f * s8.irradiance.x, 5e-3f * s175.irradiance.x);
+  source.setTimeOfDay(17.5f);
+  EXPECT_NEAR(s175.irradiance.y, shIrradiance(source.fallback({2, 2}), {0, 1, 0}).y, 1e-4f * s175.irradiance.y);
 }
 
 StreamingConfig fileConfig(size_t cellBytes) {

@@ -4,8 +4,8 @@
 // the fly-through benchmark before cells are baked), and CellFileSource (streaming/cell_file_source.h:
 // baked OpenVDB cell files, generator or SH-only cells).
 //
-// Threading contract: layout(), fallback(), maxCellBytes() and setTimeOfDay() are called from the game
-// thread only;
+// Threading contract: layout(), fallback(), fallbackFollowsTimeOfDay(), maxCellBytes() and setTimeOfDay()
+// are called from the game thread only;
 // load() and relightInto() are called concurrently from the manager's IO threads (several at once, never
 // two for the same cell at the same time) and must be thread-safe; with ioThreads = 0 the manager calls
 // them on the game thread inside update(). load() throws lfgi::Error on a bad cell (the
@@ -46,7 +46,12 @@ class CellSource {
   virtual WorldLayout layout() const = 0;
   // Always-resident coarse representation: the cell's mean incident radiance as SH L1 (its irradiance
   // for normal n is shIrradiance(fallback, n)). A few dozen bytes per cell.
+  // May follow the time of day last set (setTimeOfDay): see fallbackFollowsTimeOfDay.
   virtual ShL1 fallback(glm::ivec2 cell) const = 0;
+  // True when fallback() depends on the time of day set by setTimeOfDay (CellFileSource with several
+  // lighting keys): StreamingManager then re-reads every cell's fallback when the time of day moves.
+  // Default false (fallbacks read once). Game thread.
+  virtual bool fallbackFollowsTimeOfDay() const { return false; }
   // Upper bound of ProbeField::bytes() of any loaded cell: the size of one resident slot.
   virtual size_t maxCellBytes() const = 0;
   // Loads cell `cell` into `out`, reusing out's capacity (no allocation when it fits).

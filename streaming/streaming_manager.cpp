@@ -281,6 +281,13 @@ FrameStats StreamingManager::update(const FrameInput& in) {
   stats.frame = frame_;
   last_ = in;
   source_.setTimeOfDay(in.timeOfDayHours);
+  // A source whose fallback follows the time of day (CellFileSource's per-key SH): re-read the resident
+  // fallbacks when it moved (a cheap interpolation per cell, game thread; no allocation).
+  if (source_.fallbackFollowsTimeOfDay() && !(in.timeOfDayHours == fallbackTimeOfDay_)) {
+    for (int z = 0; z < layout_.cells.y; ++z)
+      for (int x = 0; x < layout_.cells.x; ++x) fallback_[size_t(layout_.linear({x, z}))] = source_.fallback({x, z});
+    fallbackTimeOfDay_ = in.timeOfDayHours;
+  }
   // Straight-line extrapolation, capped: on a curved path a long look-ahead lands off the path (at 400 m/s
   // on a 1.4 km radius loop, 2 s ahead is ~230 m off it) and would spend IO on cells never visited.
   glm::vec3 ahead = in.velocity * config_.prefetchSeconds;

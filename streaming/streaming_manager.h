@@ -27,7 +27,8 @@
 //      busy until the blend ends (counted in bytesResident), so relights per second are bounded by
 //      maxRelightsInFlight / relightFadeSeconds.
 // Every cell's coarse fallback (SH L1, CellSource::fallback) is resident from construction on, so a point
-// inside the world is never without GI. A cell whose load fails is logged, keeps its fallback and is
+// inside the world is never without GI; a source whose fallback follows the time of day
+// (CellSource::fallbackFollowsTimeOfDay) has it re-read by update() whenever FrameInput's time moves. A cell whose load fails is logged, keeps its fallback and is
 // never requested again.
 //
 // Seams: sample() interpolates across a cell border between the owning cell's last probe layer and the
@@ -50,6 +51,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <limits>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -220,6 +222,7 @@ class StreamingManager {
   StreamingConfig config_;
   WorldLayout layout_;
   std::vector<ShL1> fallback_;
+  float fallbackTimeOfDay_ = std::numeric_limits<float>::quiet_NaN();  // fallback_ read at (NaN: not since construction)
   std::vector<int32_t> cellSlot_;  // per cell: slot index or -1
   std::vector<uint8_t> failed_;    // per cell
   std::vector<Slot> slots_;

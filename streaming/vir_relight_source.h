@@ -97,6 +97,7 @@ class VirRelightSource final : public CellSource {
 
   WorldLayout layout() const override { return inner_.layout(); }
   ShL1 fallback(glm::ivec2 cell) const override { return inner_.fallback(cell); }
+  bool fallbackFollowsTimeOfDay() const override { return inner_.fallbackFollowsTimeOfDay(); }
   size_t maxCellBytes() const override { return inner_.maxCellBytes(); }
   void load(glm::ivec2 cell, ProbeField& out) override { inner_.load(cell, out); }
   void setTimeOfDay(float hours) override { inner_.setTimeOfDay(hours); }
