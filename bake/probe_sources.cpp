@@ -6,6 +6,7 @@
 
 #include "bake/path_trace.h"
 #include "bake/shading_inputs.h"
+#include "core/cell_fallback.h"
 #include "core/error.h"
 #include "core/generator_cpu.h"
 #include "core/half.h"
@@ -122,8 +123,8 @@ ProbeField codecProbeField(const CellFile& cell, const std::string& what, const 
     const int n = resolution;
     const size_t n2 = size_t(n) * size_t(n);
     if (cell.fallback.shHalf.size() < 12) fail("{}: the cell file has no SH L1 fallback", what);
-    ShL1 sh;
-    for (int k = 0; k < 12; ++k) sh.c[size_t(k / 3)][k % 3] = halfToFloat(cell.fallback.shHalf[size_t(k)]);
+    // The stored keys blended at this sky's time of day and overcast (as the streaming source decodes).
+    const ShL1 sh = cellFileFallback(cell, sky.state.timeOfDayHours, sky.state.overcast);
     std::vector<float> map(n2 * 3);
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < n; ++i) {

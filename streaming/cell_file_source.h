@@ -47,6 +47,7 @@
 #include <memory>
 #include <mutex>
 
+#include "core/cell_fallback.h"
 #include "core/cell_file.h"
 #include "streaming/cell_source.h"
 #include "streaming/generator_backend.h"
@@ -154,21 +155,6 @@ class CellFileSource final : public CellSource {
   std::vector<DecodeSample> samples_;
 };
 
-// Which stored fallback keys give the fallback at (timeOfDayHours, weather): the keys at the overcast
-// nearest to `weather` (ties: the lower overcast), of which the two bracketing timeOfDayHours, SH =
-// (1 - t) key a + t key b; before the first / after the last of them: that key alone (a = b, t = 0).
-struct FallbackKeyBlend {
-  size_t a = 0, b = 0;
-  float t = 0.0f;
-};
-FallbackKeyBlend fallbackKeyBlend(const CellFallback& fallback, float timeOfDayHours, float weather);
-// Entry `entry` (of `entries` per key) of the fallback blended between the keys.
-ShL1 fallbackEntry(const CellFallback& fallback, size_t entries, size_t entry, const FallbackKeyBlend& blend);
-
-// The cell's SH L1 fallback at (timeOfDayHours, weather): per key the per-cell entry, or the mean of the
-// per-probe entries, blended by fallbackKeyBlend (cell.fallback must be valid, as readCellFile
-// guarantees).
-ShL1 cellFileFallback(const CellFile& cell, float timeOfDayHours, float weather);
 // The keys cellFileFallback interpolates at `weather`: their hours (ascending) and cell SH.
 void cellFileFallbackKeys(const CellFile& cell, float weather, std::vector<float>& hours, std::vector<ShL1>& sh);
 // Linear interpolation between the keys (hours ascending) bracketing timeOfDayHours, clamped outside.
