@@ -1,9 +1,14 @@
 // Benchmark `flythrough`: the streaming manager over the 4096 m x 4096 m world (64 x 64 cells of 64 m)
-// along the closed loop path, at camera speeds from walking to aircraft, with a time-of-day sweep.
-// Cells: SyntheticCellSource (analytic light field, raw FP32 resident format, 8 m probe spacing, 3 layers,
-// 8 x 8 radiance / 4 x 4 irradiance maps) until baked codec cells exist: the benchmark measures the
-// streaming decisions, budgets and fallback coverage, not decode cost. IO model: inline loads, at most
-// `--loads-per-frame` cells per 60 fps frame (deterministic: identical decisions on every machine).
+// at camera speeds from walking to aircraft, with a time-of-day sweep.
+// Two sources:
+// - default: SyntheticCellSource (analytic light field, raw FP32 resident format, 8 m probe spacing, 3
+//   layers, 8 x 8 radiance / 4 x 4 irradiance maps) along the closed loop: the streaming decisions,
+//   budgets and fallback coverage, not decode cost. IO model: inline loads, at most `--loads-per-frame`
+//   cells per 60 fps frame (deterministic: identical decisions on every machine).
+// - `--world DIR` (bench/flythrough_baked.sh): the baked cell files of DIR (CellFileSource: read +
+//   checks + generator decode per load on `--io-threads` threads, relight = re-decode at the new time of
+//   day, fallback = the files' per-key SH L1) along `--path` (the bake's `lfgi bake --path`), frames paced
+//   to real time: what a game sees, decode cost included.
 // Rows: one per speed; frames.csv: every frame of the 50 m/s flight (the profile charts).
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
@@ -16,6 +21,7 @@
 #include "bench/bench_output.h"
 #include "core/error.h"
 #include "core/file_util.h"
+#include "streaming/cell_file_source.h"
 #include "streaming/flythrough.h"
 
 namespace {
@@ -36,44 +42,92 @@ int main(int argc, char** argv) {
   std::string out = "out/bench/flythrough";
   bool quick = false;
   int loadsPerFrame = 1;
-  double budgetMb = 96.0;
+  double budgetMb = 0.0;
+  std::string world, path, decoder = "auto";
+  std::vector<float> speeds;
+  int ioThreads = 2;
+  float seconds = 0.0f, decodeRadius = 0.0f;
   app.add_option("--out", out, "Output directory");
-  app.add_flag("--quick", quick, "20 s flights instead of 60 s");
-  app.add_option("--loads-per-frame", loadsPerFrame, "IO bandwidth: cells per 60 fps frame")->capture_default_str();
-  app.add_option("--budget-mb", budgetMb, "Resident memory budget, MB")->capture_default_str();
+  app.add_flag("--quick", quick, "20 s flights instead of 60 s (baked world: 15 s instead of 30 s)");
+  app.add_option("--loads-per-frame", loadsPerFrame, "Synthetic cells: IO bandwidth, cells per 60 fps frame")->capture_default_str();
+  app.add_option("--budget-mb", budgetMb, "Resident memory budget, MB (default 96; with --world 1024: every slot is the largest decoded cell, ~22.6 MB for a 15k-probe city cell in FP32)");
+  app.add_option("--world", world, "Fly over this world's baked cell files (DIR/baked/cells) instead of synthetic cells");
+  app.add_option("--path", path, "Path: loop or line (default: loop; with --world: line)")->check(CLI::IsMember({"loop", "line"}));
+  app.add_option("--speeds", speeds, "Camera speeds, m/s (default: 2 ... 1600; with --world: 10,25,50,100)")->delimiter(',');
+  app.add_option("--seconds", seconds, "Simulated seconds per flight (default: 60 / 20 quick; with --world 30 / 15)");
+  app.add_option("--io-threads", ioThreads, "With --world: IO threads reading + decoding cells")->check(CLI::Range(1, 64))->capture_default_str();
+  app.add_option("--decoder", decoder, "With --world: generator decode cpu, gpu or auto")->capture_default_str();
+  app.add_option("--decode-radius", decodeRadius, "Decode radius, m (default: the manager's 160; with --world 128 = the path bake's radius)");
   CLI11_PARSE(app, argc, argv);
   try {
+    const bool baked = !world.empty();
     bench::BenchOutput o(out, quick);
-    o.setDevice("cpu (streaming logic; synthetic cells)");
-    streaming::SyntheticSourceOptions src;
-    src.layout = {{0.0f, 0.0f}, 64.0f, {64, 64}};
-    src.probeSpacing = 8.0f;
-    src.layers = 3;
-    src.resolution = 8;
-    src.irradianceResolution = 4;
-    streaming::SyntheticCellSource source(src);
+    std::unique_ptr<streaming::CellSource> sourcePtr;
+    streaming::CellFileSource* files = nullptr;
+    if (baked) {
+      streaming::CellFileSourceOptions fso;
+      fso.worldDir = world;
+      fso.decoder = streaming::parseDecoderChoice(decoder);
+      auto f = std::make_unique<streaming::CellFileSource>(fso);
+      files = f.get();
+      sourcePtr = std::move(f);
+      o.setDevice(fmt::format("{} decode ({}), {} IO threads", files->selection().backend, files->selection().device, ioThreads));
+      if (path.empty()) path = "line";
+      if (speeds.empty()) speeds = {10, 25, 50, 100};
+      if (seconds <= 0.0f) seconds = quick ? 15.0f : 30.0f;
+      if (decodeRadius <= 0.0f) decodeRadius = 128.0f;
+      if (budgetMb <= 0.0) budgetMb = 1024.0;
+    } else {
+      o.setDevice("cpu (streaming logic; synthetic cells)");
+      streaming::SyntheticSourceOptions src;
+      src.layout = {{0.0f, 0.0f}, 64.0f, {64, 64}};
+      src.probeSpacing = 8.0f;
+      src.layers = 3;
+      src.resolution = 8;
+      src.irradianceResolution = 4;
+      sourcePtr = std::make_unique<streaming::SyntheticCellSource>(src);
+      if (path.empty()) path = "loop";
+      if (speeds.empty()) speeds = {2, 10, 25, 50, 100, 200, 400, 800, 1600};
+      if (seconds <= 0.0f) seconds = quick ? 20.0f : 60.0f;
+      if (budgetMb <= 0.0) budgetMb = 96.0;
+    }
+    streaming::CellSource& source = *sourcePtr;
+    const streaming::WorldLayout layout = source.layout();
     o.setColumns({"speed_mps", "frames", "frames_missing_gi", "fallback_fraction", "p50_frame_ms", "p95_frame_ms",
                   "p99_frame_ms", "p99_update_ms", "p99_io_ms", "p99_activate_ms", "p99_shade_ms",
-                  "peak_resident_mb", "cells_loaded", "cells_evicted", "cells_relit", "cells_loaded_per_km"});
-    const std::vector<float> speeds = {2, 10, 25, 50, 100, 200, 400, 800, 1600};
+                  "peak_resident_mb", "cells_loaded", "cells_evicted", "cells_relit", "cells_loaded_per_km",
+                  "p95_relight_io_ms", "cells_failed", "read_ms", "decode_ms"});
     float maxOk = 0.0f;
     bool stillOk = true;
     nlohmann::ordered_json at50;
     std::string frames50;
     for (float v : speeds) {
       streaming::FlythroughOptions fo;
+      fo.path = path;
       fo.speed = v;
-      fo.seconds = quick ? 20.0f : 60.0f;
-      fo.streaming.ioThreads = 0;
-      fo.streaming.maxInlineLoadsPerFrame = loadsPerFrame;
+      fo.seconds = seconds;
       fo.streaming.memoryBudgetBytes = size_t(budgetMb * 1024 * 1024);
+      if (decodeRadius > 0.0f) {
+        fo.streaming.decodeRadius = decodeRadius;
+        fo.streaming.keepRadius = 1.4f * decodeRadius;
+      }
+      if (baked) {
+        fo.streaming.ioThreads = ioThreads;
+        fo.realtime = true;  // loads and relights race the wall clock, as in a game
+      } else {
+        fo.streaming.ioThreads = 0;
+        fo.streaming.maxInlineLoadsPerFrame = loadsPerFrame;
+      }
+      const double read0 = files ? files->readMsTotal() : 0.0, decode0 = files ? files->decodeMsTotal() : 0.0;
       std::string csv;
       if (v == 50.0f)
-        csv = "frame,resident_cells,loading_cells,bytes_resident,update_ms,shade_ms,fallback_fraction\n";
+        csv = "frame,resident_cells,loading_cells,bytes_resident,update_ms,shade_ms,fallback_fraction,io_ms,"
+              "relight_ms,relight_io_ms,time_of_day\n";
       streaming::FlythroughSummary s = streaming::runFlythrough(source, fo, [&](const streaming::FlythroughFrame& f) {
         if (v == 50.0f)
-          csv += fmt::format("{},{},{},{},{:.4f},{:.4f},{:.5f}\n", f.index, f.stats.resident, f.stats.loading,
-                             f.stats.bytesResident, f.stats.updateMs, f.shadeMs, f.fallbackFraction());
+          csv += fmt::format("{},{},{},{},{:.4f},{:.4f},{:.5f},{:.3f},{:.4f},{:.3f},{:.4f}\n", f.index, f.stats.resident,
+                             f.stats.loading, f.stats.bytesResident, f.stats.updateMs, f.shadeMs, f.fallbackFraction(),
+                             f.stats.ioMs, f.stats.relightMs, f.stats.relightIoMs, f.timeOfDay);
       });
       if (s.interrupted) fail("interrupted");
       const double km = double(v) * fo.seconds / 1000.0;
@@ -82,7 +136,9 @@ int main(int argc, char** argv) {
                 bench::num(s.p99IoMs), bench::num(s.p99ActivateMs), bench::num(s.p99ShadeMs),
                 bench::num(double(s.peakBytesResident) / 1e6), bench::num(double(s.cellsRequested)),
                 bench::num(double(s.cellsEvicted)), bench::num(double(s.cellsRelit)),
-                bench::num(km > 0 ? double(s.cellsRequested) / km : 0.0)});
+                bench::num(km > 0 ? double(s.cellsRequested) / km : 0.0), bench::num(s.p95RelightIoMs),
+                bench::num(double(s.cellsFailed)), bench::num(files ? files->readMsTotal() - read0 : 0.0),
+                bench::num(files ? files->decodeMsTotal() - decode0 : 0.0)});
       spdlog::info("{:6.0f} m/s: fallback {:.3f} %, missing-GI frames {}, p99 frame {:.2f} ms, peak {:.1f} MB, {} cells",
                    v, 100.0 * s.fallbackFraction, s.framesMissingGi, s.p99FrameMs, double(s.peakBytesResident) / 1e6,
                    s.cellsRequested);
@@ -96,16 +152,26 @@ int main(int argc, char** argv) {
     }
     writeFileAtomic(std::filesystem::path(out) / "frames.csv", frames50);
     auto& j = o.summary();
-    j["world_km2"] = 4.096 * 4.096;
+    j["world_km2"] = double(layout.cells.x) * layout.cells.y * layout.cellSize * layout.cellSize / 1e6;
+    j["path"] = path;
+    j["path_km"] = streaming::flightPathLength(layout, streaming::FlythroughOptions{.path = path}) / 1000.0;
+    j["seconds_per_flight"] = seconds;
+    j["source"] = baked ? fmt::format("baked cell files of {} ({} valid, {} missing, {} corrupt)", world, files->validCells(),
+                                      files->missingCells(), files->corruptCells())
+                        : std::string("synthetic analytic cells");
     j["frames"] = at50["frames"];
     j["frames_missing_gi"] = at50["frames_missing_gi"];
     j["fallback_fraction"] = at50["fallback_fraction"];
     j["max_speed_mps_with_fallback_le_1pct"] = maxOk;
-    j["bytes_per_km2"] = double(source.maxCellBytes()) * (1e6 / (64.0 * 64.0));
-    j["bytes_per_km2_note"] = "synthetic cells in the raw FP32 resident format; codec bytes: bench codec";
+    if (!baked) {
+      j["bytes_per_km2"] = double(source.maxCellBytes()) * (1e6 / (64.0 * 64.0));
+      j["bytes_per_km2_note"] = "synthetic cells in the raw FP32 resident format; codec bytes: bench codec";
+    }
     j["p99_frame_ms"] = at50["p99_frame_ms"];
     j["peak_rss_mb"] = peakRssMb();
-    j["io_model"] = fmt::format("inline loads, {} cell(s) per 60 fps frame; budget {} MB", loadsPerFrame, budgetMb);
+    j["io_model"] = baked ? fmt::format("{} IO threads (read + checks + {} decode), frames paced to real time; budget {} MB",
+                                        ioThreads, files->selection().backend, budgetMb)
+                          : fmt::format("inline loads, {} cell(s) per 60 fps frame; budget {} MB", loadsPerFrame, budgetMb);
     o.save();
   } catch (const Error& e) {
     spdlog::error("{}", e.what());

@@ -1,9 +1,12 @@
 # Charts for `scripts/bench.sh flythrough`: fallback coverage vs camera speed (the accuracy side) next to
-# frame cost vs speed, and the 50 m/s flight frame by frame.
+# frame cost vs speed, and the 50 m/s flight frame by frame. bench/flythrough_baked.gp sets `chart` and
+# `heading` and loads this file (same columns).
+if (!exists("chart")) chart = 'flythrough'
+if (!exists("heading")) heading = 'Streaming fly-through, 16.8 km2 synthetic world, '
 set datafile separator ','
 set terminal pngcairo size 1200,800 font ',10' noenhanced
-set output dir.'/flythrough.png'
-set multiplot layout 2,2 title 'Streaming fly-through, 16.8 km2 synthetic world, '.device
+set output dir.'/'.chart.'.png'
+set multiplot layout 2,2 title heading.device
 set logscale x
 set xlabel 'camera speed (m/s)'
 set ylabel 'fallback fraction of visible samples (%)'
@@ -22,5 +25,8 @@ plot dir.'/frames.csv' every ::1 using 1:($4/1e6) with lines lw 2 title 'residen
 unset y2label
 unset y2tics
 set ylabel 'ms'
-plot dir.'/frames.csv' every ::1 using 1:5 with lines title 'update', '' every ::1 using 1:6 with lines title 'shade samples'
+set logscale y
+plot dir.'/frames.csv' every ::1 using 1:5 with lines title 'update (game thread)', '' every ::1 using 1:6 with lines title 'shade samples', \
+     '' every ::1 using 1:8 with impulses title 'load on IO thread (read + decode)', '' every ::1 using 1:10 with impulses title 'relight on IO thread'
+unset logscale y
 unset multiplot
