@@ -3,7 +3,7 @@
 # fly-through over BAKED cell files (issue 8): the 4096 m x 4096 m synthetic world (seed 1, 64 x 64 cells
 # of 64 m) baked only where the flight goes — `lfgi bake --path line --path-radius 128` (the cells within
 # 128 m of the west -> east line, 276 cells; the whole world, 4096 cells, is ~15x that and too slow for a
-# 2-core machine) — then lfgi_bench_flythrough --world at 10 / 25 / 50 / 100 m/s with a 6 -> 20 h sweep,
+# 2-core machine) — then lfgi_bench_flythrough --world at 2 / 10 / 25 / 50 / 100 m/s with a 6 -> 20 h sweep,
 # 2 IO threads reading + decoding cells, frames paced to real time (results.csv, frames.csv, summary.json).
 # Bake settings (fast, coarse: the benchmark measures streaming, bench codec measures the codec):
 # resolution 8, 4 spp, 2 bounces, keys 8,12,17.5, one generator candidate z4 C32 with 200 steps, error
@@ -54,6 +54,10 @@ s["bake"] = {"flags": flags, "cells": len(recs), "this_run_wall_s": bake_s,
              "cell_seconds_total": round(sum(r["seconds"]["total"] for r in recs), 1),
              "cells_with_network": sum(1 for r in recs if r.get("network")),
              "bytes_total": sum(r["bytes"] for r in recs)}
+cell_km2 = 0.064 * 0.064
+if recs:
+    s["bytes_per_km2"] = s["bake"]["bytes_total"] / (len(recs) * cell_km2)
+    s["bytes_per_km2_note"] = "cell files (all-in: weights, latents, fallback keys, OpenVDB metadata) over the baked cells' area"
 tmp = path + ".tmp"
 json.dump(s, open(tmp, "w"), indent=2)
 os.replace(tmp, path)
