@@ -406,6 +406,35 @@ void closeCheckpoint(bool interrupted, const std::filesystem::path& path, Save&&
   }
 }
 
+// The bookkeeping after each optimiser step, shared by both training loops: counts the step, every
+// evalEvery steps (and at the last) evaluates — false when the error is not finite (the caller restores
+// the last finite state and stops) — else keeps the finite state (keep()), reports, and sets `done` at
+// the target; then checkpoints (unless done) and moves the progress bar.
+struct StepState {
+  int& step;
+  int& stepsThisCall;
+  double& err;
+  bool& done;
+};
+template <typename Eval, typename Keep, typename Save>
+bool afterStep(const GeneratorTrainingOptions& o, const char* label, double loss, StepState st, Eval&& evaluate,
+               Keep&& keep, Save&& save, std::optional<Progress>& progress) {
+  ++st.step;
+  ++st.stepsThisCall;
+  if (st.step % o.evalEvery == 0 || st.step == o.maxSteps) {
+    st.err = evaluate();
+    if (!std::isfinite(st.err)) return false;
+    keep();
+    if (o.showProgress)
+      std::fprintf(stderr, "\n%s: step %d loss %.5f irradiance rel RMS %.4f (target %.4f)\n", label, st.step, loss,
+                   st.err, o.irradianceErrorTarget);
+    if (st.err <= o.irradianceErrorTarget) st.done = true;
+  }
+  if (!o.checkpoint.empty() && st.step % o.checkpointEvery == 0 && !st.done) save();
+  if (progress) progress->update(size_t(st.step));
+  return true;
+}
+
 std::vector<torch::Tensor> snapshotOf(const std::vector<torch::Tensor>& tensors) {
   std::vector<torch::Tensor> st;
   for (const torch::Tensor& t : tensors) st.push_back(t.detach().clone());
@@ -638,22 +667,11 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
     total.backward();
     opt.step();
     loss = total.item<double>();
-    ++step;
-    ++stepsThisCall;
-    if (step % o.evalEvery == 0 || step == o.maxSteps) {
-      err = evaluate();
-      if (!std::isfinite(err)) {
-        restoreLastFinite();
-        break;
-      }
-      lastFinite = snapshot();
-      if (o.showProgress)
-        std::fprintf(stderr, "\ntrain generator: step %d loss %.5f irradiance rel RMS %.4f (target %.4f)\n", step,
-                     loss, err, o.irradianceErrorTarget);
-      if (err <= o.irradianceErrorTarget) done = true;
+    if (!afterStep(o, "train generator", loss, {step, stepsThisCall, err, done}, evaluate,
+                   [&] { lastFinite = snapshot(); }, saveCheckpoint, progress)) {
+      restoreLastFinite();
+      break;
     }
-    if (!o.checkpoint.empty() && step % o.checkpointEvery == 0 && !done) saveCheckpoint();
-    if (progress) progress->update(size_t(step));
   }
   if (progress) progress->finish();
   closeCheckpoint(result.report.interrupted, o.checkpoint, saveCheckpoint);
@@ -853,22 +871,11 @@ SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const Ge
     total.backward();
     opt.step();
     loss = total.item<double>();
-    ++step;
-    ++stepsThisCall;
-    if (step % o.evalEvery == 0 || step == o.maxSteps) {
-      err = evaluate();
-      if (!std::isfinite(err)) {
-        restoreLastFinite();
-        break;
-      }
-      lastFinite = snapshotOf(trainable);
-      if (o.showProgress)
-        std::fprintf(stderr, "\n%s: step %d loss %.5f irradiance rel RMS %.4f (target %.4f)\n", label, step, loss,
-                     err, o.irradianceErrorTarget);
-      if (err <= o.irradianceErrorTarget) done = true;
+    if (!afterStep(o, label, loss, {step, stepsThisCall, err, done}, evaluate, [&] { lastFinite = snapshotOf(trainable); },
+                   saveCheckpoint, progress)) {
+      restoreLastFinite();
+      break;
     }
-    if (!o.checkpoint.empty() && step % o.checkpointEvery == 0 && !done) saveCheckpoint();
-    if (progress) progress->update(size_t(step));
   }
   if (progress) progress->finish();
   closeCheckpoint(result.report.interrupted, o.checkpoint, saveCheckpoint);
