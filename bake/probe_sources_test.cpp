@@ -115,15 +115,23 @@ TEST(ProbeSources, VirProbesRefuseBadInput) {
   EXPECT_FALSE(f.isActive(0));
 }
 
-TEST(ProbeSources, CodecProbesMatchTheCaptureWithinTheBakedError) {
-  const worlds::SyntheticWorld world(worlds::WorldParams{3, 64.0, 32.0});
+// The tiny bake both world-cell tests use (resolution 8, 2 spp, 1 bounce, 40 training steps).
+WorldBakeSettings tinyBakeSettings(const std::string& keys, double errorTarget) {
   WorldBakeSettings s;
   s.resolution = 8;
   s.spp = 2;
   s.bounces = 1;
   s.maxSteps = 40;
-  s.keys = "12:1";        // overcast: no sun disc, so the decoded field needs no disc subtraction and the
-  s.errorTarget = 0.001;  // error is the codec's alone; a target no SH meets forces a generator
+  s.keys = keys;
+  s.errorTarget = errorTarget;
+  return s;
+}
+
+TEST(ProbeSources, CodecProbesMatchTheCaptureWithinTheBakedError) {
+  const worlds::SyntheticWorld world(worlds::WorldParams{3, 64.0, 32.0});
+  // Overcast: no sun disc, so the decoded field needs no disc subtraction and the error is the codec's
+  // alone; a target no SH meets forces a generator.
+  const WorldBakeSettings s = tinyBakeSettings("12:1", 0.001);
   const worlds::CellCoord cell{1, 0};
   CellBakeInputs in = prepareCellBake(world, cell, s);
   const worlds::BuiltCell built = in.built;
@@ -157,13 +165,7 @@ TEST(ProbeSources, CodecProbesMatchTheCaptureWithinTheBakedError) {
 // --keys order, and streamed at the time of day (CellFileSource): real captures move between keys.
 TEST(WorldBake, FallbackHasOneShPerKeyAndStreamsWithTheTimeOfDay) {
   const worlds::SyntheticWorld world(worlds::WorldParams{3, 64.0, 32.0});
-  WorldBakeSettings s;
-  s.resolution = 8;
-  s.spp = 2;
-  s.bounces = 1;
-  s.maxSteps = 40;
-  s.keys = "17.5,8,12";
-  s.errorTarget = 1.0;  // SH L1 meets it: no training
+  const WorldBakeSettings s = tinyBakeSettings("17.5,8,12", 1.0);  // SH L1 meets the target: no training
   const worlds::CellCoord cell{1, 0};
   const CellFile cf = bakeCell(world, prepareCellBake(world, cell, s), s);
   ASSERT_EQ(cf.fallback.kind, CellFallback::Kind::PerCell);
