@@ -9,7 +9,7 @@
 #include <cmath>
 #include <limits>
 
-#include "bake/embree_scene.h"
+#include "bake/box_cell_test_util.h"
 #include "bake/generator_training.h"
 #include "core/generator.h"
 #include "core/probe_codecs.h"
@@ -20,25 +20,9 @@ namespace {
 // A box on a ground slab, 8 probes, keys 8, 12, 17.5 h (the bench's training keys).
 const GeneratorTrainingSet& threeKeyCell() {
   static const GeneratorTrainingSet set = [] {
-    worlds::TriangleMesh mesh;
-    worlds::Material ground, wall;
-    ground.albedo = glm::vec3(0.3f);
-    wall.albedo = glm::vec3(0.7f, 0.6f, 0.5f);
-    const uint32_t g = mesh.addMaterial(ground), w = mesh.addMaterial(wall);
-    mesh.addBox(glm::vec3(-30.0f, -1.0f, -30.0f), glm::vec3(30.0f, 0.0f, 30.0f), g);
-    mesh.addBox(glm::vec3(-2.0f, 0.0f, -2.0f), glm::vec3(2.0f, 6.0f, 2.0f), w);
-    const EmbreeScene scene(std::move(mesh), "stability cell");
-    std::vector<glm::vec3> positions;
-    for (float x : {-4.0f, 4.0f})
-      for (float z : {-4.0f, 4.0f})
-        for (float y : {1.0f, 4.0f}) positions.push_back(glm::vec3(x, y, z));
-    CaptureOptions o;
-    o.resolution = 8;
-    o.irradianceResolution = 4;
-    o.samplesPerTexel = 4;
-    o.maxBounces = 1;
     const LightingKeySpec keys[] = {{8.0f, 0.0f}, {12.0f, 0.0f}, {17.5f, 0.0f}};
-    return captureTrainingSet(scene, positions, glm::vec3(-4.0f, 1.0f, -4.0f), glm::vec3(4.0f, 4.0f, 4.0f), keys, o);
+    return test::boxOnGroundCell(glm::vec3(0.3f), glm::vec3(0.7f, 0.6f, 0.5f), glm::vec3(-2.0f, 0.0f, -2.0f),
+                                 glm::vec3(2.0f, 6.0f, 2.0f), keys, "stability cell");
   }();
   return set;
 }

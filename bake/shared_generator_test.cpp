@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <random>
 
+#include "bake/box_cell_test_util.h"
 #include "bake/generator_training.h"
 #include "core/error.h"
 #include "core/quantize.h"
@@ -17,27 +18,13 @@ namespace lfgi::bake {
 namespace {
 
 GeneratorTrainingSet tinyCell(int variant) {
-  worlds::TriangleMesh mesh;
-  worlds::Material ground, wall;
-  ground.albedo = glm::vec3(0.3f, 0.25f, 0.2f) + 0.1f * float(variant % 2);
-  wall.albedo = variant == 1 ? glm::vec3(0.2f, 0.5f, 0.7f) : glm::vec3(0.7f, 0.6f - 0.1f * float(variant), 0.5f);
-  const uint32_t g = mesh.addMaterial(ground), w = mesh.addMaterial(wall);
-  mesh.addBox(glm::vec3(-30.0f, -1.0f, -30.0f), glm::vec3(30.0f, 0.0f, 30.0f), g);
+  const glm::vec3 ground = glm::vec3(0.3f, 0.25f, 0.2f) + 0.1f * float(variant % 2);
+  const glm::vec3 wall = variant == 1 ? glm::vec3(0.2f, 0.5f, 0.7f) : glm::vec3(0.7f, 0.6f - 0.1f * float(variant), 0.5f);
   const float half = 1.5f + 0.5f * float(variant), height = 4.0f + 2.0f * float(variant);
   const glm::vec3 c(0.6f * float(variant) - 0.6f, 0.0f, 0.4f * float(variant));
-  mesh.addBox(c - glm::vec3(half, 0.0f, half), c + glm::vec3(half, height, half), w);
-  const EmbreeScene scene(std::move(mesh), "tiny shared cell");
-  std::vector<glm::vec3> positions;
-  for (float x : {-4.0f, 4.0f})
-    for (float z : {-4.0f, 4.0f})
-      for (float y : {1.0f, 4.0f}) positions.push_back(glm::vec3(x, y, z));
-  CaptureOptions o;
-  o.resolution = 8;
-  o.irradianceResolution = 4;
-  o.samplesPerTexel = 4;
-  o.maxBounces = 1;
   const LightingKeySpec keys[] = {{12.0f, 0.0f}};  // one time for every cell, as bench/codec
-  return captureTrainingSet(scene, positions, glm::vec3(-4.0f, 1.0f, -4.0f), glm::vec3(4.0f, 4.0f, 4.0f), keys, o);
+  return test::boxOnGroundCell(ground, wall, c - glm::vec3(half, 0.0f, half), c + glm::vec3(half, height, half), keys,
+                               "tiny shared cell");
 }
 
 // Cells 0..2 pre-train, cell 3 is held out.
