@@ -15,6 +15,12 @@ ShL1 shFromHalves(const uint16_t* h) {
   return sh;
 }
 
+ShL1 shLerp(const ShL1& a, const ShL1& b, float t) {
+  ShL1 out;
+  for (int k = 0; k < 4; ++k) out.c[size_t(k)] = a.c[size_t(k)] * (1.0f - t) + b.c[size_t(k)] * t;
+  return out;
+}
+
 FallbackKeyBlend fallbackKeyBlend(const CellFallback& f, float timeOfDayHours, float weather) {
   const size_t K = std::min(f.keyHours.size(), f.keyOvercast.size());
   if (K == 0) return {};
@@ -44,9 +50,7 @@ ShL1 fallbackEntry(const CellFallback& f, size_t entries, size_t entry, const Fa
   const ShL1 a = shFromHalves(f.shHalf.data() + (blend.a * entries + entry) * 12);
   if (blend.a == blend.b || blend.t == 0.0f) return a;
   const ShL1 b = shFromHalves(f.shHalf.data() + (blend.b * entries + entry) * 12);
-  ShL1 out;
-  for (int k = 0; k < 4; ++k) out.c[size_t(k)] = a.c[size_t(k)] * (1.0f - blend.t) + b.c[size_t(k)] * blend.t;
-  return out;
+  return shLerp(a, b, blend.t);
 }
 
 size_t fallbackEntries(const CellFile& cell) {
@@ -75,9 +79,7 @@ ShL1 cellFileFallback(const CellFile& cell, float timeOfDayHours, float weather)
   const ShL1 a = cellKeySh(cell, entries, blend.a);
   if (blend.a == blend.b || blend.t == 0.0f) return a;
   const ShL1 b = cellKeySh(cell, entries, blend.b);
-  ShL1 out;
-  for (int k = 0; k < 4; ++k) out.c[size_t(k)] = a.c[size_t(k)] * (1.0f - blend.t) + b.c[size_t(k)] * blend.t;
-  return out;
+  return shLerp(a, b, blend.t);
 }
 
 }  // namespace lfgi

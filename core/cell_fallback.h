@@ -13,6 +13,8 @@ namespace lfgi {
 
 // 12 FP16 halves (core/sh.h ShL1 order, rgb innermost) -> ShL1.
 ShL1 shFromHalves(const uint16_t* h);
+// (1 - t) a + t b, coefficient by coefficient (the blend between two lighting keys).
+ShL1 shLerp(const ShL1& a, const ShL1& b, float t);
 
 // Which stored fallback keys give the fallback at (timeOfDayHours, weather): the keys at the overcast
 // nearest to `weather` (ties: the lower overcast), of which the two bracketing timeOfDayHours, SH =

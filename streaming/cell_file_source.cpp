@@ -139,9 +139,7 @@ ShL1 interpolateFallback(std::span<const float> hours, std::span<const ShL1> sh,
   while (hours[hi] < timeOfDayHours) ++hi;  // hours[hi - 1] < t <= hours[hi]
   if (hours[hi] == timeOfDayHours) return sh[hi];
   const float t = (timeOfDayHours - hours[hi - 1]) / (hours[hi] - hours[hi - 1]);
-  ShL1 out;
-  for (int k = 0; k < 4; ++k) out.c[size_t(k)] = sh[hi - 1].c[size_t(k)] * (1.0f - t) + sh[hi].c[size_t(k)] * t;
-  return out;
+  return shLerp(sh[hi - 1], sh[hi], t);
 }
 
 int decodedResolution(const CellFile& cell, int shOnlyResolution) {
