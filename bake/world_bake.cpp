@@ -73,25 +73,32 @@ std::vector<worlds::CellCoord> arrayShare(const std::vector<worlds::CellCoord>& 
 
 namespace {
 
+// Indices of `keys` (LightingKey or LightingKeySpec) in the order the cell file stores its fallback keys:
+// sorted by (hours, overcast), a key repeated in --keys once.
+template <typename Key>
+std::vector<size_t> fileKeyOrder(const std::vector<Key>& keys) {
+  std::vector<size_t> order(keys.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  auto less = [&](size_t a, size_t b) {
+    const Key &x = keys[a], &y = keys[b];
+    return x.timeOfDayHours < y.timeOfDayHours || (x.timeOfDayHours == y.timeOfDayHours && x.weather < y.weather);
+  };
+  std::stable_sort(order.begin(), order.end(), less);
+  order.erase(std::unique(order.begin(), order.end(), [&](size_t a, size_t b) { return !less(a, b); }), order.end());
+  return order;
+}
+
 // SH L1 radiance of the whole cell per lighting key: the mean of the probes' projections (FP16) of the
 // captured radiance maps, i.e. what the generator is trained on (sky, bounces and the capture's sun /
 // moon disc deposits), so the fallback at a key is comparable to the decoded cell there. Keys sorted by
 // (hours, overcast) as the cell file requires; a key repeated in --keys is stored once.
 CellFallback fallbackOf(const GeneratorTrainingSet& set) {
-  std::vector<size_t> order(set.keys.size());
-  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-  auto less = [&](size_t a, size_t b) {
-    const LightingKey &x = set.keys[a], &y = set.keys[b];
-    return x.timeOfDayHours < y.timeOfDayHours || (x.timeOfDayHours == y.timeOfDayHours && x.weather < y.weather);
-  };
-  std::stable_sort(order.begin(), order.end(), less);
   CellFallback f;
   f.kind = CellFallback::Kind::PerCell;
   f.keyHours.clear();
   f.keyOvercast.clear();
-  for (size_t i = 0; i < order.size(); ++i) {
-    if (i > 0 && !less(order[i - 1], order[i])) continue;  // a duplicate key
-    const LightingKey& key = set.keys[order[i]];
+  for (size_t i : fileKeyOrder(set.keys)) {
+    const LightingKey& key = set.keys[i];
     ShL1 mean;
     for (const ProbeCapture& p : key.probes) {
       ShL1 sh = shProject<4>(p.radiance, p.resolution);
@@ -109,17 +116,13 @@ CellFallback fallbackOf(const GeneratorTrainingSet& set) {
 CellFallback darkFallback(const std::vector<LightingKeySpec>& keys) {
   CellFallback f;
   f.kind = CellFallback::Kind::PerCell;
-  std::vector<std::pair<float, float>> sorted;
-  for (const LightingKeySpec& k : keys) sorted.emplace_back(k.timeOfDayHours, k.weather);
-  std::sort(sorted.begin(), sorted.end());
-  sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
   f.keyHours.clear();
   f.keyOvercast.clear();
-  for (auto [h, w] : sorted) {
-    f.keyHours.push_back(h);
-    f.keyOvercast.push_back(w);
+  for (size_t i : fileKeyOrder(keys)) {
+    f.keyHours.push_back(keys[i].timeOfDayHours);
+    f.keyOvercast.push_back(keys[i].weather);
   }
-  f.shHalf.assign(12 * sorted.size(), floatToHalfClamped(0.0f));
+  f.shHalf.assign(12 * f.keyHours.size(), floatToHalfClamped(0.0f));
   return f;
 }
 
@@ -136,13 +139,10 @@ uint64_t hashInputs(const worlds::SyntheticWorld& world, worlds::CellCoord c, co
   hasher.addValue(capture.resolution).addValue(capture.samplesPerTexel).addValue(capture.maxBounces);
   hasher.addValue(capture.seed).addValue(capture.maxDistance).add(settings.keys).addValue(settings.errorTarget);
   hasher.addValue(settings.maxSteps).addValue(settings.threads);
-  // Only when restricted, so the hashes of earlier bakes (all candidates) stay as they were.
-  if (!settings.modelWidths.empty() || !settings.modelLatents.empty()) {
-    hasher.add(std::string("models"));
-    for (int w : settings.modelWidths) hasher.addValue(w);
-    hasher.add(std::string("/"));
-    for (int z : settings.modelLatents) hasher.addValue(z);
-  }
+  hasher.add(std::string("models"));
+  for (int w : settings.modelWidths) hasher.addValue(w);
+  hasher.add(std::string("/"));
+  for (int z : settings.modelLatents) hasher.addValue(z);
   return hasher.digest();
 }
 

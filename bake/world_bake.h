@@ -49,8 +49,8 @@ struct WorldBakeSettings {
   int threads = 1;                    // training threads (1: bit-identical across processes)
   uint64_t seed = 1;
   // Restrict the generator search to these base widths C0 (of 8, 16, 32, 64) and stored latent sizes (of
-  // 4, 8, 16); empty: all (12 candidates). A km-scale path bake fixes one model (--model-widths 16
-  // --model-latents 4) to train one candidate per cell instead of up to 12. Enter the input hash only when set.
+  // 4, 8, 16); empty: all (12 candidates). A km-scale path bake fixes one model (--model-widths 32
+  // --model-latents 4) to train one candidate per cell instead of up to 12. Both enter the input hash.
   std::vector<int> modelWidths, modelLatents;
   // Throws lfgi::Error naming the bad setting (keys are parsed here too).
   void validate() const;
