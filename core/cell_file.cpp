@@ -1,134 +1,34 @@
 #include "core/cell_file.h"
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <cstring>
-#include <mutex>
-#include <sstream>
 
 #define XXH_INLINE_ALL
 #include <xxhash.h>
 
-#include <openvdb/io/Stream.h>
-#include <openvdb/openvdb.h>
-
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/vdb_container.h"
 
 namespace lfgi {
 
-static_assert(std::endian::native == std::endian::little, "cell files store little-endian blobs as memory images");
+using namespace vdbfile;  // this file is one of the container's two users
 
 namespace {
 
 constexpr char kMagic[] = "lfgi-cell";
-constexpr char kTrailerMagic[8] = {'L', 'F', 'G', 'I', 'C', 'E', 'L', 'L'};
-constexpr size_t kTrailerBytes = 24;
-constexpr char kBlobType[] = "lfgi_bytes";
+constexpr char kTrailerMagic[9] = "LFGICELL";
 constexpr char kGridName[] = "probes";
-// OpenVDB archive header: int64 magic, u32 file version, u32 x2 library version, u8 grid-offsets flag,
-// then the archive UUID as 36 ASCII characters (io/Archive.cc, writeHeader).
-constexpr size_t kUuidOffset = 21, kUuidChars = 36;
 constexpr size_t kShHalves = 12;  // SH L1: 4 coefficients x rgb
-
-void initOpenVdb() {
-  static std::once_flag once;
-  std::call_once(once, [] { openvdb::initialize(); });
-}
-
-// ---- little-endian blob helpers -------------------------------------------------------------------
-
-template <typename T>
-void appendPod(std::vector<uint8_t>& out, std::span<const T> values) {
-  const auto* p = reinterpret_cast<const uint8_t*>(values.data());
-  out.insert(out.end(), p, p + values.size_bytes());
-}
-
-// Reads typed arrays from a blob, each read checked against what is left.
-class BlobReader {
- public:
-  BlobReader(const std::vector<uint8_t>& bytes, std::string what) : bytes_(bytes), what_(std::move(what)) {}
-  template <typename T>
-  std::vector<T> read(size_t count) {
-    if (count > (bytes_.size() - pos_) / sizeof(T))
-      fail("{} ends after {} bytes, {} more needed", what_, bytes_.size(), count * sizeof(T) - (bytes_.size() - pos_));
-    std::vector<T> v(count);
-    if (count) std::memcpy(v.data(), bytes_.data() + pos_, count * sizeof(T));
-    pos_ += count * sizeof(T);
-    return v;
-  }
-  void finish() const {
-    if (pos_ != bytes_.size()) fail("{} holds {} bytes, {} expected", what_, bytes_.size(), pos_);
-  }
-
- private:
-  const std::vector<uint8_t>& bytes_;
-  std::string what_;
-  size_t pos_ = 0;
-};
-
-std::vector<uint8_t> encodeWeights(const QuantizedWeights& w) {
-  std::vector<uint8_t> out;
-  for (const QuantizedTensor& t : w.tensors) {
-    switch (t.encoding) {
-      case TensorEncoding::Float32: appendPod<float>(out, t.f32); break;
-      case TensorEncoding::Float16: appendPod<uint16_t>(out, t.f16); break;
-      case TensorEncoding::Int8PerChannel:
-        appendPod<float>(out, t.scales);
-        appendPod<int8_t>(out, t.codes);
-        break;
-    }
-  }
-  return out;
-}
-
-// The shapes come from a quantized model of the same arch (quantizeWeights of zeros gives them without
-// duplicating the layout rules).
-QuantizedWeights decodeWeights(const std::vector<uint8_t>& blob, const GeneratorArch& arch, WeightPrecision p,
-                               const std::string& what) {
-  GeneratorWeights zeros;
-  zeros.arch = arch;
-  size_t c0 = size_t(arch.convChannels.front());
-  zeros.linearWeight.assign(16 * c0 * size_t(arch.inputDim()), 0.0f);
-  zeros.linearBias.assign(16 * c0, 0.0f);
-  for (int i = 0; i < arch.layers(); ++i) {
-    size_t ci = size_t(arch.convChannels[size_t(i)]), co = size_t(arch.convChannels[size_t(i) + 1]);
-    zeros.convWeight.emplace_back(ci * co * 16, 0.0f);
-    zeros.convBias.emplace_back(co, 0.0f);
-  }
-  QuantizedWeights q = quantizeWeights(zeros, p);
-  BlobReader r(blob, what);
-  for (QuantizedTensor& t : q.tensors) {
-    size_t n = size_t(t.elements());
-    switch (t.encoding) {
-      case TensorEncoding::Float32: t.f32 = r.read<float>(n); break;
-      case TensorEncoding::Float16: t.f16 = r.read<uint16_t>(n); break;
-      case TensorEncoding::Int8PerChannel:
-        t.scales = r.read<float>(size_t(t.channels));
-        t.codes = r.read<int8_t>(n);
-        break;
-    }
-  }
-  r.finish();
-  q.validate();
-  return q;
-}
+// Written for cells that refer to a world's shared model; other cells are still written as version 2
+// (byte-identical to before, so readers of version 2 keep reading them).
+constexpr int kSharedRefVersion = 3;
 
 std::vector<uint8_t> encodeLatents(const QuantizedLatents& l) {
   std::vector<uint8_t> out;
   appendPod<float>(out, l.scales);
-  if (l.bits == 8) {
-    appendPod<int8_t>(out, l.codes);
-  } else {  // 4-bit two's complement, two per byte, low nibble first
-    for (size_t i = 0; i < l.codes.size(); i += 2) {
-      uint8_t lo = uint8_t(l.codes[i]) & 0xf;
-      uint8_t hi = i + 1 < l.codes.size() ? uint8_t(l.codes[i + 1]) & 0xf : 0;
-      out.push_back(uint8_t(lo | (hi << 4)));
-    }
-  }
+  appendCodes(out, l.codes, l.bits);
   return out;
 }
 
@@ -140,102 +40,33 @@ QuantizedLatents decodeLatents(const std::vector<uint8_t>& blob, int dim, int bi
   l.count = count;
   BlobReader r(blob, what);
   l.scales = r.read<float>(size_t(dim));
-  size_t n = size_t(count) * size_t(dim);
-  if (bits == 8) {
-    l.codes = r.read<int8_t>(n);
-  } else {
-    std::vector<uint8_t> packed = r.read<uint8_t>((n + 1) / 2);
-    l.codes.resize(n);
-    for (size_t i = 0; i < n; ++i) {
-      int v = (packed[i / 2] >> ((i % 2) * 4)) & 0xf;
-      l.codes[i] = int8_t(v >= 8 ? v - 16 : v);
-    }
-  }
+  l.codes = readCodes(r, size_t(count) * size_t(dim), bits);
   r.finish();
   l.validate(what);
   return l;
 }
 
-std::string hex64(uint64_t v) { return fmt::format("{:016x}", v); }
-
-uint64_t parseHex64(const std::string& s, const std::string& what) {
-  if (s.size() != 16 || !std::all_of(s.begin(), s.end(), [](char c) { return std::isxdigit(uint8_t(c)) != 0; }))
-    fail("{}: '{}' is not 16 hex digits", what, s);
-  return std::stoull(s, nullptr, 16);
-}
-
-std::string channelsText(const std::vector<int>& c) { return fmt::format("{}", fmt::join(c, ",")); }
-
-std::vector<int> parseChannels(const std::string& s, const std::string& what) {
-  std::vector<int> out;
-  size_t pos = 0;
-  while (pos <= s.size()) {
-    size_t end = s.find(',', pos);
-    if (end == std::string::npos) end = s.size();
-    std::string item = s.substr(pos, end - pos);
-    if (item.empty() || item.size() > 4 || !std::all_of(item.begin(), item.end(), [](char c) { return c >= '0' && c <= '9'; }))
-      fail("{}: '{}' is not a comma-separated list of channel counts", what, s);
-    out.push_back(std::stoi(item));
-    if (out.size() > 16) fail("{}: more than 16 entries", what);
-    pos = end + 1;
-  }
+// Adapter blob: its scales (2 x f32, none with 0 channels), then 2 x channels codes packed at its bits.
+std::vector<uint8_t> encodeAdapter(const QuantizedAdapter& a) {
+  std::vector<uint8_t> out;
+  appendPod<float>(out, a.scales);
+  appendCodes(out, a.codes, a.bits);
   return out;
 }
 
-const char* latentSourceName(LatentSource s) { return s == LatentSource::Stored ? "stored" : "position_fourier"; }
-
-// ---- typed access to file metadata --------------------------------------------------------------------
-
-class MetaReader {
- public:
-  MetaReader(const openvdb::MetaMap& m, const std::string& name) : m_(m), name_(name) {}
-
-  template <typename T>
-  T get(const char* field) const {
-    openvdb::Metadata::ConstPtr p = m_[field];
-    if (!p) fail("{}: field '{}' is missing", name_, field);
-    auto typed = std::dynamic_pointer_cast<const openvdb::TypedMetadata<T>>(p);
-    if (!typed) fail("{}: field '{}' has type {}, expected {}", name_, field, p->typeName(),
-                     openvdb::TypedMetadata<T>::staticTypeName());
-    return typed->value();
-  }
-  float getFinite(const char* field) const {
-    float v = get<float>(field);
-    if (!std::isfinite(v)) fail("{}: field '{}' is {} (must be finite)", name_, field, v);
-    return v;
-  }
-  double getFiniteDouble(const char* field) const {
-    double v = get<double>(field);
-    if (!std::isfinite(v)) fail("{}: field '{}' is {} (must be finite)", name_, field, v);
-    return v;
-  }
-  int64_t getInt(const char* field, int64_t lo, int64_t hi) const {
-    int64_t v;
-    openvdb::Metadata::ConstPtr p = m_[field];
-    if (p && p->typeName() == openvdb::Int32Metadata::staticTypeName()) v = get<int32_t>(field);
-    else v = get<int64_t>(field);
-    if (v < lo || v > hi) fail("{}: field '{}' = {} outside [{}, {}]", name_, field, v, lo, hi);
-    return v;
-  }
-  std::vector<uint8_t> blob(const char* field) const {
-    openvdb::Metadata::ConstPtr p = m_[field];
-    if (!p) fail("{}: field '{}' is missing", name_, field);
-    auto u = std::dynamic_pointer_cast<const openvdb::UnknownMetadata>(p);
-    if (!u || p->typeName() != kBlobType)
-      fail("{}: field '{}' has type {}, expected {}", name_, field, p->typeName(), kBlobType);
-    return u->value();
-  }
-  bool has(const char* field) const { return bool(m_[field]); }
-
- private:
-  const openvdb::MetaMap& m_;
-  const std::string& name_;
-};
-
-void putBlob(openvdb::MetaMap& m, const char* field, std::vector<uint8_t> bytes) {
-  openvdb::UnknownMetadata u(kBlobType);
-  u.setValue(bytes);
-  m.insertMeta(field, u);
+QuantizedAdapter decodeAdapter(const std::vector<uint8_t>& blob, const GeneratorArch& arch, int stages, int bits,
+                               int64_t channels, const std::string& what) {
+  QuantizedAdapter a;
+  a.stages = stages;
+  a.bits = bits;
+  a.channels = channels;
+  a.validateHeader(arch, what);
+  BlobReader r(blob, what);
+  a.scales = r.read<float>(channels > 0 ? 2 : 0);
+  a.codes = readCodes(r, size_t(2 * channels), bits);
+  r.finish();
+  a.validate(arch, what);
+  return a;
 }
 
 openvdb::Vec3s toVdb(glm::vec3 v) { return {v.x, v.y, v.z}; }
@@ -247,7 +78,8 @@ std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::Cell
   initOpenVdb();
   openvdb::MetaMap m;
   m.insertMeta("lfgi_magic", openvdb::StringMetadata(kMagic));
-  m.insertMeta("lfgi_format_version", openvdb::Int32Metadata(kCellFileVersion));
+  const bool sharedRef = cell.generator && cell.generator->shared;
+  m.insertMeta("lfgi_format_version", openvdb::Int32Metadata(sharedRef ? kSharedRefVersion : 2));
   m.insertMeta("world_seed", openvdb::StringMetadata(hex64(cell.worldSeed)));
   m.insertMeta("cell_x", openvdb::Int32Metadata(cell.cellX));
   m.insertMeta("cell_z", openvdb::Int32Metadata(cell.cellZ));
@@ -262,14 +94,18 @@ std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::Cell
   if (cell.generator) {
     const CellGenerator& g = *cell.generator;
     const GeneratorArch& a = g.weights.arch;
-    m.insertMeta("model", openvdb::StringMetadata("network"));
-    m.insertMeta("generator_latent_dim", openvdb::Int32Metadata(a.latentDim));
-    m.insertMeta("generator_cond_dim", openvdb::Int32Metadata(a.condDim));
-    m.insertMeta("generator_conv_channels", openvdb::StringMetadata(channelsText(a.convChannels)));
-    m.insertMeta("generator_latent_source", openvdb::StringMetadata(latentSourceName(a.latentSource)));
-    m.insertMeta("generator_fourier_octaves", openvdb::Int32Metadata(a.fourierOctaves));
-    m.insertMeta("generator_weight_precision", openvdb::StringMetadata(weightPrecisionName(g.weights.precision)));
-    putBlob(m, "generator_weights", encodeWeights(g.weights));
+    m.insertMeta("model", openvdb::StringMetadata(sharedRef ? "shared" : "network"));
+    putArch(m, a, g.weights.precision);
+    if (sharedRef) {  // version 3: the world's shared model + this cell's adapter
+      const QuantizedAdapter& ad = g.shared->adapter;
+      m.insertMeta("shared_model_hash", openvdb::StringMetadata(hex64(g.shared->modelHash)));
+      m.insertMeta("adapter_stages", openvdb::Int32Metadata(ad.stages));
+      m.insertMeta("adapter_bits", openvdb::Int32Metadata(ad.bits));
+      m.insertMeta("adapter_channels", openvdb::Int64Metadata(ad.channels));
+      putBlob(m, "adapter", encodeAdapter(ad));
+    } else {
+      putBlob(m, "generator_weights", encodeWeights(g.weights));
+    }
     if (a.latentSource == LatentSource::Stored) {
       m.insertMeta("latent_bits", openvdb::Int32Metadata(g.latents.bits));
       m.insertMeta("latent_count", openvdb::Int64Metadata(g.latents.count));
@@ -295,27 +131,7 @@ std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::Cell
   m.insertMeta("training_seconds", openvdb::DoubleMetadata(cell.stats.trainingSeconds));
   m.insertMeta("bake_model", openvdb::StringMetadata(cell.stats.model));
 
-  for (const detail::CellFileOverride& o : overrides) {
-    openvdb::Metadata::Ptr p = m[o.field];
-    if (p) m.removeMeta(o.field);
-    if (o.erase) continue;
-    if (p && p->typeName() == openvdb::Int32Metadata::staticTypeName())
-      m.insertMeta(o.field, openvdb::Int32Metadata(int32_t(o.intValue)));
-    else if (p && p->typeName() == openvdb::StringMetadata::staticTypeName())
-      m.insertMeta(o.field, openvdb::StringMetadata(o.text));
-    else if (p && p->typeName() == openvdb::Vec3IMetadata::staticTypeName()) {
-      openvdb::Vec3i v(0, 0, 0);
-      if (std::sscanf(o.text.c_str(), "%d,%d,%d", &v[0], &v[1], &v[2]) != 3) fail("override {}: expected X,Y,Z", o.field);
-      m.insertMeta(o.field, openvdb::Vec3IMetadata(v));
-    } else if (p && p->typeName() == kBlobType)
-      putBlob(m, o.field.c_str(), std::vector<uint8_t>(o.text.begin(), o.text.end()));
-    else if (p && !o.text.empty() && p->typeName() == openvdb::FloatMetadata::staticTypeName())  // "nan", "-1.5"
-      m.insertMeta(o.field, openvdb::FloatMetadata(std::strtof(o.text.c_str(), nullptr)));
-    else if (p && !o.text.empty() && p->typeName() == openvdb::DoubleMetadata::staticTypeName())
-      m.insertMeta(o.field, openvdb::DoubleMetadata(std::strtod(o.text.c_str(), nullptr)));
-    else
-      m.insertMeta(o.field, openvdb::Int64Metadata(o.intValue));
-  }
+  applyOverrides(m, overrides);
 
   openvdb::MaskGrid::Ptr grid = openvdb::MaskGrid::create();
   grid->setName(kGridName);
@@ -332,32 +148,7 @@ std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::Cell
     }
   }
 
-  std::ostringstream os(std::ios::binary);
-  try {
-    openvdb::io::Stream stream(os);
-    stream.setCompression(openvdb::io::COMPRESS_ACTIVE_MASK);
-    stream.write(openvdb::GridCPtrVec{grid}, m);
-  } catch (const openvdb::Exception& e) {
-    fail("encodeCellFile: OpenVDB: {}", e.what());
-  }
-  std::string s = os.str();
-
-  // Deterministic archive UUID (OpenVDB draws a random one per write): derived from everything after it.
-  if (s.size() < kUuidOffset + kUuidChars || s[kUuidOffset + 8] != '-' || s[kUuidOffset + 13] != '-')
-    fail("encodeCellFile: OpenVDB header layout is not the expected one (archive UUID not at byte {})", kUuidOffset);
-  XXH128_hash_t h = XXH3_128bits(s.data() + kUuidOffset + kUuidChars, s.size() - kUuidOffset - kUuidChars);
-  std::string hex = fmt::format("{:016x}{:016x}", h.high64, h.low64);
-  std::string uuid = hex.substr(0, 8) + "-" + hex.substr(8, 4) + "-" + hex.substr(12, 4) + "-" + hex.substr(16, 4) +
-                     "-" + hex.substr(20, 12);
-  s.replace(kUuidOffset, kUuidChars, uuid);
-
-  std::vector<std::byte> out(s.size() + kTrailerBytes);
-  std::memcpy(out.data(), s.data(), s.size());
-  uint64_t length = s.size(), sum = XXH3_64bits(s.data(), s.size());
-  std::memcpy(out.data() + s.size(), kTrailerMagic, 8);
-  std::memcpy(out.data() + s.size() + 8, &length, 8);
-  std::memcpy(out.data() + s.size() + 16, &sum, 8);
-  return out;
+  return vdbfile::seal(openvdb::GridCPtrVec{grid}, m, kTrailerMagic, "encodeCellFile");
 }
 
 }  // namespace
@@ -386,12 +177,26 @@ void CellFile::validate(const std::string& what) const {
   if (!std::isfinite(outputScale.range) || outputScale.range <= 0.0f)
     fail("{}: range {} must be finite and > 0", what, outputScale.range);
   if (generator) {
-    try {
-      generator->weights.validate();
-    } catch (const Error& e) {
-      fail("{}: generator weights: {}", what, e.what());
-    }
     const GeneratorArch& a = generator->weights.arch;
+    if (generator->shared) {
+      try {
+        a.validate();
+      } catch (const Error& e) {
+        fail("{}: shared model architecture: {}", what, e.what());
+      }
+      if (generator->shared->modelHash == 0) fail("{}: shared model hash is 0 (no model has it)", what);
+      if (!generator->weights.tensors.empty())
+        fail("{}: a cell that refers to a shared model holds {} weight tensors of its own", what,
+             generator->weights.tensors.size());
+      if (a.latentSource != LatentSource::Stored) fail("{}: a shared-model cell needs stored latents", what);
+      generator->shared->adapter.validate(a, what + ": adapter");
+    } else {
+      try {
+        generator->weights.validate();
+      } catch (const Error& e) {
+        fail("{}: generator weights: {}", what, e.what());
+      }
+    }
     const QuantizedLatents& l = generator->latents;
     if (a.latentSource == LatentSource::Stored) {
       l.validate(what + ": latents");
@@ -445,41 +250,10 @@ std::vector<std::byte> detail::encodeCellFileWithOverrides(const CellFile& cell,
 }
 
 CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& name, CellFileBytes* bytesByPart) {
-  // 1. Envelope: size, trailer, checksum. Nothing below trusts a byte that failed these.
-  if (bytes.size() > kCellFileMaxBytes)
-    fail("{}: {} bytes, more than the cell file limit {}", name, bytes.size(), kCellFileMaxBytes);
-  if (bytes.size() < kTrailerBytes + 8)
-    fail("{}: truncated or not a cell file ({} bytes, too short for the OpenVDB header and trailer)", name, bytes.size());
-  const std::byte* tail = bytes.data() + bytes.size() - kTrailerBytes;
-  uint64_t length = 0, sum = 0;
-  std::memcpy(&length, tail + 8, 8);
-  std::memcpy(&sum, tail + 16, 8);
-  if (std::memcmp(tail, kTrailerMagic, 8) != 0) {
-    int64_t vdbMagic = 0;
-    std::memcpy(&vdbMagic, bytes.data(), 8);
-    if (vdbMagic != openvdb::OPENVDB_MAGIC) fail("{}: not a cell file (no OpenVDB magic at the start)", name);
-    fail("{}: truncated or not a cell file (the 'LFGICELL' trailer is missing at the end)", name);
-  }
-  if (length != bytes.size() - kTrailerBytes)
-    fail("{}: truncated or padded: the trailer records {} bytes of OpenVDB data, the file holds {}", name, length,
-         bytes.size() - kTrailerBytes);
-  uint64_t actual = XXH3_64bits(bytes.data(), size_t(length));
-  if (actual != sum)
-    fail("{}: corrupt: checksum of the OpenVDB data is {:016x}, the trailer records {:016x}", name, actual, sum);
-
-  // 2. OpenVDB parse (the bytes are the ones our writer produced).
-  initOpenVdb();
-  openvdb::MetaMap::Ptr meta;
-  openvdb::GridPtrVecPtr grids;
-  try {
-    std::istringstream is(std::string(reinterpret_cast<const char*>(bytes.data()), size_t(length)), std::ios::binary);
-    openvdb::io::Stream stream(is, false);
-    meta = stream.getMetadata();
-    grids = stream.getGrids();
-  } catch (const std::exception& e) {
-    fail("{}: OpenVDB could not read the file: {}", name, e.what());
-  }
-  if (!meta || !grids) fail("{}: OpenVDB returned no metadata or grids", name);
+  // 1. Envelope (size, trailer, checksum), then 2. the OpenVDB parse of bytes our writer produced.
+  const OpenedStream opened = vdbfile::open(bytes, name, kTrailerMagic, kCellFileMaxBytes, "cell file");
+  const openvdb::MetaMap::Ptr& meta = opened.meta;
+  const openvdb::GridPtrVecPtr& grids = opened.grids;
 
   // 3. Fields, each checked on its own and against the others.
   MetaReader r(*meta, name);
@@ -544,34 +318,41 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
   // The model.
   std::string model = r.get<std::string>("model");
   CellFileBytes parts;
-  if (model == "network") {
-    GeneratorArch a;
-    a.latentDim = int(r.getInt("generator_latent_dim", 1, 256));
-    a.condDim = int(r.getInt("generator_cond_dim", 0, kConditioningDim));
-    a.convChannels = parseChannels(r.get<std::string>("generator_conv_channels"), name + ": generator_conv_channels");
-    std::string src = r.get<std::string>("generator_latent_source");
-    if (src == "stored") a.latentSource = LatentSource::Stored;
-    else if (src == "position_fourier") a.latentSource = LatentSource::PositionFourier;
-    else fail("{}: generator_latent_source '{}' is unknown (stored, position_fourier)", name, src);
-    a.fourierOctaves = int(r.getInt("generator_fourier_octaves", 0, 16));
-    try {
-      a.validate();
-    } catch (const Error& e) {
-      fail("{}: generator architecture: {}", name, e.what());
-    }
-    std::string prec = r.get<std::string>("generator_weight_precision");
-    WeightPrecision p;
-    if (prec == "fp16") p = WeightPrecision::Float16;
-    else if (prec == "int8") p = WeightPrecision::Int8;
-    else fail("{}: generator_weight_precision '{}' is unknown (fp16, int8)", name, prec);
+  if (model == "network" || model == "shared") {
+    if (model == "shared" && version < kSharedRefVersion)
+      fail("{}: a version-{} cell file refers to a shared model (version {} and later only)", name, version,
+           kSharedRefVersion);
+    const auto [a, p] = readArch(r);
     CellGenerator g;
-    std::vector<uint8_t> wb = r.blob("generator_weights");
-    try {
-      g.weights = decodeWeights(wb, a, p, "generator_weights");
-    } catch (const Error& e) {
-      fail("{}: {}", name, e.what());
+    if (model == "shared") {
+      if (r.has("generator_weights")) fail("{}: a shared-model cell holds its own 'generator_weights'", name);
+      CellSharedModelRef ref;
+      ref.modelHash = parseHex64(r.get<std::string>("shared_model_hash"), name + ": shared_model_hash");
+      if (ref.modelHash == 0) fail("{}: shared_model_hash is 0 (no model has it)", name);
+      const int stages = int(r.getInt("adapter_stages", 0, a.layers() + 1));
+      const int bits = int(r.getInt("adapter_bits", 4, 8));
+      const int64_t channels = r.getInt("adapter_channels", 0, 1 << 16);
+      std::vector<uint8_t> ab = r.blob("adapter");
+      try {
+        ref.adapter = decodeAdapter(ab, a, stages, bits, channels, "adapter");
+      } catch (const Error& e) {
+        fail("{}: {}", name, e.what());
+      }
+      parts.adapter = ab.size();
+      g.weights.arch = a;
+      g.weights.precision = p;
+      g.shared = std::move(ref);
+    } else {
+      for (const char* f : {"shared_model_hash", "adapter"})
+        if (r.has(f)) fail("{}: a cell with its own weights holds field '{}' (shared-model cells only)", name, f);
+      std::vector<uint8_t> wb = r.blob("generator_weights");
+      try {
+        g.weights = decodeWeights(wb, a, p, "generator_weights");
+      } catch (const Error& e) {
+        fail("{}: {}", name, e.what());
+      }
+      parts.weights = wb.size();
     }
-    parts.weights = wb.size();
     if (a.latentSource == LatentSource::Stored) {
       int bits = int(r.getInt("latent_bits", 4, 8));
       if (bits != 4 && bits != 8) fail("{}: latent_bits = {} (supported: 8, 4)", name, bits);
@@ -590,7 +371,7 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
     }
     c.generator = std::move(g);
   } else if (model != "none") {
-    fail("{}: model '{}' is unknown (network, none)", name, model);
+    fail("{}: model '{}' is unknown (network, shared, none)", name, model);
   }
 
   std::string fk = r.get<std::string>("fallback_kind");
@@ -633,6 +414,7 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
 
   c.validate(name);
   parts.total = bytes.size();
+  parts.version = int(version);
   if (bytesByPart) *bytesByPart = parts;
   return c;
 }

@@ -32,9 +32,15 @@
 // Files are deterministic: the same CellFile gives the same bytes (OpenVDB's random archive UUID is
 // replaced by one derived from the content).
 //
-// Versions: 2 (written) stores one fallback SH L1 per bake lighting key; 1 (read only) stored one, the
-// bake's first key, and has no key fields: it reads as one key at 12 h, overcast 0 (its true hour is not
-// recorded; with one key the fallback is the same at every time of day).
+// Versions: 3 (written for cells that refer to a world's shared model, core/shared_model.h) stores,
+// instead of generator_weights, model "shared" with the shared model's architecture fields, its weights
+// hash (shared_model_hash, 16 hex digits, nonzero), the cell's quantized FiLM adapter (adapter_stages,
+// adapter_bits, adapter_channels and an "adapter" blob: 2 f32 scales, then the scale and shift codes
+// packed like the latents) and the cell's latents as before. Cells with their own weights (or none) are
+// still written as version 2, byte-identical to what earlier builds wrote. 2 stores one fallback SH L1
+// per bake lighting key; 1 (read only) stored one, the bake's first key, and has no key fields: it reads
+// as one key at 12 h, overcast 0 (its true hour is not recorded; with one key the fallback is the same at
+// every time of day). Fields of a later version in an earlier version's file are errors.
 #pragma once
 
 #include <cstddef>
@@ -52,7 +58,7 @@
 
 namespace lfgi {
 
-inline constexpr int kCellFileVersion = 2;        // written; versions 1 .. kCellFileVersion are read
+inline constexpr int kCellFileVersion = 3;        // newest written; versions 1 .. kCellFileVersion are read
 inline constexpr int kCellFileMaxFallbackKeys = 64;
 inline constexpr int64_t kCellFileMaxProbes = int64_t(1) << 22;     // per cell (~4 M)
 inline constexpr size_t kCellFileMaxBytes = size_t(1) << 30;         // 1 GiB
@@ -84,11 +90,21 @@ struct CellBakeStats {
 
 // The network part; absent in a "no network" cell (simple light fields: sky-only, uniform), whose
 // probes decode from the fallback alone.
+// Version 3: the cell's network is the world's shared model (core/shared_model.h, found by its weights
+// hash) with this cell's FiLM adapter folded in (core/generator.h applyAdapter).
+struct CellSharedModelRef {
+  uint64_t modelHash = 0;      // SharedModel::weightsHash() of the model the cell was fitted to; nonzero
+  QuantizedAdapter adapter;    // sizes checked against the cell's (= the shared model's) architecture
+};
+
 struct CellGenerator {
-  QuantizedWeights weights;  // includes the architecture
+  // The architecture and precision always; the tensors only for a cell with its own weights (empty when
+  // `shared` is set: the decoder weights come from resolveCellWeights, core/shared_model.h).
+  QuantizedWeights weights;
   // LatentSource::Stored: one row per active probe (count = active probes, dim = arch.latentDim).
-  // LatentSource::PositionFourier: empty (count 0).
+  // LatentSource::PositionFourier: empty (count 0). Shared-model cells always store latents.
   QuantizedLatents latents;
+  std::optional<CellSharedModelRef> shared;
 };
 
 struct CellFile {
@@ -110,11 +126,13 @@ struct CellFile {
 
 // Stored bytes by part (the numbers `lfgi inspect` prints).
 struct CellFileBytes {
-  size_t weights = 0;   // quantized weights + scales
+  size_t weights = 0;   // quantized weights + scales (0 for a shared-model cell: stored once per world)
+  size_t adapter = 0;   // a shared-model cell's adapter blob (scales + codes)
   size_t latents = 0;   // quantized latents + scales
   size_t fallback = 0;  // SH halves + the keys' hours and overcast
   size_t total = 0;     // whole file
-  size_t metadata() const { return total - weights - latents - fallback; }  // header, topology, fields
+  int version = 0;      // the file's format version
+  size_t metadata() const { return total - weights - adapter - latents - fallback; }  // header, topology, fields
 };
 
 // Encodes / decodes the file bytes. decodeCellFile's errors start with `name` (the path, usually).

@@ -283,8 +283,8 @@ struct BadFileCase {
 TEST(CellFile, IntactButWrongFilesNameTheProblem) {
   CellFile c = makeCell(Variant::Int8Latents8);
   const std::vector<BadFileCase> cases = {
-      {{{"lfgi_format_version", 99, ""}}, "cell file format version 99, this build reads versions 1 to 2"},
-      {{{"lfgi_format_version", 0, ""}}, "cell file format version 0, this build reads versions 1 to 2"},
+      {{{"lfgi_format_version", 99, ""}}, "cell file format version 99, this build reads versions 1 to 3"},
+      {{{"lfgi_format_version", 0, ""}}, "cell file format version 0, this build reads versions 1 to 3"},
       {{{"lfgi_magic", 0, "not-a-cell"}}, "lfgi_magic is 'not-a-cell'"},
       {{{"latent_count", int64_t(1) << 40, ""}}, "field 'latent_count' = 1099511627776 outside [0, 4194304]"},
       {{{"latent_count", 9, ""}}, "latent_count = 9, but the file has 10 probes"},

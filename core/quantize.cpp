@@ -290,6 +290,28 @@ size_t QuantizedAdapter::bytes() const {
   return 1 + scales.size() * 4 + (codes.size() * size_t(bits) + 7) / 8;
 }
 
+void QuantizedAdapter::validateHeader(const GeneratorArch& arch, const std::string& what) const {
+  if (stages < 0 || stages > arch.layers() + 1)
+    fail("{}: {} adapter stages, the model has {} (layers + 1)", what, stages, arch.layers() + 1);
+  if (channels != int64_t(adapterChannels(arch, stages)))
+    fail("{}: adapter of {} channels, {} stages of the model have {}", what, channels, stages,
+         adapterChannels(arch, stages));
+  if (bits != 8 && bits != 4) fail("{}: {} bits per adapter code (supported: 8, 4)", what, bits);
+}
+
+void QuantizedAdapter::validate(const GeneratorArch& arch, const std::string& what) const {
+  validateHeader(arch, what);
+  const size_t wantScales = channels > 0 ? 2 : 0;
+  if (scales.size() != wantScales) fail("{}: {} adapter scales, {} expected", what, scales.size(), wantScales);
+  if (codes.size() != size_t(2 * channels))
+    fail("{}: {} adapter codes for 2 x {} channels", what, codes.size(), channels);
+  const int m = maxCode(bits);
+  for (size_t i = 0; i < codes.size(); ++i)
+    if (codes[i] < -m || codes[i] > m) fail("{}: adapter code {} = {} outside [-{}, {}]", what, i, int(codes[i]), m, m);
+  for (size_t i = 0; i < scales.size(); ++i)
+    if (!std::isfinite(scales[i]) || scales[i] < 0.0f) fail("{}: adapter scale {} is {}", what, i, scales[i]);
+}
+
 QuantizedAdapter quantizeAdapter(const GeneratorAdapter& adapter, int bits) {
   if (adapter.scale.size() != adapter.shift.size())
     fail("quantizeAdapter: {} scale and {} shift floats", adapter.scale.size(), adapter.shift.size());

@@ -111,6 +111,12 @@ struct QuantizedAdapter {
 
   // Stored bytes: 1 (stages) + 4 per scale + ceil(2 * channels * bits / 8) packed codes.
   size_t bytes() const;
+  // Throws lfgi::Error(what + ": ...") unless stages is in [0, arch.layers() + 1], channels is
+  // adapterChannels(arch, stages), bits is 8 or 4, there are 2 scales (none with 0 channels), finite and
+  // >= 0, and 2 * channels codes in [-M, M].
+  void validate(const GeneratorArch& arch, const std::string& what) const;
+  // The stages / channels / bits part of validate alone (a reader checks it before sizing the arrays).
+  void validateHeader(const GeneratorArch& arch, const std::string& what) const;
 };
 QuantizedAdapter quantizeAdapter(const GeneratorAdapter& adapter, int bits = 8);
 GeneratorAdapter dequantizeAdapter(const QuantizedAdapter& adapter);
