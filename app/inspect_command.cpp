@@ -44,7 +44,7 @@ int runInspect(const InspectOptions& options) {
   if (options.json) {
     nlohmann::ordered_json j;
     j["file"] = options.file;
-    j["format_version"] = kCellFileVersion;
+    j["format_version"] = bytes.version;
     j["world_seed"] = fmt::format("{:016x}", c.worldSeed);
     j["cell"] = {c.cellX, c.cellZ};
     j["input_hash"] = fmt::format("{:016x}", c.inputHash);
@@ -63,6 +63,11 @@ int runInspect(const InspectOptions& options) {
                     {"latent_source", a.latentSource == LatentSource::Stored ? "stored" : "position_fourier"},
                     {"latent_bits", a.latentSource == LatentSource::Stored ? c.generator->latents.bits : 0},
                     {"weights", weightPrecisionName(c.generator->weights.precision)}};
+      if (c.generator->shared)
+        j["model"]["shared_model"] = {{"hash", fmt::format("{:016x}", c.generator->shared->modelHash)},
+                                      {"adapter_stages", c.generator->shared->adapter.stages},
+                                      {"adapter_bits", c.generator->shared->adapter.bits},
+                                      {"adapter_bytes", bytes.adapter}};
     } else {
       j["model"] = {{"network", false}};
     }
@@ -75,7 +80,7 @@ int runInspect(const InspectOptions& options) {
     }
     j["exposure"] = c.outputScale.exposure;
     j["range_m"] = c.outputScale.range;
-    j["bytes"] = {{"weights", bytes.weights},   {"latents", bytes.latents}, {"metadata", bytes.metadata()},
+    j["bytes"] = {{"weights", bytes.weights},   {"adapter", bytes.adapter}, {"latents", bytes.latents}, {"metadata", bytes.metadata()},
                   {"fallback", bytes.fallback}, {"total", bytes.total},     {"per_probe", perProbe}};
     j["error_achieved"] = c.stats.errorAchieved;
     j["error_target"] = c.stats.errorTarget;
@@ -86,9 +91,16 @@ int runInspect(const InspectOptions& options) {
   }
 
   std::printf("%s: cell (%d, %d) of world seed %016llx, cell file version %d, input hash %016llx\n",
-              options.file.c_str(), c.cellX, c.cellZ, static_cast<unsigned long long>(c.worldSeed), kCellFileVersion,
+              options.file.c_str(), c.cellX, c.cellZ, static_cast<unsigned long long>(c.worldSeed), bytes.version,
               static_cast<unsigned long long>(c.inputHash));
-  if (c.generator) {
+  if (c.generator && c.generator->shared) {
+    const CellSharedModelRef& ref = *c.generator->shared;
+    std::printf("model: world-shared %s generator %016llx (shared_model.vdb beside cells/), %s; FiLM adapter %d "
+                "stage(s), %d-bit, %zu bytes; latents %s\n",
+                weightPrecisionName(c.generator->weights.precision), static_cast<unsigned long long>(ref.modelHash),
+                archText(c.generator->weights.arch).c_str(), ref.adapter.stages, ref.adapter.bits, bytes.adapter,
+                latentText(c).c_str());
+  } else if (c.generator) {
     const GeneratorArch& a = c.generator->weights.arch;
     std::printf("model: %s generator, %s; latents %s\n", weightPrecisionName(c.generator->weights.precision),
                 archText(a).c_str(), latentText(c).c_str());
@@ -99,8 +111,8 @@ int runInspect(const InspectOptions& options) {
               static_cast<long long>(probes), static_cast<long long>(c.grid.probeCount()), c.grid.dims.x, c.grid.dims.y,
               c.grid.dims.z, double(c.grid.spacing.x), double(c.grid.spacing.y), double(c.grid.spacing.z),
               double(c.grid.origin.x), double(c.grid.origin.y), double(c.grid.origin.z));
-  std::printf("bytes: weights %zu, latents %zu, metadata %zu, fallback %zu (%s, FP16), total %zu (%.1f per probe)\n",
-              bytes.weights, bytes.latents, bytes.metadata(), bytes.fallback, fallbackKind, bytes.total, perProbe);
+  std::printf("bytes: weights %zu, adapter %zu, latents %zu, metadata %zu, fallback %zu (%s, FP16), total %zu (%.1f per probe)\n",
+              bytes.weights, bytes.adapter, bytes.latents, bytes.metadata(), bytes.fallback, fallbackKind, bytes.total, perProbe);
   std::string keys;
   for (size_t k = 0; k < c.fallback.keyCount(); ++k)
     keys += fmt::format("{}{} h{}", k ? ", " : "", c.fallback.keyHours[k],

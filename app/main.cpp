@@ -172,6 +172,9 @@ int main(int argc, char** argv) {
         ->delimiter(',')->check(CLI::IsMember({8, 16, 32, 64}));
     c->add_option("--model-latents", o.settings.modelLatents, "Generator search: only these latent sizes (4,8,16; default all)")
         ->delimiter(',')->check(CLI::IsMember({4, 8, 16}));
+    c->add_option("--codec", o.settings.codec, "per-cell (each cell its own smallest generator) or shared (one generator per world, OUT/shared_model.vdb; cells store latents + a FiLM adapter; --model-widths/--model-latents' first entries size it)")
+        ->check(CLI::IsMember({"per-cell", "shared"}))->capture_default_str();
+    c->add_option("--shared-steps", o.settings.sharedSteps, "--codec shared: pre-training steps of the shared generator")->check(CLI::Range(1, 1000000))->capture_default_str();
   };
   addBakeFlags(bakeCmd, bakeOpt);
   bakeCmd->add_flag("--reproducible", bakeOpt.reproducible, "No timings in the cell files (the default; training seconds 0, real ones in cells/cell_X_Z.json): byte-identical files for the same inputs");

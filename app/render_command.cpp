@@ -46,6 +46,7 @@
 #include "core/error.h"
 #include "core/image.h"
 #include "core/progress.h"
+#include "core/shared_model.h"
 #include "gpu/context.h"
 #include "worlds/gltf_io.h"
 #include "worlds/surfels.h"
@@ -271,12 +272,17 @@ int runRender(const RenderCommandOptions& opt) {
           res = cf.generator->weights.arch.outputResolution();
           break;
         }
+      std::optional<ResolvedSharedModel> shared;
       for (size_t j = 0; j < files.size(); ++j) {
         const CellFile& cf = files[j].second;
         if (cf.generator && cf.generator->weights.arch.outputResolution() != res)
           fail("{}: decodes {}x{} maps but another cell file decodes {}x{}", paths[j].string(),
                cf.generator->weights.arch.outputResolution(), cf.generator->weights.arch.outputResolution(), res, res);
-        ProbeField decoded = bake::codecProbeField(cf, paths[j].string(), scene, sky, res);
+        // A shared-model cell: the world's shared model beside its cells/ directory, read once.
+        if (cf.generator && cf.generator->shared && !shared)
+          shared = loadSharedModel(sharedModelPath(paths[j].parent_path().parent_path()));
+        ProbeField decoded = bake::codecProbeField(cf, paths[j].string(), scene, sky, res, 8, 1.0e4f,
+                                                   shared ? &*shared : nullptr);
         const size_t k = files[j].first;
         if (wantFallbacks) fallbacks[k] = bake::fieldFallback(decoded);
         spdlog::info("cell {},{}: decoded {} probes from {} ({}){}", cf.cellX, cf.cellZ, cf.activeProbeCount(),

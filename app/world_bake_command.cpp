@@ -5,12 +5,15 @@
 // skipped; a corrupt existing file is rebaked. Interruptible (Ctrl-C: exit 130; the cell in flight is
 // dropped, not written half-trained; a rerun resumes with it; tests/interrupt_bake.sh). Slurm: --array-index/--array-size
 // bake one contiguous share of the selected cells.
+// --codec shared: OUT/shared_model.vdb is pre-trained first (or reused when its input hash matches; an
+// interrupted pre-training resumes from OUT/shared_model.ckpt), then every cell is fitted against it.
 // Bookkeeping (bake/bake_records.h): cells/cell_X_Z.json per baked cell (kind, seconds by stage, bytes,
 // host, time), cells/cell_X_Z.failed per failed cell; a failed cell does not stop the others, the exit
 // code is 1 when any failed.
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -21,6 +24,8 @@
 #include "core/cell_file.h"
 #include "core/error.h"
 #include "core/progress.h"
+#include "core/quantize.h"
+#include "core/shared_model.h"
 #include "streaming/flythrough.h"
 #include "worlds/world_cells.h"
 
@@ -82,6 +87,22 @@ int runWorldBake(const WorldBakeOptions& opt) {
   fs::create_directories(out / "cells");
 
   InterruptGuard guard;
+  // --codec shared: the world's shared model first (reused when up to date; resumable pre-training).
+  std::optional<ResolvedSharedModel> shared;
+  if (settings.sharedCodec()) {
+    bool reused = false;
+    try {
+      const SharedModel m = bake::ensureSharedModel(world, settings, out, &reused);
+      shared = ResolvedSharedModel{dequantizeWeights(m.weights), m.weightsHash(), sharedModelPath(out).string()};
+      std::fprintf(stderr, "shared model %s: %s %016llx, %d steps on %s, mean irradiance error %.2f %%\n",
+                   shared->name.c_str(), reused ? "up to date" : "trained", static_cast<unsigned long long>(shared->hash),
+                   m.stats.steps, m.stats.cells.c_str(), 100.0 * m.stats.errorAchieved);
+    } catch (const Error& e) {
+      if (!InterruptGuard::interrupted()) throw;
+      std::fprintf(stderr, "\n%s\n", e.what());
+      return 130;
+    }
+  }
   Progress progress("bake", cells.size(), "cells");
   size_t done = 0, skipped = 0, networks = 0;
   size_t bytesTotal = 0;
@@ -97,7 +118,7 @@ int runWorldBake(const WorldBakeOptions& opt) {
       using Clock = std::chrono::steady_clock;
       const auto t0 = Clock::now();
       const fs::path file = bake::cellFilePath(out, c);
-      bake::CellBakeInputs inputs = bake::prepareCellBake(world, c, settings);
+      bake::CellBakeInputs inputs = bake::prepareCellBake(world, c, settings, shared ? shared->hash : 0);
       const double prepareSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
       std::string why;
       const bake::CellBakeState state = bake::cellBakeState(file, inputs.inputHash, &why);
@@ -114,7 +135,7 @@ int runWorldBake(const WorldBakeOptions& opt) {
       bake::CellBakeReport report;
       CellFile cf;
       try {
-        cf = bake::bakeCell(world, std::move(inputs), settings, &report);
+        cf = bake::bakeCell(world, std::move(inputs), settings, &report, shared ? &*shared : nullptr);
       } catch (const Error&) {
         if (!InterruptGuard::interrupted()) throw;
         // Interrupted mid-cell: that cell is not written (bakeCell throws rather than return a partial model).

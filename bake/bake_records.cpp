@@ -172,6 +172,7 @@ std::vector<CellStatusEntry> worldBakeStatus(const worlds::SyntheticWorld& world
                                              const WorldBakeSettings& settings, const fs::path& outDir, bool showProgress) {
   settings.validate();
   std::vector<CellStatusEntry> out(cells.size());
+  const uint64_t sharedHash = currentSharedModelHash(world, settings, outDir);  // 0: per-cell codec or none yet
   // The input hash builds the cell (probe placement) and its neighbours' meshes: the expensive part, so only
   // cells with a readable file pay it; a missing file needs no hash.
   const detail::ParallelWorkResult r =
@@ -195,7 +196,7 @@ std::vector<CellStatusEntry> worldBakeStatus(const worlds::SyntheticWorld& world
           e.detail = failure ? *failure : std::string(err.what());
           return;
         }
-        if (stored == cellInputHash(world, e.cell, settings)) {
+        if (stored == cellInputHash(world, e.cell, settings, sharedHash)) {
           e.status = CellStatus::Done;  // a failure marker beside an up-to-date file is left over
         } else if (failure) {
           e.status = CellStatus::Failed;

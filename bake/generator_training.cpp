@@ -1131,21 +1131,26 @@ NoNetwork fitNoNetwork(const GeneratorTrainingSet& set, CellModelKind kind) {
 
 }  // namespace
 
-CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const uint8_t> probeFlags,
-                                const ModelSizingOptions& options) {
-  const auto t0 = std::chrono::steady_clock::now();
+namespace {
+
+// The no-network part of chooseCellModel: the first of options.noNetworkKinds that meets the target, else
+// (all probes sky-only) the most accurate of them, else nullopt with the attempts recorded in `choice` and
+// the no-network fits in `fits` (chooseCellModel's last resort).
+std::optional<CellModelChoice> noNetworkChoice(const GeneratorTrainingSet& set, std::span<const uint8_t> probeFlags,
+                                               const ModelSizingOptions& options, CellModelChoice& choice,
+                                               std::chrono::steady_clock::time_point t0,
+                                               std::vector<CellModelChoice>& fits) {
   set.validate();
   if (!probeFlags.empty() && probeFlags.size() != set.probeCount())
     fail("chooseCellModel: {} probe flags for {} probes", probeFlags.size(), set.probeCount());
   const double target = options.irradianceErrorTarget;
-  CellModelChoice choice;
   choice.errorTarget = target;
 
   bool allSky = !probeFlags.empty();
   for (uint8_t f : probeFlags)
     if (!(f & worlds::kProbeDisabledSolid) && !(f & worlds::kProbeSkyOnly)) allSky = false;
 
-  std::vector<CellModelChoice> fits;
+  fits.clear();
   for (CellModelKind kind : options.noNetworkKinds) {
     if (kind == CellModelKind::kGenerator) fail("ModelSizingOptions.noNetworkKinds lists the generator");
     const auto ts = std::chrono::steady_clock::now();
@@ -1174,6 +1179,31 @@ CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const
       if (fits[i].error.irradianceRelativeRms < fits[best].error.irradianceRelativeRms) best = i;
     return finish(std::move(fits[best]));
   }
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<CellModelChoice> chooseNoNetworkModel(const GeneratorTrainingSet& set, std::span<const uint8_t> probeFlags,
+                                                    const ModelSizingOptions& options) {
+  CellModelChoice attempts;
+  std::vector<CellModelChoice> fits;
+  return noNetworkChoice(set, probeFlags, options, attempts, std::chrono::steady_clock::now(), fits);
+}
+
+CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const uint8_t> probeFlags,
+                                const ModelSizingOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  CellModelChoice choice;
+  std::vector<CellModelChoice> fits;
+  if (std::optional<CellModelChoice> c = noNetworkChoice(set, probeFlags, options, choice, t0, fits)) return std::move(*c);
+  const double target = options.irradianceErrorTarget;
+  auto finish = [&](CellModelChoice c) {
+    c.errorTarget = target;
+    c.attempts = std::move(choice.attempts);
+    c.trainingSeconds = secondsSince(t0);
+    return c;
+  };
 
   std::vector<GeneratorArch> candidates =
       options.candidates.empty() ? sizingCandidates(set.resolution(), options.latentSource) : options.candidates;

@@ -295,5 +295,10 @@ size_t generatorBytes(const GeneratorArch& arch, size_t probeCount);
 // (cheapest first), then the generator search.
 CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const uint8_t> probeFlags,
                                 const ModelSizingOptions& options);
+// The no-network step of chooseCellModel alone (no training): the choice it would return without a
+// network (a no-network model meets the target, or every probe is sky-only), else nullopt. The shared
+// codec (bake/world_bake.h) fits a cell to the world's shared model when this gives nullopt.
+std::optional<CellModelChoice> chooseNoNetworkModel(const GeneratorTrainingSet& set, std::span<const uint8_t> probeFlags,
+                                                    const ModelSizingOptions& options);
 
 }  // namespace lfgi::bake

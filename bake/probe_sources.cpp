@@ -55,7 +55,8 @@ ProbeField virProbeField(gpu::Context& ctx, std::span<const worlds::Surfel> surf
 }
 
 ProbeField codecProbeField(const CellFile& cell, const std::string& what, const EmbreeScene& scene,
-                           const worlds::SkyModel& sky, int resolution, int irradianceResolution, float missDistance) {
+                           const worlds::SkyModel& sky, int resolution, int irradianceResolution, float missDistance,
+                           const ResolvedSharedModel* shared) {
   cell.validate(what);
   if (irradianceResolution < 1 || irradianceResolution > 64)
     fail("{}: irradiance resolution {} outside [1, 64]", what, irradianceResolution);
@@ -70,7 +71,7 @@ ProbeField codecProbeField(const CellFile& cell, const std::string& what, const 
   if (activeIndex.empty()) fail("{}: the cell file holds no active probe", what);
 
   if (cell.generator) {
-    GeneratorCpu decoder(dequantizeWeights(cell.generator->weights));
+    GeneratorCpu decoder(resolveCellWeights(*cell.generator, shared, what));
     const GeneratorArch& arch = decoder.arch();
     f.resolution = arch.outputResolution();
     const size_t L = size_t(arch.latentDim);

@@ -25,6 +25,7 @@
 #include "bake/embree_scene.h"
 #include "core/cell_file.h"
 #include "core/probe_field.h"
+#include "core/shared_model.h"
 #include "gpu/context.h"
 #include "worlds/mesh.h"
 #include "worlds/sky.h"
@@ -62,8 +63,10 @@ ProbeField virProbeField(gpu::Context& ctx, std::span<const worlds::Surfel> surf
 // cell (a network cell decodes at its model's size). scene: the capture scene of the cell (its mesh and
 // neighbours'), for the disc visibility. Throws lfgi::Error naming `what` when the
 // file holds no probes or the model cannot emit a ProbeField.
+// shared: the world's shared model for a shared-model (version 3) cell (core/shared_model.h
+// resolveCellWeights; its errors name the cell and the model file), null for other cells.
 ProbeField codecProbeField(const CellFile& cell, const std::string& what, const EmbreeScene& scene,
                            const worlds::SkyModel& sky, int resolution, int irradianceResolution = 8,
-                           float missDistance = 1.0e4f);
+                           float missDistance = 1.0e4f, const ResolvedSharedModel* shared = nullptr);
 
 }  // namespace lfgi::bake

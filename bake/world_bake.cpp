@@ -6,6 +6,8 @@
 
 #include <fmt/format.h>
 
+#include "core/quantize.h"
+
 #include "bake/embree_scene.h"
 #include "core/error.h"
 #include "core/half.h"
@@ -26,6 +28,8 @@ void WorldBakeSettings::validate() const {
     if (w != 8 && w != 16 && w != 32 && w != 64) fail("bake model width {}: expected 8, 16, 32 or 64", w);
   for (int z : modelLatents)
     if (z != 4 && z != 8 && z != 16) fail("bake model latent size {}: expected 4, 8 or 16", z);
+  if (codec != "per-cell" && codec != "shared") fail("bake codec '{}': expected per-cell or shared", codec);
+  if (sharedSteps < 1) fail("bake shared steps {} >= 1 required", sharedSteps);
   (void)parseLightingKeys(keys);
 }
 
@@ -127,7 +131,7 @@ CellFallback darkFallback(const std::vector<LightingKeySpec>& keys) {
 }
 
 uint64_t hashInputs(const worlds::SyntheticWorld& world, worlds::CellCoord c, const worlds::BuiltCell& cell,
-                    const uint64_t (&neighbours)[9], const WorldBakeSettings& settings) {
+                    const uint64_t (&neighbours)[9], const WorldBakeSettings& settings, uint64_t sharedModelHash) {
   const CaptureOptions capture = worldBakeCaptureOptions(world, settings);
   ContentHasher hasher;
   // v3: cell file version 2 (one fallback per lighting key), so an incremental bake rewrites v1 cells.
@@ -143,12 +147,62 @@ uint64_t hashInputs(const worlds::SyntheticWorld& world, worlds::CellCoord c, co
   for (int w : settings.modelWidths) hasher.addValue(w);
   hasher.add(std::string("/"));
   for (int z : settings.modelLatents) hasher.addValue(z);
+  // The per-cell codec's hash is unchanged from before the codec choice existed (no rebake of its worlds).
+  if (settings.sharedCodec()) hasher.add(std::string("codec shared")).addValue(sharedModelHash);
   return hasher.digest();
+}
+
+// The active probes of a built cell (not inside solid): positions, flags, and the grid's active mask.
+struct ActiveProbes {
+  std::vector<glm::vec3> positions;
+  std::vector<uint8_t> flags, active;
+};
+ActiveProbes activeProbes(const worlds::BuiltCell& cell) {
+  ActiveProbes a;
+  a.active.assign(cell.probes.flags.size(), 0);
+  for (size_t i = 0; i < cell.probes.flags.size(); ++i) {
+    if (cell.probes.flags[i] & worlds::kProbeDisabledSolid) continue;
+    a.positions.push_back(cell.probes.position(int64_t(i)));
+    a.flags.push_back(cell.probes.flags[i]);
+    a.active[i] = 1;
+  }
+  return a;
+}
+
+// The cell's captures under every lighting key (the generator's training set). Consumes in.sceneMesh.
+GeneratorTrainingSet captureCell(const worlds::SyntheticWorld& world, CellBakeInputs& in, const ActiveProbes& probes,
+                                 const WorldBakeSettings& settings) {
+  const EmbreeScene scene(std::move(in.sceneMesh), fmt::format("cell {},{}", in.cell.x, in.cell.z));
+  return captureTrainingSet(scene, probes.positions, in.built.probes.grid.origin, in.built.probes.grid.boxMax(),
+                            parseLightingKeys(settings.keys), worldBakeCaptureOptions(world, settings), {}, false);
+}
+
+// Fit options of a cell against the shared model (and, with pre-training steps, the pre-training's).
+SharedTrainingOptions sharedFitOptions(const WorldBakeSettings& settings, int steps, double target, int quantBits) {
+  SharedTrainingOptions o;
+  o.training.arch = sharedModelArch(settings);
+  o.training.maxSteps = steps;
+  o.training.evalEvery = std::max(1, std::min(100, steps / 4));
+  o.training.irradianceErrorTarget = target;
+  o.training.batchSize = 512;
+  o.training.seed = settings.seed;
+  o.training.threads = settings.threads;
+  o.training.latentQuantBits = quantBits;
+  // FiLM on the linear layer's C0 channels only: bench/codec's shared_adapter setting (bake/OVERVIEW.md).
+  o.adapterStages = 1;
+  o.adapterQuantBits = quantBits;
+  return o;
+}
+
+// Order of the world's cells for the shared model's sample: by a hash of (seed, x, z).
+uint64_t sampleOrderKey(uint64_t seed, worlds::CellCoord c) {
+  return ContentHasher().addValue(seed).addValue(c.x).addValue(c.z).digest();
 }
 
 }  // namespace
 
-CellBakeInputs prepareCellBake(const worlds::SyntheticWorld& world, worlds::CellCoord c, const WorldBakeSettings& settings) {
+CellBakeInputs prepareCellBake(const worlds::SyntheticWorld& world, worlds::CellCoord c, const WorldBakeSettings& settings,
+                               uint64_t sharedModelHash) {
   settings.validate();
   if (!world.contains(c)) fail("bake: cell {},{} outside the world ({} x {} cells)", c.x, c.z, world.cellsX(), world.cellsZ());
   CellBakeInputs in;
@@ -167,19 +221,20 @@ CellBakeInputs prepareCellBake(const worlds::SyntheticWorld& world, worlds::Cell
         in.sceneMesh.append(m);
       }
     }
-  in.inputHash = hashInputs(world, c, in.built, in.neighbourMeshHashes, settings);
+  in.inputHash = hashInputs(world, c, in.built, in.neighbourMeshHashes, settings, sharedModelHash);
   return in;
 }
 
-uint64_t cellInputHash(const worlds::SyntheticWorld& world, worlds::CellCoord c, const WorldBakeSettings& settings) {
-  return prepareCellBake(world, c, settings).inputHash;
+uint64_t cellInputHash(const worlds::SyntheticWorld& world, worlds::CellCoord c, const WorldBakeSettings& settings,
+                       uint64_t sharedModelHash) {
+  return prepareCellBake(world, c, settings, sharedModelHash).inputHash;
 }
 
 CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const WorldBakeSettings& settings,
-                  CellBakeReport* report) {
+                  CellBakeReport* report, const ResolvedSharedModel* shared) {
   using Clock = std::chrono::steady_clock;
   const auto t0 = Clock::now();
-  const CaptureOptions capture = worldBakeCaptureOptions(world, settings);
+  if (settings.sharedCodec() && !shared) fail("bake: cell {},{}: --codec shared needs the world's shared model", in.cell.x, in.cell.z);
   const std::vector<LightingKeySpec> keys = parseLightingKeys(settings.keys);
   ModelSizingOptions sizing;
   sizing.irradianceErrorTarget = settings.errorTarget;
@@ -197,42 +252,62 @@ CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const 
 
   const worlds::CellCoord c = in.cell;
   const worlds::BuiltCell& cell = in.built;
-  std::vector<glm::vec3> positions;
-  std::vector<uint8_t> active(cell.probes.flags.size(), 0), flags;
-  for (size_t i = 0; i < cell.probes.flags.size(); ++i) {
-    if (cell.probes.flags[i] & worlds::kProbeDisabledSolid) continue;
-    positions.push_back(cell.probes.position(int64_t(i)));
-    flags.push_back(cell.probes.flags[i]);
-    active[i] = 1;
-  }
+  const ActiveProbes probes = activeProbes(cell);
   CellFile cf;
   cf.worldSeed = world.params().seed;
   cf.cellX = c.x;
   cf.cellZ = c.z;
   cf.inputHash = in.inputHash;
   cf.grid = cell.probes.grid;
-  cf.active = active;
+  cf.active = probes.active;
   CellBakeReport r;
-  r.probes = positions.size();
-  if (positions.empty()) {  // every probe inside solid: an empty cell holds only a dark fallback
+  r.probes = probes.positions.size();
+  if (probes.positions.empty()) {  // every probe inside solid: an empty cell holds only a dark fallback
     cf.fallback = darkFallback(keys);
     cf.stats.model = "no probes";
   } else {
-    const EmbreeScene scene(std::move(in.sceneMesh), fmt::format("cell {},{}", c.x, c.z));
-    const GeneratorTrainingSet set =
-        captureTrainingSet(scene, positions, cell.probes.grid.origin, cell.probes.grid.boxMax(), keys, capture, {}, false);
+    const GeneratorTrainingSet set = captureCell(world, in, probes, settings);
     r.captureSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
-    CellModelChoice choice = chooseCellModel(set, flags, sizing);
-    // On Ctrl-C, training stops and chooseCellModel returns the best model so far. Stored under this
-    // cell's input hash, that half-trained model would be skipped by every rerun (and differ from an
-    // uninterrupted bake), so an interrupted cell is an error and nothing is written for it.
-    if (InterruptGuard::interrupted()) fail("bake: cell {},{}: interrupted during training", c.x, c.z);
+    std::optional<CellModelChoice> noNetwork;
+    if (settings.sharedCodec()) noNetwork = chooseNoNetworkModel(set, probes.flags, sizing);
+    CellModelChoice choice = noNetwork || settings.sharedCodec() ? CellModelChoice{} : chooseCellModel(set, probes.flags, sizing);
+    if (noNetwork) choice = std::move(*noNetwork);
     cf.fallback = fallbackOf(set);
     cf.stats.errorTarget = settings.errorTarget;
-    cf.stats.trainingSeconds = choice.trainingSeconds;
-    cf.stats.model = choice.describe();
-    cf.stats.errorAchieved = choice.error.irradianceRelativeRms;
-    r.trainingSeconds = choice.trainingSeconds;
+    if (settings.sharedCodec() && !noNetwork) {
+      // Latents + adapter against the frozen dequantized shared model, int8 quantized in the loop.
+      const CellAdaptation fit = fitCellToSharedGenerator(
+          shared->weights, set, sharedFitOptions(settings, settings.maxSteps, settings.errorTarget, 8));
+      if (InterruptGuard::interrupted()) fail("bake: cell {},{}: interrupted during training", c.x, c.z);
+      const GeneratorArch& arch = shared->weights.arch;
+      CellGenerator gen;
+      gen.weights.arch = arch;
+      gen.weights.precision = WeightPrecision::Int8;
+      gen.latents = quantizeLatents(fit.latents, arch.latentDim, 8);
+      gen.shared = CellSharedModelRef{shared->hash, quantizeAdapter(fit.adapter, 8)};
+      cf.outputScale = fit.scale;
+      // The stored error is the quantized cell's through the decoder weights a reader builds.
+      TrainedGenerator q;
+      q.weights = resolveCellWeights(gen, shared, fmt::format("cell {},{}", c.x, c.z));
+      q.latents = dequantizeLatents(gen.latents);
+      q.scale = fit.scale;
+      cf.stats.errorAchieved = evaluateGenerator(q, set).irradianceRelativeRms;
+      cf.stats.trainingSeconds = fit.report.seconds;
+      cf.stats.model = fmt::format("shared z{} C{} + FiLM {} int8", arch.latentDim, arch.convChannels.front(),
+                                   gen.shared->adapter.stages);
+      r.trainingSeconds = fit.report.seconds;
+      cf.generator = std::move(gen);
+      r.network = true;
+    } else {
+      // On Ctrl-C, training stops and chooseCellModel returns the best model so far. Stored under this
+      // cell's input hash, that half-trained model would be skipped by every rerun (and differ from an
+      // uninterrupted bake), so an interrupted cell is an error and nothing is written for it.
+      if (InterruptGuard::interrupted()) fail("bake: cell {},{}: interrupted during training", c.x, c.z);
+      cf.stats.trainingSeconds = choice.trainingSeconds;
+      cf.stats.model = choice.describe();
+      cf.stats.errorAchieved = choice.error.irradianceRelativeRms;
+      r.trainingSeconds = choice.trainingSeconds;
+    }
     if (choice.kind == CellModelKind::kGenerator && choice.generator) {
       TrainedGenerator& g = *choice.generator;
       CellGenerator gen;
@@ -263,6 +338,126 @@ CellBakeState cellBakeState(const fs::path& file, uint64_t inputHash, std::strin
     if (error) *error = e.what();
     return CellBakeState::Corrupt;
   }
+}
+
+// ---- the shared codec's world model ----------------------------------------------------------------------
+
+GeneratorArch sharedModelArch(const WorldBakeSettings& settings) {
+  const int width = settings.modelWidths.empty() ? 32 : settings.modelWidths.front();
+  const int latent = settings.modelLatents.empty() ? 8 : settings.modelLatents.front();
+  for (const GeneratorArch& a : sizingCandidates(settings.resolution, LatentSource::Stored))
+    if (a.convChannels.front() == width && a.latentDim == latent) return a;
+  fail("bake: no shared generator of width {} and latent size {} at resolution {}", width, latent, settings.resolution);
+}
+
+std::vector<worlds::CellCoord> sharedModelCells(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings) {
+  std::vector<worlds::CellCoord> order;
+  for (int z = 0; z < world.cellsZ(); ++z)
+    for (int x = 0; x < world.cellsX(); ++x) order.push_back({x, z});
+  std::sort(order.begin(), order.end(), [&](worlds::CellCoord a, worlds::CellCoord b) {
+    return sampleOrderKey(settings.seed, a) < sampleOrderKey(settings.seed, b);
+  });
+  std::vector<worlds::CellKind> present;  // cellKind is cheap, buildCell is not: stop once each kind is found
+  for (const worlds::CellCoord c : order)
+    if (std::find(present.begin(), present.end(), world.cellKind(c)) == present.end()) present.push_back(world.cellKind(c));
+  std::vector<worlds::CellCoord> chosen;
+  std::vector<worlds::CellKind> kinds;
+  for (const worlds::CellCoord c : order) {
+    if (kinds.size() == present.size()) break;
+    const worlds::CellKind k = world.cellKind(c);
+    if (std::find(kinds.begin(), kinds.end(), k) != kinds.end()) continue;
+    if (activeProbes(worlds::buildCell(world, c)).positions.empty()) continue;
+    chosen.push_back(c);
+    kinds.push_back(k);
+  }
+  if (chosen.empty()) fail("bake --codec shared: no cell of the world has an active probe to pre-train on");
+  return chosen;
+}
+
+uint64_t sharedModelInputHash(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings) {
+  WorldBakeSettings perCell = settings;  // the sample cells' own inputs, independent of the codec
+  perCell.codec = "per-cell";
+  const GeneratorArch arch = sharedModelArch(settings);
+  ContentHasher h;
+  h.add(std::string("lfgi-shared-model-v1")).addValue(world.params().seed).addValue(settings.sharedSteps);
+  for (const worlds::CellCoord c : sharedModelCells(world, settings))
+    h.addValue(c.x).addValue(c.z).addValue(cellInputHash(world, c, perCell));
+  h.addValue(arch.latentDim).addValue(arch.condDim);
+  for (int ch : arch.convChannels) h.addValue(ch);
+  return h.digest();
+}
+
+uint64_t currentSharedModelHash(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings,
+                                const fs::path& outDir) {
+  if (!settings.sharedCodec()) return 0;
+  const fs::path path = sharedModelPath(outDir);
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return 0;
+  try {
+    uint64_t hash = 0;
+    const SharedModel m = readSharedModel(path, &hash);
+    return m.inputHash == sharedModelInputHash(world, settings) ? hash : 0;
+  } catch (const Error&) {
+    return 0;
+  }
+}
+
+SharedModel ensureSharedModel(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings, const fs::path& outDir,
+                              bool* reused) {
+  settings.validate();
+  const fs::path path = sharedModelPath(outDir);
+  const uint64_t inputHash = sharedModelInputHash(world, settings);
+  std::error_code ec;
+  if (reused) *reused = false;
+  if (fs::exists(path, ec)) {
+    try {
+      SharedModel m = readSharedModel(path);
+      if (m.inputHash == inputHash && m.worldSeed == world.params().seed) {
+        if (reused) *reused = true;
+        return m;
+      }
+      std::fprintf(stderr, "%s: pre-training inputs changed, training the shared model again\n", path.string().c_str());
+    } catch (const Error& e) {
+      std::fprintf(stderr, "%s; training the shared model again\n", e.what());
+    }
+  }
+  using Clock = std::chrono::steady_clock;
+  const auto t0 = Clock::now();
+  const std::vector<worlds::CellCoord> cells = sharedModelCells(world, settings);
+  WorldBakeSettings perCell = settings;
+  perCell.codec = "per-cell";
+  std::vector<GeneratorTrainingSet> sets;
+  std::string names;
+  for (const worlds::CellCoord c : cells) {
+    if (InterruptGuard::interrupted()) fail("bake: interrupted while capturing the shared model's cells");
+    std::fprintf(stderr, "shared model: capturing cell %d,%d (%s)\n", c.x, c.z,
+                 std::string(worlds::cellKindName(world.cellKind(c))).c_str());
+    CellBakeInputs in = prepareCellBake(world, c, perCell);
+    const ActiveProbes probes = activeProbes(in.built);
+    sets.push_back(captureCell(world, in, probes, settings));
+    names += fmt::format("{}{},{} {}", names.empty() ? "" : "; ", c.x, c.z, worlds::cellKindName(world.cellKind(c)));
+  }
+  // A fixed budget (no early stop), as bench/codec's shared model; resumable from the checkpoint.
+  SharedTrainingOptions o = sharedFitOptions(settings, settings.sharedSteps, 0.0, 0);
+  o.training.checkpoint = outDir / "shared_model.ckpt";
+  o.training.checkpointEvery = 250;
+  o.training.showProgress = true;
+  const SharedGenerator g = pretrainSharedGenerator(sets, o);
+  if (g.report.interrupted || InterruptGuard::interrupted())
+    fail("bake: interrupted during shared-model pre-training (checkpoint {} kept; rerun to resume)",
+         o.training.checkpoint.string());
+  if (g.report.diverged) fail("bake: shared-model pre-training diverged after {} steps", g.report.steps);
+  SharedModel m;
+  m.worldSeed = world.params().seed;
+  m.inputHash = inputHash;
+  m.weights = quantizeWeights(g.weights, WeightPrecision::Int8);
+  m.stats.steps = g.report.steps;
+  m.stats.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  m.stats.errorAchieved = g.report.irradianceRelativeRms;
+  m.stats.cells = names;
+  writeSharedModel(path, m);
+  fs::remove(o.training.checkpoint, ec);
+  return m;
 }
 
 }  // namespace lfgi::bake

@@ -35,6 +35,7 @@
 
 #include "bake/generator_training.h"
 #include "core/cell_file.h"
+#include "core/shared_model.h"
 #include "worlds/world_cells.h"
 
 namespace lfgi::bake {
@@ -52,6 +53,13 @@ struct WorldBakeSettings {
   // 4, 8, 16); empty: all (12 candidates). A km-scale path bake fixes one model (--model-widths 32
   // --model-latents 4) to train one candidate per cell instead of up to 12. Both enter the input hash.
   std::vector<int> modelWidths, modelLatents;
+  // Codec: "per-cell" (each cell's own smallest model, its weights in its file) or "shared" (one
+  // generator pre-trained per world on a sample of its cells, OUT/shared_model.vdb; each cell stores
+  // latents + a FiLM adapter fitted against it, cell file version 3). Enters the input hash (with the
+  // shared model's weights hash), so switching codec rebakes.
+  std::string codec = "per-cell";
+  int sharedSteps = 3000;             // --codec shared: pre-training steps of the shared model
+  bool sharedCodec() const { return codec == "shared"; }
   // Throws lfgi::Error naming the bad setting (keys are parsed here too).
   void validate() const;
 };
@@ -76,10 +84,14 @@ struct CellBakeInputs {
   uint64_t neighbourMeshHashes[9] = {};  // 3 x 3 row-major (dz, dx), 0 outside the world
   uint64_t inputHash = 0;
 };
-CellBakeInputs prepareCellBake(const worlds::SyntheticWorld& world, worlds::CellCoord c, const WorldBakeSettings& settings);
+// sharedModelHash: with settings.codec "shared", the weights hash of the world's shared model (it enters
+// the input hash; 0 when there is none yet, a hash no baked cell holds).
+CellBakeInputs prepareCellBake(const worlds::SyntheticWorld& world, worlds::CellCoord c, const WorldBakeSettings& settings,
+                               uint64_t sharedModelHash = 0);
 
 // The input hash alone (builds the cell, generates the neighbours' meshes: cheaper than a bake, not free).
-uint64_t cellInputHash(const worlds::SyntheticWorld& world, worlds::CellCoord c, const WorldBakeSettings& settings);
+uint64_t cellInputHash(const worlds::SyntheticWorld& world, worlds::CellCoord c, const WorldBakeSettings& settings,
+                       uint64_t sharedModelHash = 0);
 
 struct CellBakeReport {
   size_t probes = 0;          // active probes captured
@@ -88,9 +100,36 @@ struct CellBakeReport {
 };
 
 // Bakes the prepared cell (Embree capture + model choice + quantization). Throws lfgi::Error when the
-// capture or training is interrupted (InterruptGuard) or fails.
+// capture or training is interrupted (InterruptGuard) or fails. With settings.codec "shared", `shared` is
+// the world's shared model (ensureSharedModel, dequantized): a cell that needs a network fits latents +
+// a 1-stage FiLM adapter against it (fitCellToSharedGenerator, --max-steps, stopping at the error target,
+// int8 latents and adapter quantized in the loop) and refers to it (cell file version 3); a simple cell
+// still stores no network (chooseNoNetworkModel).
 CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs inputs, const WorldBakeSettings& settings,
-                  CellBakeReport* report = nullptr);
+                  CellBakeReport* report = nullptr, const ResolvedSharedModel* shared = nullptr);
+
+// ---- the shared codec's world model (core/shared_model.h) ---------------------------------------------
+// Pre-training cells: one of each kind (field, suburb, city, park) that has active probes, the first of
+// its kind in the world's cells ordered by a hash of (seed, x, z): deterministic for a seed, spread over
+// the world. The shared model's input hash covers them (their per-cell input hashes: meshes, probes,
+// capture settings) plus the architecture and training settings.
+std::vector<worlds::CellCoord> sharedModelCells(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings);
+uint64_t sharedModelInputHash(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings);
+// The shared generator's architecture: C0 = the first --model-widths (default 32) halving per stage, z =
+// the first --model-latents (default 8), depth from the resolution.
+GeneratorArch sharedModelArch(const WorldBakeSettings& settings);
+
+// The world's shared model at sharedModelPath(outDir): reused when the file reads and its input hash
+// matches, else pre-trained (captures of sharedModelCells, pretrainSharedGenerator for
+// settings.sharedSteps steps with a checkpoint at OUT/shared_model.ckpt that an interrupted run resumes
+// from), quantized int8 per channel and written atomically. Progress on stderr. Throws lfgi::Error when
+// interrupted (the checkpoint stays) or when training fails. reused: set to whether the file was reused.
+SharedModel ensureSharedModel(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings,
+                              const std::filesystem::path& outDir, bool* reused = nullptr);
+// The weights hash of the world's current shared model: the file's when it reads and its input hash
+// matches these settings, else 0 (no model yet: every shared-codec cell is stale). 0 for the per-cell codec.
+uint64_t currentSharedModelHash(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings,
+                                const std::filesystem::path& outDir);
 
 // State of a cell's file against its current input hash.
 enum class CellBakeState : uint8_t { Done, Stale, Missing, Corrupt };

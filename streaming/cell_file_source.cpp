@@ -16,6 +16,7 @@
 #include "core/octahedral.h"
 #include "core/quantize.h"
 #include "core/sh.h"
+#include "core/shared_model.h"
 #include "streaming/generator_backend.h"
 #include "worlds/world_cells.h"
 
@@ -200,7 +201,8 @@ void cellLatents(const CellFile& cell, std::span<const uint8_t> active, std::vec
 }
 
 void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, int irradianceResolution,
-                     int shOnlyResolution, ProbeField& out, const std::string& name, GeneratorBackend* backend) {
+                     int shOnlyResolution, ProbeField& out, const std::string& name, GeneratorBackend* backend,
+                     const ResolvedSharedModel* shared) {
   const int n = decodedResolution(cell, shOnlyResolution);
   if (n < 1 || n > 128) fail("{}: decoded resolution {} outside [1, 128]", name, n);
   const int m = irradianceResolutionFor(n, irradianceResolution);
@@ -227,7 +229,7 @@ void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, 
   const int64_t A = cell.activeProbeCount();
 
   if (cell.generator && A > 0) {
-    const GeneratorWeights weights = dequantizeWeights(cell.generator->weights);
+    const GeneratorWeights weights = resolveCellWeights(*cell.generator, shared, name);
     const GeneratorArch& arch = weights.arch;
     // The active probes in latent order are decoded densely (batches of the backend's choosing) into a
     // staging field, then scattered. Everything after the network is this code, for every backend.
@@ -300,6 +302,7 @@ void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, 
 CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::move(options)) {
   options_.validate();
   if (options_.cellsDir.empty()) options_.cellsDir = options_.worldDir / "baked" / "cells";
+  if (options_.sharedModel.empty()) options_.sharedModel = options_.cellsDir.parent_path() / "shared_model.vdb";
   const worlds::WorldParams params = worlds::readWorldManifest(options_.worldDir);
   const int cells = int(std::lround(params.sizeM / params.cellM));
   layout_ = {{0.0f, 0.0f}, float(params.cellM), {cells, cells}};
@@ -331,6 +334,9 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
       try {
         CellFile file = readCellFile(path);
         checkCellFits(file, c, worldSeed_, layout_, path);
+        // A shared-model cell is valid only with its world's shared model (loaded once, hash checked).
+        if (file.generator && file.generator->shared)
+          (void)resolveCellWeights(*file.generator, sharedFor(file, path), path.string());
         cellFileFallbackKeys(file, options_.weather, hours, keySh);
         keyRange_[size_t(layout_.linear(c))] = {uint32_t(keyHours_.size()), uint32_t(hours.size())};
         keyHours_.insert(keyHours_.end(), hours.begin(), hours.end());
@@ -343,7 +349,7 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
         inf.resolution = inf.network ? file.generator->weights.arch.outputResolution() : 0;
         if (inf.network) maxGeneratorN = std::max(maxGeneratorN, inf.resolution);
         if (inf.network && options_.decoder == DecoderChoice::Auto && !probeWeights && inf.activeProbes > 0) {
-          probeWeights = dequantizeWeights(file.generator->weights);
+          probeWeights = resolveCellWeights(*file.generator, sharedFor(file, path), path.string());
           cellLatents(file, file.active, probeLatents, path.string());
         }
         ++validCells_;
@@ -424,6 +430,28 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
   samples_.reserve(4096);
 }
 
+const ResolvedSharedModel* CellFileSource::sharedFor(const CellFile& file, const fs::path& path) {
+  if (!file.generator || !file.generator->shared) return nullptr;
+  std::call_once(sharedOnce_, [&] {  // usually during construction; any thread may be first
+    std::error_code ec;
+    if (!fs::exists(options_.sharedModel, ec)) {
+      sharedError_ = fmt::format("{}: no shared model file (bake the world with `lfgi bake --codec shared`)",
+                                 options_.sharedModel.string());
+    } else {
+      try {
+        shared_ = loadSharedModel(options_.sharedModel);
+        spdlog::info("streaming: shared model {} ({:016x})", options_.sharedModel.string(), shared_->hash);
+      } catch (const Error& e) {
+        sharedError_ = e.what();
+      }
+    }
+  });
+  if (!shared_)
+    fail("{}: refers to shared model {:016x}, which cannot be used: {}", path.string(), file.generator->shared->modelHash,
+         sharedError_);
+  return &*shared_;
+}
+
 std::vector<CellFileSource::DecodeSample> CellFileSource::decodeSamples() const {
   const std::lock_guard lock(samplesMutex_);
   return samples_;
@@ -454,7 +482,7 @@ void CellFileSource::readAndDecode(glm::ivec2 cell, float timeOfDayHours, ProbeF
   const auto t1 = Clock::now();
   readUs_.fetch_add(usSince(t0));
   decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution, options_.shOnlyResolution,
-                  out, path.string(), backend_.get());
+                  out, path.string(), backend_.get(), sharedFor(file, path));
   recordDecode(t1, file);
 }
 
@@ -490,7 +518,7 @@ bool CellFileSource::relight(glm::ivec2 cell, ProbeField& field, float timeOfDay
     if (file.grid.probeCount() != field.probeCount() || decodedResolution(file, options_.shOnlyResolution) != field.resolution)
       fail("{}: changed size since the cell was loaded", path.string());
     decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution, options_.shOnlyResolution,
-                    field, path.string(), backend_.get());
+                    field, path.string(), backend_.get(), sharedFor(file, path));
     recordDecode(t1, file);
     return true;
   } catch (const Error& e) {

@@ -46,9 +46,11 @@
 
 #include <memory>
 #include <mutex>
+#include <optional>
 
 #include "core/cell_fallback.h"
 #include "core/cell_file.h"
+#include "core/shared_model.h"
 #include "streaming/cell_source.h"
 #include "streaming/generator_backend.h"
 
@@ -57,6 +59,9 @@ namespace lfgi::streaming {
 struct CellFileSourceOptions {
   std::filesystem::path worldDir;      // holds world.json (the layout)
   std::filesystem::path cellsDir;      // empty: worldDir / "baked" / "cells"
+  // The world's shared model (core/shared_model.h) that version-3 cells refer to; empty: cellsDir's
+  // parent / "shared_model.vdb" (where `lfgi bake --codec shared` writes it).
+  std::filesystem::path sharedModel;
   int irradianceResolution = 0;        // m of the decoded irradiance maps; 0: max(2, n / 2)
   int shOnlyResolution = 0;            // n for cells without a network; 0: the largest generator n, else 8
   float weather = 0.0f;                // generator conditioning, [0, 1]
@@ -132,6 +137,10 @@ class CellFileSource final : public CellSource {
   void readAndDecode(glm::ivec2 cell, float timeOfDayHours, ProbeField& out);
   void recordDecode(std::chrono::steady_clock::time_point t0, const CellFile& file);
   bool dependsOnTimeOfDay(glm::ivec2 cell) const;
+  // The shared model a shared-model cell decodes with (null for other cells); loaded once (std::call_once) on first
+  // use, normally during construction, and immutable afterwards. Throws lfgi::Error naming the cell file and the shared model
+  // file when it is missing or unreadable (a wrong hash is resolveCellWeights' error).
+  const ResolvedSharedModel* sharedFor(const CellFile& file, const std::filesystem::path& path);
   ShL1 keyFallback(glm::ivec2 cell, float timeOfDayHours) const;
 
   CellFileSourceOptions options_;
@@ -148,6 +157,9 @@ class CellFileSource final : public CellSource {
   int validCells_ = 0, missingCells_ = 0, corruptCells_ = 0;
   std::atomic<float> timeOfDay_{12.0f};
   std::atomic<uint64_t> loads_{0}, readUs_{0}, decodeUs_{0};
+  std::once_flag sharedOnce_;
+  std::optional<ResolvedSharedModel> shared_;
+  std::string sharedError_;
   std::unique_ptr<GeneratorBackend> backend_;
   GpuGeneratorBackend* gpuBackend_ = nullptr;  // backend_ when it is the GPU one
   DecoderSelection selection_;
@@ -175,9 +187,12 @@ int decodedResolution(const CellFile& cell, int shOnlyResolution);
 // Throws lfgi::Error (starting with `name`) if the model cannot decode to a probe field.
 // backend: the generator network's backend (null: CpuGeneratorBackend); everything else is the same code
 // for every backend.
+// shared: the world's shared model for a shared-model (version 3) cell, whose weights are the shared
+// model's with the cell's adapter folded in (core/shared_model.h resolveCellWeights: a missing or other
+// model is an lfgi::Error naming the cell and the model file); null for other cells.
 void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, int irradianceResolution,
                      int shOnlyResolution, ProbeField& out, const std::string& name = "cell",
-                     GeneratorBackend* backend = nullptr);
+                     GeneratorBackend* backend = nullptr, const ResolvedSharedModel* shared = nullptr);
 
 // The network inputs of a generator cell's active probes in latent order (active: the probe flags, empty =
 // all): its stored latents dequantized, or position latents at the probes' lattice points (see above).
