@@ -329,7 +329,8 @@ int main(int argc, char** argv) {
                   "surfel_probes_per_s", "splat_or_raster_ms", "resolve_or_resample_ms", "wall_ms", "atomics_per_s",
                   "dist_median_rel_error", "dist_p90_rel_error", "dist_frac_off_5pct", "normal_median_deg",
                   "normal_p90_deg", "hole_fraction", "dist_median_rel_error_vs_capture",
-                  "normal_median_deg_vs_capture", "splat_pairs_per_s", "lod_nodes", "lod_build_ms"});
+                  "normal_median_deg_vs_capture", "splat_pairs_per_s", "lod_nodes", "lod_build_ms", "splat_pairs_per_probe",
+                  "texel_tests_per_probe", "atomics_per_probe", "window_pair_fraction"});
     nlohmann::ordered_json skipped = nlohmann::ordered_json::array();
     struct Measured {
       double probesPerS = 0.0, msPerProbe = 0.0;
@@ -416,6 +417,13 @@ int main(int argc, char** argv) {
                                                 : 0.0;
           m.splatPairsPerS = double(atlas.splatPairs) / (atlas.gpuMs * 1e-3);
           best[{method, n}] = m;
+          const auto perProbe = [&](uint64_t total) { return double(total) / double(count); };
+          if (method == "vir_lod")
+            spdlog::info("vir_lod N={} probes={}: per probe {:.0f} cut pairs, {:.0f} texel tests, {:.0f} atomics; "
+                         "{:.1f} % of pairs through the wrapped window",
+                         n, count, perProbe(atlas.splatPairs), perProbe(atlas.splatTexelTests),
+                         perProbe(atlas.splatAtomics),
+                         atlas.splatPairs ? 100.0 * double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0);
           spdlog::info("{} N={} probes={}: {:.1f} ms device, {:.1f} ms wall ({:.3f} ms/probe, {:.0f} probes/s); dist "
                        "median {:.2e} p90 {:.4f} off>5% {:.4f}, normal median {:.2f} p90 {:.2f} deg, holes {:.4f}{}",
                        method, n, count, atlas.gpuMs, wallMs, m.msPerProbe, m.probesPerS, acc->distMedianRel,
@@ -432,7 +440,9 @@ int main(int argc, char** argv) {
                     bench::num(acc->captureNormalMedianDeg),
                     method == "cubemap" ? "0" : bench::num(m.splatPairsPerS),
                     method == "vir_lod" ? std::to_string(lodNodes) : "0",
-                    method == "vir_lod" ? bench::num(lodBuildMs) : "0"});
+                    method == "vir_lod" ? bench::num(lodBuildMs) : "0", bench::num(perProbe(atlas.splatPairs)),
+                    bench::num(perProbe(atlas.splatTexelTests)), bench::num(perProbe(atlas.splatAtomics)),
+                    bench::num(atlas.splatPairs ? double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0)});
           perCount[{method, n, count}] = m.probesPerS;
         }
       }

@@ -22,6 +22,7 @@ Program requireInt64Atomics(Context& ctx, const char* name) {
 }
 
 constexpr size_t kMaxCutEntries = size_t(1) << 24;  // per batch of blocks (64 MiB of node indices)
+constexpr size_t kLodStats = 6;  // counters of vir_lod_cut.comp / vir_lod_splat.comp (see their Stats buffers)
 
 }  // namespace
 
@@ -152,7 +153,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     upload<glm::vec4>(ctx_, blockBuf_, blocks);
     if (cutCapacity_ == 0) cutCapacity_ = uint32_t(std::clamp<size_t>(16 * n2, 4096, kMaxCutEntries));
     grow(cutCountBuf_, blockCount * sizeof(uint32_t));
-    grow(statsBuf_, 4 * sizeof(uint64_t));
+    grow(statsBuf_, kLodStats * sizeof(uint64_t));
     lp.probeCount = probeCount;
     lp.res = res;
     lp.blockProbes = uint32_t(bp);
@@ -236,13 +237,15 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
       timer.stamp(cmd, 4);
     });
     if (!o.lod) break;
-    std::array<uint64_t, 4> stats{};
+    std::array<uint64_t, kLodStats> stats{};
     readback<uint64_t>(ctx_, statsBuf_, stats);
     if (stats[2] > 0)
       spdlog::warn("VIR LOD: {} nodes splatted coarser than lodTexels (cut walk stack full)", stats[2]);
     if (stats[3] == 0) {
       atlas.splatPairs = stats[0];
       atlas.splatAtomics = stats[1];
+      atlas.splatTexelTests = stats[4];
+      atlas.splatWindowPairs = stats[5];
       break;
     }
     if (cutCapacity_ >= kMaxCutEntries)

@@ -65,6 +65,8 @@ struct ProbeAtlas {
   uint64_t lodNodes = 0;       // LOD: nodes in the tree (leaves + merged)
   uint64_t splatPairs = 0;     // (disc, probe) pairs the splat visited: surfels x probes without LOD
   uint64_t splatAtomics = 0;   // LOD: 64-bit atomicMin calls counted on the device; 0 without LOD
+  uint64_t splatTexelTests = 0;   // LOD: texel-centre ray / footprint tests of the splat (device count)
+  uint64_t splatWindowPairs = 0;  // LOD: front-facing pairs splatted through the wrapped square window
 };
 
 class VirPass {

@@ -32,7 +32,8 @@ layout(std430, set = 0, binding = 5) readonly buffer Blocks { vec4 blocks[]; }; 
 layout(std430, set = 0, binding = 6) writeonly buffer Cut { uint cut[]; };      // blockCount x cutCapacity
 layout(std430, set = 0, binding = 7) buffer CutCount { uint cutCount[]; };      // zeroed before each batch
 // [0] cut entries x probes (vir_lod_splat), [1] splat atomics, [2] nodes accepted for lack of stack,
-// [3] entries a block needed beyond cutCapacity (0: none)
+// [3] entries a block needed beyond cutCapacity (0: none), [4] texel ray tests and [5] pairs through the
+// wrapped square window (vir_lod_splat)
 layout(std430, set = 0, binding = 8) buffer Stats { uint64_t stats[]; };
 
 layout(push_constant) uniform Push { VirLodParams params; };

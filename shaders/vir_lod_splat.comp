@@ -61,7 +61,7 @@ void main() {
   uint base = p * params.res * params.res;
   uint count = min(cutCount[gl_GlobalInvocationID.z], params.cutCapacity);
   uint cutBase = gl_GlobalInvocationID.z * params.cutCapacity;
-  uint atomics = 0u, visited = 0u;
+  uint atomics = 0u, visited = 0u, tests = 0u, windowPairs = 0u;
   for (uint i = lane; i < count; i += params.lanes) {
     ++visited;
     uint s = cut[cutBase + i];
@@ -72,6 +72,7 @@ void main() {
     if (d > params.maxRange || d < 1e-6) continue;
     float facing = -dot(nrm, toS);  // dot(n, probe - centre)
     if (facing <= 0.0) continue;
+    ++windowPairs;
     float r = pr.w * params.footprintScale;
     vec2 tc = (octEncode(toS) * 0.5 + vec2(0.5)) * float(n);  // continuous texel coordinates
     float rho = asin(min(r / d, 1.0)) * halfN * LFGI_VIR_OCT_STRETCH;
@@ -86,6 +87,7 @@ void main() {
     for (int ty = lo.y; ty <= hi.y; ++ty) {
       for (int tx = lo.x; tx <= hi.x; ++tx) {
         ivec2 t = octWrap(ivec2(tx, ty), n);
+        ++tests;
         vec3 td = octTexelDirection(uvec2(t), params.res);
         float denom = -dot(nrm, td);
         if (denom <= 1e-6) continue;
@@ -101,4 +103,6 @@ void main() {
   }
   if (visited > 0u) atomicAdd(stats[0], uint64_t(visited));
   if (atomics > 0u) atomicAdd(stats[1], uint64_t(atomics));
+  if (tests > 0u) atomicAdd(stats[4], uint64_t(tests));
+  if (windowPairs > 0u) atomicAdd(stats[5], uint64_t(windowPairs));
 }
