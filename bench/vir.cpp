@@ -76,14 +76,6 @@ gpu::CubemapScene toCubemapScene(const worlds::TriangleMesh& mesh) {
 }
 
 // CPU replay of vir_splat.comp's loop: the number of atomicMin calls for one probe.
-glm::ivec2 octWrap(glm::ivec2 t, int n) {
-  if (t.x < 0) t = {-1 - t.x, n - 1 - t.y};
-  else if (t.x >= n) t = {2 * n - 1 - t.x, n - 1 - t.y};
-  if (t.y < 0) t = {n - 1 - t.x, -1 - t.y};
-  else if (t.y >= n) t = {n - 1 - t.x, 2 * n - 1 - t.y};
-  return glm::clamp(t, glm::ivec2(0), glm::ivec2(n - 1));
-}
-
 uint64_t splatAtomics(std::span<const shared::Surfel> surfels, glm::vec3 o, const gpu::VirOptions& opt) {
   uint64_t count = 0;
   const int n = opt.resolution;
@@ -99,7 +91,7 @@ uint64_t splatAtomics(std::span<const shared::Surfel> surfels, glm::vec3 o, cons
     const glm::ivec2 c(shared::octDirectionTexel(toS / d, uint32_t(n)));
     for (int dy = -k; dy <= k; ++dy)
       for (int dx = -k; dx <= k; ++dx) {
-        const glm::ivec2 t = octWrap(c + glm::ivec2(dx, dy), n);
+        const glm::ivec2 t = shared::octWrap(c + glm::ivec2(dx, dy), n);
         const glm::vec3 td = shared::octTexelDirection(glm::uvec2(t), uint32_t(n));
         const float denom = -glm::dot(nrm, td);
         if (denom <= 1e-6f) continue;

@@ -120,10 +120,7 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
         centre /= area;
         const float nlen = glm::length(nsum);
         const glm::vec3 n = nlen > 1e-12f ? nsum / nlen : glm::vec3(tree.nodes[current[c0].second].normal);
-        // Rectangle frame: a world axis projected into the plane (walls: up; floors and roofs: +x), so the
-        // axis-aligned walls and roofs of the synthetic city get tight rectangles.
-        const glm::vec3 axis = std::abs(n.y) >= 0.5f ? glm::vec3(1.0f, 0.0f, 0.0f) : glm::vec3(0.0f, 1.0f, 0.0f);
-        const glm::vec3 t1 = glm::normalize(axis - glm::dot(axis, n) * n), t2 = glm::cross(n, t1);
+        const glm::vec3 t1 = shared::virRectAxis(n), t2 = glm::cross(n, t1);  // rectangle frame
         NodeExtra e;
         bool coherent = nlen > 1e-12f;
         glm::vec2 lo2(std::numeric_limits<float>::max()), hi2(-std::numeric_limits<float>::max());

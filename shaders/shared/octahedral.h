@@ -74,6 +74,23 @@ LFGI_INLINE uvec2 octBorderSource(uvec2 b, uint n) {
   return uvec2(uint(x), uint(y));
 }
 
+// Texel index t of an N x N map, possibly outside it (|t - [0, N)| < N), -> the interior texel it denotes
+// across the fold: the map mirrors across each edge midpoint (as octBorderSource, generalised to several
+// texels); used by splat windows that straddle the map's border.
+LFGI_INLINE ivec2 octWrap(ivec2 t, int n) {
+  if (t.x < 0) {
+    t = ivec2(-1 - t.x, n - 1 - t.y);
+  } else if (t.x >= n) {
+    t = ivec2(2 * n - 1 - t.x, n - 1 - t.y);
+  }
+  if (t.y < 0) {
+    t = ivec2(n - 1 - t.x, -1 - t.y);
+  } else if (t.y >= n) {
+    t = ivec2(n - 1 - t.x, 2 * n - 1 - t.y);
+  }
+  return clamp(t, ivec2(0), ivec2(n - 1));
+}
+
 LFGI_SHARED_END
 
 #endif  // LFGI_SHARED_OCTAHEDRAL_H

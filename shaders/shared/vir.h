@@ -33,6 +33,14 @@ LFGI_CHECK_SIZE(VirLodLink, 16)
 // Largest per-axis stretch of the octahedral map, texel coordinates per radian in units of N / 2 (measured
 // numerically: sqrt(2) where the fold's diagonals meet the equator), with a margin: bounds splat windows.
 #define LFGI_VIR_OCT_STRETCH 1.5f
+// First axis of a LOD node's rectangle frame (gpu/vir_lod.h), and of the bounding square of a leaf disc in
+// vir_lod_splat.comp: a world axis projected into the plane of normal n (walls: up; floors and roofs: +x),
+// so the axis-aligned walls and roofs of the synthetic city get tight rectangles. n: unit length.
+LFGI_INLINE vec3 virRectAxis(vec3 n) {
+  vec3 axis = abs(n.y) >= 0.5f ? vec3(1.0f, 0.0f, 0.0f) : vec3(0.0f, 1.0f, 0.0f);
+  return normalize(axis - dot(axis, n) * n);
+}
+
 #define LFGI_VIR_LOD_STACK 128  // traversal stack entries of one frontier-subtree walk (vir_lod_cut.comp)
 
 // Push constants of the LOD passes (vir_lod_radiance/vir_lod_cut/vir_lod_splat/vir_lod_resolve.comp).
