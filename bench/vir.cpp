@@ -262,26 +262,22 @@ int main(int argc, char** argv) {
         spdlog::info("height {}: {} nodes, {:.1f} % coherent, mean footprint radius {:.2f} m", hgt, h[0],
                      100.0 * h[1] / h[0], h[2] / h[0]);
       // One probe's cut at N = 8 and 16 (CPU replay of vir_lod_cut.comp, block = the probe).
+      const glm::vec3 eye = active[active.size() / 2];
       for (int n : {8, 16}) {
+        shared::VirLodParams lp{};
+        lp.res = uint32_t(n);
+        lp.maxRange = 1000.0f;
+        lp.footprintScale = gpu::VirOptions{}.footprintScale;
+        lp.lodTexels = lodTexels;
+        lp.depthTolerance = gpu::VirOptions{}.lodDepthTolerance;
         size_t leaves = 0, inner = 0, leavesUnderIncoherent = 0;
-        std::vector<uint32_t> st{tree.root()};
-        const glm::vec3 eye = active[active.size() / 2];
-        while (!st.empty()) {
-          const uint32_t i = st.back();
-          st.pop_back();
-          const float r = tree.nodes[i].positionRadius.w * 1.5f;
-          const float d = glm::length(glm::vec3(tree.nodes[i].positionRadius) - eye);
-          const auto& l = tree.links[i];
-          const bool coherent = (l.flags & LFGI_VIR_LOD_COHERENT) != 0;
-          if (l.childCount == 0) {
-            ++leaves;
-            leavesUnderIncoherent += (tree.up[i].x != ~0u && !(tree.links[tree.up[i].x].flags & LFGI_VIR_LOD_COHERENT));
-          } else if (coherent && r * float(n) <= lodTexels * d &&
-                     tree.nodes[i].emission.w <= gpu::VirOptions{}.lodDepthTolerance * d) {
+        for (const uint32_t i : gpu::virLodCut(tree, glm::vec4(eye, 0.0f), lp)) {
+          if (i >= tree.leafCount) {
             ++inner;
-          } else {
-            for (uint32_t c = 0; c < l.childCount; ++c) st.push_back(tree.children[l.firstChild + c]);
+            continue;
           }
+          ++leaves;
+          leavesUnderIncoherent += (tree.up[i].x != ~0u && !(tree.links[tree.up[i].x].flags & LFGI_VIR_LOD_COHERENT));
         }
         spdlog::info("N={} cut for one probe: {} leaves ({} with an incoherent parent), {} merged nodes", n, leaves,
                      leavesUnderIncoherent, inner);

@@ -82,6 +82,7 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     shared::Surfel s = surfels[i];
     const float r = s.positionRadius.w;
     s.normal.w = std::numbers::pi_v<float> * r * r;
+    s.albedo.w = 1.0f;  // cosine of the normal cone: one normal
     tree.nodes.push_back(s);
     tree.links.push_back({0u, 0u, LFGI_VIR_LOD_COHERENT, i});
     tree.rects.push_back(glm::vec4(0.0f, 0.0f, -1.0f, -1.0f));
@@ -154,7 +155,8 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
         e.footprintRadius = glm::length(ext);  // the rectangle's corners: bounds its angular extent
         const uint32_t node = uint32_t(tree.nodes.size());
         tree.nodes.push_back({glm::vec4(rectCentre, e.footprintRadius / o.footprintScale), glm::vec4(n, area),
-                              glm::vec4(albedo / area, 1.0f), glm::vec4(emission / area, e.thickness)});
+                              glm::vec4(albedo / area, std::cos(std::min(e.coneRad, 0.5f * std::numbers::pi_v<float>))),
+                              glm::vec4(emission / area, e.thickness)});
         tree.rects.push_back(glm::vec4(shared::octEncode(t1), ext.x, ext.y));
         tree.links.push_back({first, uint32_t(c1 - c0), coherent ? LFGI_VIR_LOD_COHERENT : 0u, ~0u});
         extra.push_back(e);
@@ -203,6 +205,22 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     for (uint32_t c = tree.links[i].childCount; c > 0; --c) stack.push_back(tree.children[tree.links[i].firstChild + c - 1]);
   }
   return tree;
+}
+
+std::vector<uint32_t> virLodCut(const VirLodTree& tree, glm::vec4 block, const shared::VirLodParams& params) {
+  std::vector<uint32_t> cut, stack{tree.root()};
+  while (!stack.empty()) {
+    const uint32_t i = stack.back();
+    stack.pop_back();
+    const shared::VirLodLink& link = tree.links[i];
+    const int c = shared::virLodClassify(tree.nodes[i], link, block, params);
+    if (c == LFGI_VIR_LOD_ACCEPT) {
+      cut.push_back(i);
+    } else if (c == LFGI_VIR_LOD_REFINE) {
+      for (uint32_t k = link.childCount; k > 0; --k) stack.push_back(tree.children[link.firstChild + k - 1]);
+    }
+  }
+  return cut;
 }
 
 }  // namespace lfgi::gpu

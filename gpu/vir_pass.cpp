@@ -207,7 +207,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
           dispatch(ctx_, cmd, lodCut_,
                    {&nodeBuf_, &linkBuf_, &childBuf_, &upBuf_, &frontierBuf_, &blockBuf_, &cutBuf_, &cutCountBuf_,
                     &statsBuf_},
-                   lp, {lp.nodeCount, lp.blockCount, 1});
+                   lp, {lp.blockCount, lp.nodeCount, 1});
           memoryBarrier(cmd);
           dispatch(ctx_, cmd, lodSplat_, {&nodeBuf_, &probeBuf_, &cutBuf_, &cutCountBuf_, &slots_, &statsBuf_, &rectBuf_}, lp,
                    {lp.lanes, lp.blockProbes, lp.blockCount});
