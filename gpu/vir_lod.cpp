@@ -21,6 +21,11 @@ uint32_t spreadBits10(uint32_t v) {  // 10 bits -> every third bit of 30
   return v;
 }
 
+uint64_t morton30(glm::vec3 p, glm::vec3 lo, float toGrid) {  // 10 bits per axis of (p - lo) * toGrid
+  const glm::uvec3 q(glm::clamp((p - lo) * toGrid, glm::vec3(0.0f), glm::vec3(1023.0f)));
+  return spreadBits10(q.x) | (spreadBits10(q.y) << 1) | (spreadBits10(q.z) << 2);
+}
+
 uint32_t normalClass(glm::vec3 n) {  // dominant axis and sign: 0..5
   const glm::vec3 a = glm::abs(n);
   const uint32_t axis = a.x >= a.y && a.x >= a.z ? 0u : (a.y >= a.z ? 1u : 2u);
@@ -65,8 +70,7 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
   std::vector<std::pair<uint64_t, uint32_t>> keyed(surfels.size());
   for (size_t i = 0; i < surfels.size(); ++i) {
     const glm::vec3 p(surfels[i].positionRadius), nrm(surfels[i].normal);
-    const glm::uvec3 q(glm::clamp((p - lo) * toGrid, glm::vec3(0.0f), glm::vec3(1023.0f)));
-    const uint64_t morton = spreadBits10(q.x) | (spreadBits10(q.y) << 1) | (spreadBits10(q.z) << 2);
+    const uint64_t morton = morton30(p, lo, toGrid);
     const uint64_t bucket = uint64_t(std::clamp((glm::dot(nrm, p) - offLo) * toBucket, 0.0f, 4095.0f));
     keyed[i] = {(uint64_t(normalClass(nrm)) << 42) | (bucket << 30) | morton, uint32_t(i)};
   }
@@ -205,6 +209,21 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     for (uint32_t c = tree.links[i].childCount; c > 0; --c) stack.push_back(tree.children[tree.links[i].firstChild + c - 1]);
   }
   return tree;
+}
+
+std::vector<uint32_t> virProbeBlockOrder(std::span<const glm::vec3> probes) {
+  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+  for (const glm::vec3& p : probes) {
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  const float toGrid = 1023.999f / std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z, 1e-6f});
+  std::vector<std::pair<uint64_t, uint32_t>> keyed(probes.size());
+  for (size_t i = 0; i < probes.size(); ++i) keyed[i] = {morton30(probes[i], lo, toGrid), uint32_t(i)};
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<uint32_t> order(probes.size());
+  for (size_t i = 0; i < keyed.size(); ++i) order[i] = keyed[i].second;
+  return order;
 }
 
 std::vector<uint32_t> virLodCut(const VirLodTree& tree, glm::vec4 block, const shared::VirLodParams& params) {

@@ -61,6 +61,11 @@ struct VirLodTree {
 // Throws lfgi::Error on an empty cloud, non-finite positions or radii, or more than 2^31 surfels.
 VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLodBuildOptions& options = {});
 
+// Probe indices sorted along a Morton curve of the positions (10 bits per axis over their bounding cube;
+// ties by index): runs of consecutive entries are spatially compact, e.g. 2 x 2 x 2 probes of a grid
+// (VirPass's probe blocks). A permutation of [0, probes.size()); deterministic.
+std::vector<uint32_t> virProbeBlockOrder(std::span<const glm::vec3> probes);
+
 // CPU replay of vir_lod_cut.comp for one probe block (xyz centre, w radius): the nodes the walk emits
 // (shared/vir.h virLodClassify; depth first, the device's order differs and the splat ignores it). params:
 // the fields virLodClassify reads (res, maxRange, footprintScale, lodTexels, depthTolerance). Unlike the

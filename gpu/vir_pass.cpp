@@ -111,8 +111,15 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   atlas.lodBuildMs = prepareSurfels(surfels, o);
   const size_t n2 = size_t(o.resolution) * size_t(o.resolution);
   const size_t texels = n2 * probes.size();
+  // LOD: probes in block order (a Morton curve, so each block of consecutive entries is compact), w = the
+  // probe's index in the caller's list (its map); the full splat keeps the caller's order.
+  if (o.lod && probes.size() > (size_t(1) << 24)) fail("VIR LOD: {} probes exceed 2^24", probes.size());
+  const std::vector<uint32_t> order = o.lod ? virProbeBlockOrder(probes) : std::vector<uint32_t>{};
   std::vector<glm::vec4> probe4(probes.size());
-  for (size_t i = 0; i < probes.size(); ++i) probe4[i] = glm::vec4(probes[i], 1.0f);
+  for (size_t i = 0; i < probes.size(); ++i) {
+    const uint32_t k = o.lod ? order[i] : uint32_t(i);
+    probe4[i] = glm::vec4(probes[k], float(k));
+  }
   grow(probeBuf_, probe4.size() * sizeof(glm::vec4));
   grow(irrBuf_, surfels.size() * sizeof(glm::vec4));
   grow(slots_, texels * sizeof(uint64_t));
@@ -133,7 +140,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   params.footprintScale = o.footprintScale;
   const uint32_t res = params.res, probeCount = params.probeCount;
 
-  // LOD: probe blocks (consecutive probes, bounding spheres) and the cut buffer.
+  // LOD: probe blocks (consecutive probes in block order, bounding spheres) and the cut buffer.
   shared::VirLodParams lp{};
   size_t blockCount = 0, batchBlocks = 0;
   if (o.lod) {
@@ -143,10 +150,10 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     for (size_t b = 0; b < blockCount; ++b) {
       const size_t first = b * bp, last = std::min(probes.size(), first + bp);
       glm::vec3 c(0.0f);
-      for (size_t i = first; i < last; ++i) c += probes[i];
+      for (size_t i = first; i < last; ++i) c += glm::vec3(probe4[i]);
       c /= float(last - first);
       float r = 0.0f;
-      for (size_t i = first; i < last; ++i) r = std::max(r, glm::length(probes[i] - c));
+      for (size_t i = first; i < last; ++i) r = std::max(r, glm::length(glm::vec3(probe4[i]) - c));
       blocks[b] = glm::vec4(c, r * 1.0001f + 1e-6f);
     }
     grow(blockBuf_, blocks.size() * sizeof(glm::vec4));

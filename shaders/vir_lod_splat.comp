@@ -31,7 +31,7 @@
 layout(local_size_x = 64, local_size_y = 1, local_size_z = 1) in;
 
 layout(std430, set = 0, binding = 0) readonly buffer Nodes { Surfel nodes[]; };
-layout(std430, set = 0, binding = 1) readonly buffer Probes { vec4 probes[]; };
+layout(std430, set = 0, binding = 1) readonly buffer Probes { vec4 probes[]; };  // block order; w: map index
 layout(std430, set = 0, binding = 2) readonly buffer Cut { uint cut[]; };
 layout(std430, set = 0, binding = 3) readonly buffer CutCount { uint cutCount[]; };
 layout(std430, set = 0, binding = 4) buffer Slots { uint64_t slots[]; };
@@ -89,7 +89,7 @@ void main() {
   int n = int(params.res);
   float halfN = float(n) * 0.5;
   int kmax = int(params.maxFootprintRadius);
-  base = p * params.res * params.res;
+  base = uint(probes[p].w) * params.res * params.res;
   uint count = min(cutCount[gl_GlobalInvocationID.z], params.cutCapacity);
   uint cutBase = gl_GlobalInvocationID.z * params.cutCapacity;
   uint visited = 0u, windowPairs = 0u;
