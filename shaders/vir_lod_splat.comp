@@ -52,16 +52,18 @@ uint base;
 uint64_t low;
 uint atomics = 0u, tests = 0u;
 
-// The texel-centre ray of interior texel t against the footprint; the nearest hit per texel wins.
+// The texel-centre ray of interior texel t against the footprint; the nearest hit per texel wins. The ray
+// direction stays unnormalised (octDecodeL1): only a hit needs the length, for the depth along the unit ray.
 void splatTexel(ivec2 t) {
   ++tests;
-  vec3 td = octTexelDirection(uvec2(t), params.res);
+  vec3 td = octDecodeL1(octTexelCentre(uvec2(t), params.res));
   float denom = -dot(nrm, td);
   if (denom <= 1e-6) return;
-  float depth = facing / denom;
-  vec3 h = o + depth * td - pos;
+  float scaled = facing / denom;  // o + scaled td lies on the footprint's plane
+  vec3 h = o + scaled * td - pos;
   bool hit = isRect ? (abs(dot(h, t1)) <= ext.x && abs(dot(h, t2)) <= ext.y) : dot(h, h) <= r2;
   if (hit) {
+    float depth = scaled * length(td);
     atomicMin(slots[base + uint(t.y) * params.res + uint(t.x)], (uint64_t(floatBitsToUint(depth)) << 32) | low);
     ++atomics;
   }
@@ -106,14 +108,7 @@ void main() {
     if (facing <= 0.0) continue;
     float r = pr.w * params.footprintScale;
     r2 = r * r;
-    vec4 rect = rects[s];
-    isRect = rect.z >= 0.0;
-    t1 = isRect ? octDecode(rect.xy) : virRectAxis(nrm);
-    t2 = cross(nrm, t1);
-    ext = isRect ? rect.zw : vec2(r);
-    vec3 e1 = t1 * ext.x, e2 = t2 * ext.y;
-    low = uint64_t(s);
-    vec2 tc = (octEncode(toS) * 0.5 + vec2(0.5)) * float(n);  // continuous texel coordinates of the centre
+    vec2 tc = texelCoord(toS);  // continuous texel coordinates of the centre
     ivec2 c = ivec2(floor(tc));
     // The square window: texel centres within the angular radius (x the map's largest stretch) of the
     // centre; none there (most sub-texel nodes): nothing to splat.
@@ -121,6 +116,13 @@ void main() {
     ivec2 lo = max(ivec2(ceil(tc - vec2(0.5 + rho))), c - ivec2(kmax));
     ivec2 hi = min(ivec2(floor(tc + vec2(rho - 0.5))), c + ivec2(kmax));
     if (any(greaterThan(lo, hi))) continue;
+    vec4 rect = rects[s];
+    isRect = rect.z >= 0.0;
+    t1 = isRect ? octDecode(rect.xy) : virRectAxis(nrm);
+    t2 = cross(nrm, t1);
+    ext = isRect ? rect.zw : vec2(r);
+    vec3 e1 = t1 * ext.x, e2 = t2 * ext.y;
+    low = uint64_t(s);
     // Corners relative to the probe; one octant when no coordinate changes sign across them.
     vec3 q0 = toS - e1 - e2, q1 = toS + e1 - e2, q2 = toS + e1 + e2, q3 = toS - e1 + e2;
     vec3 qmin = min(min(q0, q1), min(q2, q3)), qmax = max(max(q0, q1), max(q2, q3));
