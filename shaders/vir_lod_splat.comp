@@ -11,17 +11,16 @@
 //
 // Footprint: a leaf is a disc (radius x footprintScale, as vir_splat.comp), a merged node the rectangle of
 // VirLodTree::rects (tight on the city's axis-aligned walls; its half diagonal is the node radius).
-// Texels tested: those whose centres lie in the footprint's exact image in the map. Within one octant
-// (fixed signs of the direction's coordinates) the octahedral map is a gnomonic projection onto an
-// octahedron face followed by an affine map, so straight edges stay straight: the image of a rectangle
-// (of a leaf disc's bounding square in the frame of shared/vir.h virRectAxis) is the polygon through the
-// images of its corners and of the points where its edges cross the coordinate planes through the probe.
-// Each row of texels tests only the span of that polygon (widened by kEdgeEps texels against rounding),
-// not the square around the node's angular radius (which tested ~28 texels per hit at N = 64). The map is
-// continuous except across its border (x = 0 or z = 0 below the horizon): a footprint whose edge crosses
-// there falls back to the square window of half-size angular radius x LFGI_VIR_OCT_STRETCH around its
-// centre, with indices wrapped across the fold (shared/octahedral.h octWrap). Both cap the window at
-// maxFootprintRadius texels from the centre's texel, as vir_splat.comp (near leaves only).
+// Texels tested: first the square window of half-size angular radius x LFGI_VIR_OCT_STRETCH (the map's
+// largest per-axis stretch) around the centre's image rejects a pair whose window holds no texel centre
+// (most sub-texel nodes). Within one octant (fixed signs of the probe-relative coordinates) the octahedral
+// map is a gnomonic projection onto an octahedron face followed by an affine map, so straight edges stay
+// straight: a rectangle (a leaf disc's bounding square in the frame of shared/vir.h virRectAxis) whose
+// corners lie in one octant maps to the quad of its corner images, and each texel row tests only that
+// quad's span (widened by kEdgeEps texels against rounding) instead of the window (~28 tests per hit at
+// N = 64 before). A footprint across an octant plane (3-18 % of pairs in the city cell) tests the window,
+// its indices wrapped across the fold (shared/octahedral.h octWrap). Both cap the texels at
+// maxFootprintRadius from the centre's texel, as vir_splat.comp (near leaves only).
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_atomic_int64 : require
 #include "shared/octahedral.h"
