@@ -76,14 +76,6 @@ gpu::CubemapScene toCubemapScene(const worlds::TriangleMesh& mesh) {
 }
 
 // CPU replay of vir_splat.comp's loop: the number of atomicMin calls for one probe.
-glm::ivec2 octWrap(glm::ivec2 t, int n) {
-  if (t.x < 0) t = {-1 - t.x, n - 1 - t.y};
-  else if (t.x >= n) t = {2 * n - 1 - t.x, n - 1 - t.y};
-  if (t.y < 0) t = {n - 1 - t.x, -1 - t.y};
-  else if (t.y >= n) t = {n - 1 - t.x, 2 * n - 1 - t.y};
-  return glm::clamp(t, glm::ivec2(0), glm::ivec2(n - 1));
-}
-
 uint64_t splatAtomics(std::span<const shared::Surfel> surfels, glm::vec3 o, const gpu::VirOptions& opt) {
   uint64_t count = 0;
   const int n = opt.resolution;
@@ -99,7 +91,7 @@ uint64_t splatAtomics(std::span<const shared::Surfel> surfels, glm::vec3 o, cons
     const glm::ivec2 c(shared::octDirectionTexel(toS / d, uint32_t(n)));
     for (int dy = -k; dy <= k; ++dy)
       for (int dx = -k; dx <= k; ++dx) {
-        const glm::ivec2 t = octWrap(c + glm::ivec2(dx, dy), n);
+        const glm::ivec2 t = shared::octWrap(c + glm::ivec2(dx, dy), n);
         const glm::vec3 td = shared::octTexelDirection(glm::uvec2(t), uint32_t(n));
         const float denom = -glm::dot(nrm, td);
         if (denom <= 1e-6f) continue;
@@ -270,26 +262,22 @@ int main(int argc, char** argv) {
         spdlog::info("height {}: {} nodes, {:.1f} % coherent, mean footprint radius {:.2f} m", hgt, h[0],
                      100.0 * h[1] / h[0], h[2] / h[0]);
       // One probe's cut at N = 8 and 16 (CPU replay of vir_lod_cut.comp, block = the probe).
+      const glm::vec3 eye = active[active.size() / 2];
       for (int n : {8, 16}) {
+        shared::VirLodParams lp{};
+        lp.res = uint32_t(n);
+        lp.maxRange = 1000.0f;
+        lp.footprintScale = gpu::VirOptions{}.footprintScale;
+        lp.lodTexels = lodTexels;
+        lp.depthTolerance = gpu::VirOptions{}.lodDepthTolerance;
         size_t leaves = 0, inner = 0, leavesUnderIncoherent = 0;
-        std::vector<uint32_t> st{tree.root()};
-        const glm::vec3 eye = active[active.size() / 2];
-        while (!st.empty()) {
-          const uint32_t i = st.back();
-          st.pop_back();
-          const float r = tree.nodes[i].positionRadius.w * 1.5f;
-          const float d = glm::length(glm::vec3(tree.nodes[i].positionRadius) - eye);
-          const auto& l = tree.links[i];
-          const bool coherent = (l.flags & LFGI_VIR_LOD_COHERENT) != 0;
-          if (l.childCount == 0) {
-            ++leaves;
-            leavesUnderIncoherent += (tree.up[i].x != ~0u && !(tree.links[tree.up[i].x].flags & LFGI_VIR_LOD_COHERENT));
-          } else if (coherent && r * float(n) <= lodTexels * d &&
-                     tree.nodes[i].emission.w <= gpu::VirOptions{}.lodDepthTolerance * d) {
+        for (const uint32_t i : gpu::virLodCut(tree, glm::vec4(eye, 0.0f), lp)) {
+          if (i >= tree.leafCount) {
             ++inner;
-          } else {
-            for (uint32_t c = 0; c < l.childCount; ++c) st.push_back(tree.children[l.firstChild + c]);
+            continue;
           }
+          ++leaves;
+          leavesUnderIncoherent += (tree.up[i].x != ~0u && !(tree.links[tree.up[i].x].flags & LFGI_VIR_LOD_COHERENT));
         }
         spdlog::info("N={} cut for one probe: {} leaves ({} with an incoherent parent), {} merged nodes", n, leaves,
                      leavesUnderIncoherent, inner);
@@ -329,7 +317,8 @@ int main(int argc, char** argv) {
                   "surfel_probes_per_s", "splat_or_raster_ms", "resolve_or_resample_ms", "wall_ms", "atomics_per_s",
                   "dist_median_rel_error", "dist_p90_rel_error", "dist_frac_off_5pct", "normal_median_deg",
                   "normal_p90_deg", "hole_fraction", "dist_median_rel_error_vs_capture",
-                  "normal_median_deg_vs_capture", "splat_pairs_per_s", "lod_nodes", "lod_build_ms"});
+                  "normal_median_deg_vs_capture", "splat_pairs_per_s", "lod_nodes", "lod_build_ms", "splat_pairs_per_probe",
+                  "texel_tests_per_probe", "atomics_per_probe", "window_pair_fraction"});
     nlohmann::ordered_json skipped = nlohmann::ordered_json::array();
     struct Measured {
       double probesPerS = 0.0, msPerProbe = 0.0;
@@ -416,6 +405,13 @@ int main(int argc, char** argv) {
                                                 : 0.0;
           m.splatPairsPerS = double(atlas.splatPairs) / (atlas.gpuMs * 1e-3);
           best[{method, n}] = m;
+          const auto perProbe = [&](uint64_t total) { return double(total) / double(count); };
+          if (method == "vir_lod")
+            spdlog::info("vir_lod N={} probes={}: per probe {:.0f} cut pairs, {:.0f} texel tests, {:.0f} atomics; "
+                         "{:.1f} % of pairs through the wrapped window",
+                         n, count, perProbe(atlas.splatPairs), perProbe(atlas.splatTexelTests),
+                         perProbe(atlas.splatAtomics),
+                         atlas.splatPairs ? 100.0 * double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0);
           spdlog::info("{} N={} probes={}: {:.1f} ms device, {:.1f} ms wall ({:.3f} ms/probe, {:.0f} probes/s); dist "
                        "median {:.2e} p90 {:.4f} off>5% {:.4f}, normal median {:.2f} p90 {:.2f} deg, holes {:.4f}{}",
                        method, n, count, atlas.gpuMs, wallMs, m.msPerProbe, m.probesPerS, acc->distMedianRel,
@@ -432,7 +428,9 @@ int main(int argc, char** argv) {
                     bench::num(acc->captureNormalMedianDeg),
                     method == "cubemap" ? "0" : bench::num(m.splatPairsPerS),
                     method == "vir_lod" ? std::to_string(lodNodes) : "0",
-                    method == "vir_lod" ? bench::num(lodBuildMs) : "0"});
+                    method == "vir_lod" ? bench::num(lodBuildMs) : "0", bench::num(perProbe(atlas.splatPairs)),
+                    bench::num(perProbe(atlas.splatTexelTests)), bench::num(perProbe(atlas.splatAtomics)),
+                    bench::num(atlas.splatPairs ? double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0)});
           perCount[{method, n, count}] = m.probesPerS;
         }
       }

@@ -21,6 +21,11 @@ uint32_t spreadBits10(uint32_t v) {  // 10 bits -> every third bit of 30
   return v;
 }
 
+uint64_t morton30(glm::vec3 p, glm::vec3 lo, float toGrid) {  // 10 bits per axis of (p - lo) * toGrid
+  const glm::uvec3 q(glm::clamp((p - lo) * toGrid, glm::vec3(0.0f), glm::vec3(1023.0f)));
+  return spreadBits10(q.x) | (spreadBits10(q.y) << 1) | (spreadBits10(q.z) << 2);
+}
+
 uint32_t normalClass(glm::vec3 n) {  // dominant axis and sign: 0..5
   const glm::vec3 a = glm::abs(n);
   const uint32_t axis = a.x >= a.y && a.x >= a.z ? 0u : (a.y >= a.z ? 1u : 2u);
@@ -65,8 +70,7 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
   std::vector<std::pair<uint64_t, uint32_t>> keyed(surfels.size());
   for (size_t i = 0; i < surfels.size(); ++i) {
     const glm::vec3 p(surfels[i].positionRadius), nrm(surfels[i].normal);
-    const glm::uvec3 q(glm::clamp((p - lo) * toGrid, glm::vec3(0.0f), glm::vec3(1023.0f)));
-    const uint64_t morton = spreadBits10(q.x) | (spreadBits10(q.y) << 1) | (spreadBits10(q.z) << 2);
+    const uint64_t morton = morton30(p, lo, toGrid);
     const uint64_t bucket = uint64_t(std::clamp((glm::dot(nrm, p) - offLo) * toBucket, 0.0f, 4095.0f));
     keyed[i] = {(uint64_t(normalClass(nrm)) << 42) | (bucket << 30) | morton, uint32_t(i)};
   }
@@ -82,6 +86,7 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     shared::Surfel s = surfels[i];
     const float r = s.positionRadius.w;
     s.normal.w = std::numbers::pi_v<float> * r * r;
+    s.albedo.w = 1.0f;  // cosine of the normal cone: one normal
     tree.nodes.push_back(s);
     tree.links.push_back({0u, 0u, LFGI_VIR_LOD_COHERENT, i});
     tree.rects.push_back(glm::vec4(0.0f, 0.0f, -1.0f, -1.0f));
@@ -120,10 +125,7 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
         centre /= area;
         const float nlen = glm::length(nsum);
         const glm::vec3 n = nlen > 1e-12f ? nsum / nlen : glm::vec3(tree.nodes[current[c0].second].normal);
-        // Rectangle frame: a world axis projected into the plane (walls: up; floors and roofs: +x), so the
-        // axis-aligned walls and roofs of the synthetic city get tight rectangles.
-        const glm::vec3 axis = std::abs(n.y) >= 0.5f ? glm::vec3(1.0f, 0.0f, 0.0f) : glm::vec3(0.0f, 1.0f, 0.0f);
-        const glm::vec3 t1 = glm::normalize(axis - glm::dot(axis, n) * n), t2 = glm::cross(n, t1);
+        const glm::vec3 t1 = shared::virRectAxis(n), t2 = glm::cross(n, t1);  // rectangle frame
         NodeExtra e;
         bool coherent = nlen > 1e-12f;
         glm::vec2 lo2(std::numeric_limits<float>::max()), hi2(-std::numeric_limits<float>::max());
@@ -157,7 +159,8 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
         e.footprintRadius = glm::length(ext);  // the rectangle's corners: bounds its angular extent
         const uint32_t node = uint32_t(tree.nodes.size());
         tree.nodes.push_back({glm::vec4(rectCentre, e.footprintRadius / o.footprintScale), glm::vec4(n, area),
-                              glm::vec4(albedo / area, 1.0f), glm::vec4(emission / area, e.thickness)});
+                              glm::vec4(albedo / area, std::cos(std::min(e.coneRad, 0.5f * std::numbers::pi_v<float>))),
+                              glm::vec4(emission / area, e.thickness)});
         tree.rects.push_back(glm::vec4(shared::octEncode(t1), ext.x, ext.y));
         tree.links.push_back({first, uint32_t(c1 - c0), coherent ? LFGI_VIR_LOD_COHERENT : 0u, ~0u});
         extra.push_back(e);
@@ -206,6 +209,37 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     for (uint32_t c = tree.links[i].childCount; c > 0; --c) stack.push_back(tree.children[tree.links[i].firstChild + c - 1]);
   }
   return tree;
+}
+
+std::vector<uint32_t> virProbeBlockOrder(std::span<const glm::vec3> probes) {
+  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+  for (const glm::vec3& p : probes) {
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  const float toGrid = 1023.999f / std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z, 1e-6f});
+  std::vector<std::pair<uint64_t, uint32_t>> keyed(probes.size());
+  for (size_t i = 0; i < probes.size(); ++i) keyed[i] = {morton30(probes[i], lo, toGrid), uint32_t(i)};
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<uint32_t> order(probes.size());
+  for (size_t i = 0; i < keyed.size(); ++i) order[i] = keyed[i].second;
+  return order;
+}
+
+std::vector<uint32_t> virLodCut(const VirLodTree& tree, glm::vec4 block, const shared::VirLodParams& params) {
+  std::vector<uint32_t> cut, stack{tree.root()};
+  while (!stack.empty()) {
+    const uint32_t i = stack.back();
+    stack.pop_back();
+    const shared::VirLodLink& link = tree.links[i];
+    const int c = shared::virLodClassify(tree.nodes[i], link, block, params);
+    if (c == LFGI_VIR_LOD_ACCEPT) {
+      cut.push_back(i);
+    } else if (c == LFGI_VIR_LOD_REFINE) {
+      for (uint32_t k = link.childCount; k > 0; --k) stack.push_back(tree.children[link.firstChild + k - 1]);
+    }
+  }
+  return cut;
 }
 
 }  // namespace lfgi::gpu

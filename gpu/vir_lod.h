@@ -13,7 +13,9 @@
 // world axis projected into the plane, of its children's footprints (leaf discs of radius r x
 // footprintScale, child rectangles), so it covers every surfel footprint below it, and its edges follow
 // the axis-aligned walls of the city (a bounding disc overhung building edges by ~0.2 of its size and put
-// surfaces in front of the sky). Albedo and emission are area-weighted, area the children's sum; radius =
+// surfaces in front of the sky). Albedo and emission are area-weighted (albedo.a: the cosine of the normal
+// cone, the largest angle between the node normal and a leaf normal below, capped at 90 degrees; leaves 1),
+// area the children's sum; radius =
 // the rectangle's half diagonal / footprintScale (bounds its angular size); emission.a = thickness, the
 // largest distance of a leaf centre from the plane (the cut only splats a node whose thickness is small
 // next to its distance). Nodes whose normal cone exceeds coherentConeDeg are flagged incoherent and
@@ -58,5 +60,16 @@ struct VirLodTree {
 
 // Throws lfgi::Error on an empty cloud, non-finite positions or radii, or more than 2^31 surfels.
 VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLodBuildOptions& options = {});
+
+// Probe indices sorted along a Morton curve of the positions (10 bits per axis over their bounding cube;
+// ties by index): runs of consecutive entries are spatially compact, e.g. 2 x 2 x 2 probes of a grid
+// (VirPass's probe blocks). A permutation of [0, probes.size()); deterministic.
+std::vector<uint32_t> virProbeBlockOrder(std::span<const glm::vec3> probes);
+
+// CPU replay of vir_lod_cut.comp for one probe block (xyz centre, w radius): the nodes the walk emits
+// (shared/vir.h virLodClassify; depth first, the device's order differs and the splat ignores it). params:
+// the fields virLodClassify reads (res, maxRange, footprintScale, lodTexels, depthTolerance). Unlike the
+// device walk it never accepts a node early for lack of stack (LFGI_VIR_LOD_STACK).
+std::vector<uint32_t> virLodCut(const VirLodTree& tree, glm::vec4 block, const shared::VirLodParams& params);
 
 }  // namespace lfgi::gpu

@@ -140,5 +140,27 @@ TEST(VirLod, RejectsBadInput) {
   EXPECT_EQ(two.links[two.root()].childCount, 2u);
 }
 
+// Probe blocks along the Morton curve: a 8 x 4 x 8 grid given row by row (x fastest) falls into compact
+// blocks of 8 (2 x 2 x 2 probes: radius sqrt(3) / 2 spacing), not rows (radius 3.5 spacings).
+TEST(VirLod, ProbeBlockOrderGroupsGridCubes) {
+  std::vector<glm::vec3> probes;
+  for (int z = 0; z < 8; ++z)
+    for (int y = 0; y < 4; ++y)
+      for (int x = 0; x < 8; ++x) probes.push_back(glm::vec3(10.0f, 2.0f, -5.0f) + 2.0f * glm::vec3(x, y, z));
+  const std::vector<uint32_t> order = virProbeBlockOrder(probes);
+  ASSERT_EQ(order.size(), probes.size());
+  std::vector<int> seen(probes.size(), 0);
+  for (uint32_t i : order) ++seen.at(i);
+  for (int s : seen) ASSERT_EQ(s, 1);
+  for (size_t b = 0; b < order.size(); b += 8) {
+    glm::vec3 c(0.0f);
+    for (size_t i = b; i < b + 8; ++i) c += probes[order[i]] / 8.0f;
+    float r = 0.0f;
+    for (size_t i = b; i < b + 8; ++i) r = std::max(r, glm::length(probes[order[i]] - c));
+    EXPECT_NEAR(r, std::sqrt(3.0f), 1e-4f) << "block " << b / 8;
+  }
+  EXPECT_EQ(virProbeBlockOrder(probes), order);
+}
+
 }  // namespace
 }  // namespace lfgi::gpu

@@ -22,6 +22,7 @@ Program requireInt64Atomics(Context& ctx, const char* name) {
 }
 
 constexpr size_t kMaxCutEntries = size_t(1) << 24;  // per batch of blocks (64 MiB of node indices)
+constexpr size_t kLodStats = 6;  // counters of vir_lod_cut.comp / vir_lod_splat.comp (see their Stats buffers)
 
 }  // namespace
 
@@ -110,8 +111,15 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   atlas.lodBuildMs = prepareSurfels(surfels, o);
   const size_t n2 = size_t(o.resolution) * size_t(o.resolution);
   const size_t texels = n2 * probes.size();
+  // LOD: probes in block order (a Morton curve, so each block of consecutive entries is compact), w = the
+  // probe's index in the caller's list (its map); the full splat keeps the caller's order.
+  if (o.lod && probes.size() > (size_t(1) << 24)) fail("VIR LOD: {} probes exceed 2^24", probes.size());
+  const std::vector<uint32_t> order = o.lod ? virProbeBlockOrder(probes) : std::vector<uint32_t>{};
   std::vector<glm::vec4> probe4(probes.size());
-  for (size_t i = 0; i < probes.size(); ++i) probe4[i] = glm::vec4(probes[i], 1.0f);
+  for (size_t i = 0; i < probes.size(); ++i) {
+    const uint32_t k = o.lod ? order[i] : uint32_t(i);
+    probe4[i] = glm::vec4(probes[k], float(k));
+  }
   grow(probeBuf_, probe4.size() * sizeof(glm::vec4));
   grow(irrBuf_, surfels.size() * sizeof(glm::vec4));
   grow(slots_, texels * sizeof(uint64_t));
@@ -132,7 +140,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   params.footprintScale = o.footprintScale;
   const uint32_t res = params.res, probeCount = params.probeCount;
 
-  // LOD: probe blocks (consecutive probes, bounding spheres) and the cut buffer.
+  // LOD: probe blocks (consecutive probes in block order, bounding spheres) and the cut buffer.
   shared::VirLodParams lp{};
   size_t blockCount = 0, batchBlocks = 0;
   if (o.lod) {
@@ -142,17 +150,17 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     for (size_t b = 0; b < blockCount; ++b) {
       const size_t first = b * bp, last = std::min(probes.size(), first + bp);
       glm::vec3 c(0.0f);
-      for (size_t i = first; i < last; ++i) c += probes[i];
+      for (size_t i = first; i < last; ++i) c += glm::vec3(probe4[i]);
       c /= float(last - first);
       float r = 0.0f;
-      for (size_t i = first; i < last; ++i) r = std::max(r, glm::length(probes[i] - c));
+      for (size_t i = first; i < last; ++i) r = std::max(r, glm::length(glm::vec3(probe4[i]) - c));
       blocks[b] = glm::vec4(c, r * 1.0001f + 1e-6f);
     }
     grow(blockBuf_, blocks.size() * sizeof(glm::vec4));
     upload<glm::vec4>(ctx_, blockBuf_, blocks);
     if (cutCapacity_ == 0) cutCapacity_ = uint32_t(std::clamp<size_t>(16 * n2, 4096, kMaxCutEntries));
     grow(cutCountBuf_, blockCount * sizeof(uint32_t));
-    grow(statsBuf_, 4 * sizeof(uint64_t));
+    grow(statsBuf_, kLodStats * sizeof(uint64_t));
     lp.probeCount = probeCount;
     lp.res = res;
     lp.blockProbes = uint32_t(bp);
@@ -206,7 +214,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
           dispatch(ctx_, cmd, lodCut_,
                    {&nodeBuf_, &linkBuf_, &childBuf_, &upBuf_, &frontierBuf_, &blockBuf_, &cutBuf_, &cutCountBuf_,
                     &statsBuf_},
-                   lp, {lp.nodeCount, lp.blockCount, 1});
+                   lp, {lp.blockCount, lp.nodeCount, 1});
           memoryBarrier(cmd);
           dispatch(ctx_, cmd, lodSplat_, {&nodeBuf_, &probeBuf_, &cutBuf_, &cutCountBuf_, &slots_, &statsBuf_, &rectBuf_}, lp,
                    {lp.lanes, lp.blockProbes, lp.blockCount});
@@ -236,13 +244,15 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
       timer.stamp(cmd, 4);
     });
     if (!o.lod) break;
-    std::array<uint64_t, 4> stats{};
+    std::array<uint64_t, kLodStats> stats{};
     readback<uint64_t>(ctx_, statsBuf_, stats);
     if (stats[2] > 0)
       spdlog::warn("VIR LOD: {} nodes splatted coarser than lodTexels (cut walk stack full)", stats[2]);
     if (stats[3] == 0) {
       atlas.splatPairs = stats[0];
       atlas.splatAtomics = stats[1];
+      atlas.splatTexelTests = stats[4];
+      atlas.splatWindowPairs = stats[5];
       break;
     }
     if (cutCapacity_ >= kMaxCutEntries)

@@ -6,12 +6,13 @@
 // Two splat paths (VirOptions::lod):
 //   off: every surfel into every probe (vir_splat.comp; one invocation per (surfel, probe) pair).
 //   on (default): a surfel LOD tree (gpu/vir_lod.h, built once per surfel set and kept resident) is cut
-//     per block of consecutive probes at the coarsest nodes whose disc stays below lodTexels texels
+//     per block of nearby probes at the coarsest nodes whose disc stays below lodTexels texels
 //     (vir_lod_cut.comp), and only the cut is splatted (vir_lod_splat.comp, probe-major). Far surfels
 //     cover a tiny fraction of a texel, so most (surfel, probe) pairs of the full splat only lose the
 //     depth test; the cut keeps ~ texels x depth complexity discs per probe. Merged discs carry the
 //     area-weighted mean radiance of their surfels (vir_lod_radiance.comp, per call, so relighting stays
-//     exact in the mean). Pass consecutive probes close together (grid order) for small blocks.
+//     exact in the mean). Blocks are runs of lodBlockProbes probes along a Morton curve of their
+//     positions (virProbeBlockOrder: 2 x 2 x 2 probes of a grid, not a row of 8), whatever the order given.
 //
 // Buffers are resident in the VirPass and grow only (no per-call allocation once the largest run has
 // been seen); the LOD tree and the surfel upload are reused while the surfel array's bytes and the
@@ -44,7 +45,7 @@ struct VirOptions {
   int fillPasses = 2;           // dilation passes, 0..kMaxFillPasses
   bool lod = true;              // splat a per-probe-block cut of the surfel LOD tree (see above)
   float lodTexels = 4.0f;       // LOD: a merged node may stand in for its surfels when <= this many texels wide
-  int lodBlockProbes = 8;       // LOD: consecutive probes sharing one cut, [1, 64]
+  int lodBlockProbes = 8;       // LOD: probes sharing one cut (consecutive along a Morton curve), [1, 64]
   float lodDepthTolerance = 0.01f;  // LOD: merged node thickness <= this x distance (relative depth error)
   static constexpr int kMaxFillPasses = 8;
 };
@@ -65,6 +66,8 @@ struct ProbeAtlas {
   uint64_t lodNodes = 0;       // LOD: nodes in the tree (leaves + merged)
   uint64_t splatPairs = 0;     // (disc, probe) pairs the splat visited: surfels x probes without LOD
   uint64_t splatAtomics = 0;   // LOD: 64-bit atomicMin calls counted on the device; 0 without LOD
+  uint64_t splatTexelTests = 0;   // LOD: texel-centre ray / footprint tests of the splat (device count)
+  uint64_t splatWindowPairs = 0;  // LOD: front-facing pairs splatted through the wrapped square window
 };
 
 class VirPass {

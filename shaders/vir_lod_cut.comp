@@ -1,12 +1,10 @@
 #version 450
 // VIR LOD cut: per probe block (consecutive probes, bounding sphere in `blocks`), the cut through the
-// surfel LOD tree (gpu/vir_lod.h): walking down from the root, stop at the first node whose footprint
-// disc is at most lodTexels texels wide seen from the nearest point of the block's sphere (radius R at
-// distance d: 2 R / d <= lodTexels x 2 / N, the angle of a texel where the octahedral map is least
-// stretched) and whose thickness (leaf distance from its plane) is <= depthTolerance x d, or at a leaf;
-// incoherent nodes (normal cone too wide) are always refined and subtrees farther than maxRange from
-// every probe are dropped. vir_lod_splat.comp splats the cut into each probe of the
-// block.
+// surfel LOD tree (gpu/vir_lod.h): walking down from the root, stop at the first node that
+// shared/vir.h virLodClassify accepts (a leaf, or a coherent node at most lodTexels texels wide and thin
+// enough seen from the block's nearest point) or drops (beyond maxRange, or facing away from every probe
+// of the block: the splat would cull all of it); incoherent nodes (normal cone too wide) are always
+// refined. vir_lod_splat.comp splats the cut into each probe of the block.
 //
 // The walk is split into one invocation per (frontier subtree, block): the frontier (VirLodTree::frontier)
 // cuts the tree into subtrees of <= 2048 nodes. An invocation first replays the walk along its subtree
@@ -21,7 +19,7 @@
 #include "shared/surfel.h"
 #include "shared/vir.h"
 
-layout(local_size_x = 64, local_size_y = 1, local_size_z = 1) in;
+layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
 layout(std430, set = 0, binding = 0) readonly buffer Nodes { Surfel nodes[]; };
 layout(std430, set = 0, binding = 1) readonly buffer Links { VirLodLink links[]; };
@@ -32,29 +30,17 @@ layout(std430, set = 0, binding = 5) readonly buffer Blocks { vec4 blocks[]; }; 
 layout(std430, set = 0, binding = 6) writeonly buffer Cut { uint cut[]; };      // blockCount x cutCapacity
 layout(std430, set = 0, binding = 7) buffer CutCount { uint cutCount[]; };      // zeroed before each batch
 // [0] cut entries x probes (vir_lod_splat), [1] splat atomics, [2] nodes accepted for lack of stack,
-// [3] entries a block needed beyond cutCapacity (0: none)
+// [3] entries a block needed beyond cutCapacity (0: none), [4] texel ray tests and [5] pairs through the
+// wrapped square window (vir_lod_splat)
 layout(std430, set = 0, binding = 8) buffer Stats { uint64_t stats[]; };
 
 layout(push_constant) uniform Push { VirLodParams params; };
 
-const int kAccept = 1, kRefine = 0, kDrop = 2;
 vec4 blk;
-float texelsPerMetre;
 uint buf[32];
 uint nbuf = 0u;
 
-int classify(uint s) {
-  vec4 pr = nodes[s].positionRadius;
-  float r = pr.w * params.footprintScale;
-  float dmin = length(pr.xyz - blk.xyz) - blk.w;
-  if (dmin - r > params.maxRange) return kDrop;
-  VirLodLink link = links[s];
-  if (link.childCount == 0u) return kAccept;
-  if ((link.flags & LFGI_VIR_LOD_COHERENT) != 0u && r * texelsPerMetre <= dmin &&
-      nodes[s].emission.w <= params.depthTolerance * dmin)
-    return kAccept;
-  return kRefine;
-}
+int classify(uint s) { return virLodClassify(nodes[s], links[s], blk, params); }
 
 void flush(uint b) {
   if (nbuf == 0u) return;
@@ -72,25 +58,24 @@ void emit(uint b, uint s) {
 }
 
 void main() {
-  uint fi = gl_GlobalInvocationID.x;
-  uint b = gl_GlobalInvocationID.y;
+  uint b = gl_GlobalInvocationID.x;
+  uint fi = gl_GlobalInvocationID.y;
   if (fi >= params.nodeCount || b >= params.blockCount) return;
   blk = blocks[params.blockFirst + b];
-  texelsPerMetre = float(params.res) / params.lodTexels;
   uint f = frontier[fi];
 
   // The top-down walk stops at the topmost ancestor that is accepted or dropped.
   uint decider = 0xFFFFFFFFu;
-  int decision = kRefine;
+  int decision = LFGI_VIR_LOD_REFINE;
   for (uint a = up[f].x; a != 0xFFFFFFFFu; a = up[a].x) {
     int c = classify(a);
-    if (c != kRefine) {
+    if (c != LFGI_VIR_LOD_REFINE) {
       decider = a;
       decision = c;
     }
   }
   if (decider != 0xFFFFFFFFu) {
-    if (decision == kAccept && up[decider].y == fi) {
+    if (decision == LFGI_VIR_LOD_ACCEPT && up[decider].y == fi) {
       emit(b, decider);
       flush(b);
     }
@@ -104,13 +89,13 @@ void main() {
   while (sp > 0) {
     uint s = stack[--sp];
     int c = classify(s);
-    if (c == kDrop) continue;
+    if (c == LFGI_VIR_LOD_DROP) continue;
     VirLodLink link = links[s];
-    if (c == kRefine && sp + int(link.childCount) > LFGI_VIR_LOD_STACK) {
-      c = kAccept;
+    if (c == LFGI_VIR_LOD_REFINE && sp + int(link.childCount) > LFGI_VIR_LOD_STACK) {
+      c = LFGI_VIR_LOD_ACCEPT;
       ++forced;
     }
-    if (c == kAccept) {
+    if (c == LFGI_VIR_LOD_ACCEPT) {
       emit(b, s);
     } else {
       // Pushed in reverse, so the walk pops children in Morton order.

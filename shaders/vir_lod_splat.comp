@@ -1,7 +1,7 @@
 #version 450
 // VIR LOD splat: every node of a probe block's cut (vir_lod_cut.comp) into every probe of the block,
 // with the depth test of vir_splat.comp (64-bit atomicMin on depth bits << 32 | node index; the texels
-// whose centre ray hits the footprint disc, exact depth along that ray; back-facing discs culled).
+// whose centre ray hits the footprint, exact depth along that ray; back-facing footprints culled).
 //
 // Work decomposition: probe-major. Invocation (lane, probe-in-block, block) walks the block's cut with
 // stride `lanes`; the lanes of one subgroup share one probe map (atomics stay in a few KiB) and read
@@ -11,10 +11,16 @@
 //
 // Footprint: a leaf is a disc (radius x footprintScale, as vir_splat.comp), a merged node the rectangle of
 // VirLodTree::rects (tight on the city's axis-aligned walls; its half diagonal is the node radius).
-// Window: cut nodes are about one texel wide, so instead of vir_splat.comp's square window around the
-// containing texel, only the texels whose centres lie within the disc's angular radius of its projected
-// centre (in texel units x LFGI_VIR_OCT_STRETCH, the octahedral map's largest per-axis stretch) are tested: 1-4
-// ray/disc tests per node instead of 9. Near leaves keep the window cap maxFootprintRadius.
+// Texels tested: first the square window of half-size angular radius x LFGI_VIR_OCT_STRETCH (the map's
+// largest per-axis stretch) around the centre's image rejects a pair whose window holds no texel centre
+// (most sub-texel nodes). Within one octant (fixed signs of the probe-relative coordinates) the octahedral
+// map is a gnomonic projection onto an octahedron face followed by an affine map, so straight edges stay
+// straight: a rectangle (a leaf disc's bounding square in the frame of shared/vir.h virRectAxis) whose
+// corners lie in one octant maps to the quad of its corner images, and each texel row tests only that
+// quad's span (widened by kEdgeEps texels against rounding) instead of the window (~28 tests per hit at
+// N = 64 before). A footprint across an octant plane (3-18 % of pairs in the city cell) tests the window,
+// its indices wrapped across the fold (shared/octahedral.h octWrap). Both cap the texels at
+// maxFootprintRadius from the centre's texel, as vir_splat.comp (near leaves only).
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_atomic_int64 : require
 #include "shared/octahedral.h"
@@ -24,28 +30,54 @@
 layout(local_size_x = 64, local_size_y = 1, local_size_z = 1) in;
 
 layout(std430, set = 0, binding = 0) readonly buffer Nodes { Surfel nodes[]; };
-layout(std430, set = 0, binding = 1) readonly buffer Probes { vec4 probes[]; };
+layout(std430, set = 0, binding = 1) readonly buffer Probes { vec4 probes[]; };  // block order; w: map index
 layout(std430, set = 0, binding = 2) readonly buffer Cut { uint cut[]; };
 layout(std430, set = 0, binding = 3) readonly buffer CutCount { uint cutCount[]; };
 layout(std430, set = 0, binding = 4) buffer Slots { uint64_t slots[]; };
+// [1] atomicMin calls, [4] texel ray tests, [5] pairs through the wrapped window (vir_lod_cut.comp lists all)
 layout(std430, set = 0, binding = 5) buffer Stats { uint64_t stats[]; };
 layout(std430, set = 0, binding = 6) readonly buffer Rects { vec4 rects[]; };  // gpu/vir_lod.h VirLodTree::rects
 
 layout(push_constant) uniform Push { VirLodParams params; };
 
-// As vir_splat.comp: texel index t (|t - [0, n)| < n) -> the interior texel it denotes across the fold.
-ivec2 octWrap(ivec2 t, int n) {
-  if (t.x < 0) {
-    t = ivec2(-1 - t.x, n - 1 - t.y);
-  } else if (t.x >= n) {
-    t = ivec2(2 * n - 1 - t.x, n - 1 - t.y);
+const float kEdgeEps = 1.0 / 256.0;  // texels: outline spans widened against rounding (ray test decides)
+
+// The current (node, probe) pair, set by main() for splatTexel().
+vec3 o, nrm, pos, t1, t2;  // probe, node normal, centre, footprint frame (t2 = n x t1)
+vec2 ext;                  // half extents along t1, t2 (leaves: the disc's bounding square)
+float facing, r2;          // dot(n, probe - centre); disc radius^2 (leaves)
+bool isRect;
+uint base;
+uint64_t low;
+uint atomics = 0u, tests = 0u;
+
+// The texel-centre ray of interior texel t against the footprint; the nearest hit per texel wins. The ray
+// direction stays unnormalised (octDecodeL1): only a hit needs the length, for the depth along the unit ray.
+void splatTexel(ivec2 t) {
+  ++tests;
+  vec3 td = octDecodeL1(octTexelCentre(uvec2(t), params.res));
+  float denom = -dot(nrm, td);
+  if (denom <= 1e-6) return;
+  float scaled = facing / denom;  // o + scaled td lies on the footprint's plane
+  vec3 h = o + scaled * td - pos;
+  bool hit = isRect ? (abs(dot(h, t1)) <= ext.x && abs(dot(h, t2)) <= ext.y) : dot(h, h) <= r2;
+  if (hit) {
+    float depth = scaled * length(td);
+    atomicMin(slots[base + uint(t.y) * params.res + uint(t.x)], (uint64_t(floatBitsToUint(depth)) << 32) | low);
+    ++atomics;
   }
-  if (t.y < 0) {
-    t = ivec2(n - 1 - t.x, -1 - t.y);
-  } else if (t.y >= n) {
-    t = ivec2(n - 1 - t.x, 2 * n - 1 - t.y);
-  }
-  return clamp(t, ivec2(0), ivec2(n - 1));
+}
+
+vec2 texelCoord(vec3 q) { return (octEncode(q) * 0.5 + vec2(0.5)) * float(params.res); }
+
+// Widens span (x min, x max) by the edge a-b clipped to the rows y in [y0, y1].
+void clipEdge(vec2 a, vec2 b, float y0, float y1, inout vec2 span) {
+  if (max(a.y, b.y) < y0 || min(a.y, b.y) > y1) return;
+  float dy = b.y - a.y;
+  float s0 = dy == 0.0 ? 0.0 : clamp((y0 - a.y) / dy, 0.0, 1.0);
+  float s1 = dy == 0.0 ? 1.0 : clamp((y1 - a.y) / dy, 0.0, 1.0);
+  float x0 = mix(a.x, b.x, s0), x1 = mix(a.x, b.x, s1);
+  span = vec2(min(span.x, min(x0, x1)), max(span.y, max(x0, x1)));
 }
 
 void main() {
@@ -54,51 +86,70 @@ void main() {
   uint block = params.blockFirst + gl_GlobalInvocationID.z;
   uint p = block * params.blockProbes + y;
   if (lane >= params.lanes || y >= params.blockProbes || p >= params.probeCount) return;
-  vec3 o = probes[p].xyz;
+  o = probes[p].xyz;
   int n = int(params.res);
   float halfN = float(n) * 0.5;
   int kmax = int(params.maxFootprintRadius);
-  uint base = p * params.res * params.res;
+  base = uint(probes[p].w) * params.res * params.res;
   uint count = min(cutCount[gl_GlobalInvocationID.z], params.cutCapacity);
   uint cutBase = gl_GlobalInvocationID.z * params.cutCapacity;
-  uint atomics = 0u, visited = 0u;
+  uint visited = 0u, windowPairs = 0u;
   for (uint i = lane; i < count; i += params.lanes) {
     ++visited;
     uint s = cut[cutBase + i];
     vec4 pr = nodes[s].positionRadius;
-    vec3 nrm = nodes[s].normal.xyz;
-    vec3 toS = pr.xyz - o;
+    pos = pr.xyz;
+    nrm = nodes[s].normal.xyz;
+    vec3 toS = pos - o;
     float d = length(toS);
     if (d > params.maxRange || d < 1e-6) continue;
-    float facing = -dot(nrm, toS);  // dot(n, probe - centre)
+    facing = -dot(nrm, toS);
     if (facing <= 0.0) continue;
     float r = pr.w * params.footprintScale;
-    vec2 tc = (octEncode(toS) * 0.5 + vec2(0.5)) * float(n);  // continuous texel coordinates
-    float rho = asin(min(r / d, 1.0)) * halfN * LFGI_VIR_OCT_STRETCH;
-    vec4 rect = rects[s];
-    bool isRect = rect.z >= 0.0;
-    vec3 t1 = isRect ? octDecode(rect.xy) : vec3(0.0);
-    vec3 t2 = cross(nrm, t1);
+    r2 = r * r;
+    vec2 tc = texelCoord(toS);  // continuous texel coordinates of the centre
     ivec2 c = ivec2(floor(tc));
+    // The square window: texel centres within the angular radius (x the map's largest stretch) of the
+    // centre; none there (most sub-texel nodes): nothing to splat.
+    float rho = asin(min(r / d, 1.0)) * halfN * LFGI_VIR_OCT_STRETCH;
     ivec2 lo = max(ivec2(ceil(tc - vec2(0.5 + rho))), c - ivec2(kmax));
     ivec2 hi = min(ivec2(floor(tc + vec2(rho - 0.5))), c + ivec2(kmax));
-    uint64_t low = uint64_t(s);
-    for (int ty = lo.y; ty <= hi.y; ++ty) {
-      for (int tx = lo.x; tx <= hi.x; ++tx) {
-        ivec2 t = octWrap(ivec2(tx, ty), n);
-        vec3 td = octTexelDirection(uvec2(t), params.res);
-        float denom = -dot(nrm, td);
-        if (denom <= 1e-6) continue;
-        float depth = facing / denom;
-        vec3 h = o + depth * td - pr.xyz;
-        bool hit = isRect ? (abs(dot(h, t1)) <= rect.z && abs(dot(h, t2)) <= rect.w) : dot(h, h) <= r * r;
-        if (hit) {
-          atomicMin(slots[base + uint(t.y) * params.res + uint(t.x)], (uint64_t(floatBitsToUint(depth)) << 32) | low);
-          ++atomics;
-        }
+    if (any(greaterThan(lo, hi))) continue;
+    vec4 rect = rects[s];
+    isRect = rect.z >= 0.0;
+    t1 = isRect ? octDecode(rect.xy) : virRectAxis(nrm);
+    t2 = cross(nrm, t1);
+    ext = isRect ? rect.zw : vec2(r);
+    vec3 e1 = t1 * ext.x, e2 = t2 * ext.y;
+    low = uint64_t(s);
+    // Corners relative to the probe; one octant when no coordinate changes sign across them.
+    vec3 q0 = toS - e1 - e2, q1 = toS + e1 - e2, q2 = toS + e1 + e2, q3 = toS - e1 + e2;
+    vec3 qmin = min(min(q0, q1), min(q2, q3)), qmax = max(max(q0, q1), max(q2, q3));
+    if (all(equal(greaterThanEqual(qmin, vec3(0.0)), greaterThanEqual(qmax, vec3(0.0))))) {
+      vec2 p0 = texelCoord(q0), p1 = texelCoord(q1), p2 = texelCoord(q2), p3 = texelCoord(q3);
+      float ylo = min(min(p0.y, p1.y), min(p2.y, p3.y)), yhi = max(max(p0.y, p1.y), max(p2.y, p3.y));
+      int ty0 = max(int(ceil(ylo - kEdgeEps - 0.5)), max(c.y - kmax, 0));
+      int ty1 = min(int(floor(yhi + kEdgeEps - 0.5)), min(c.y + kmax, n - 1));
+      for (int ty = ty0; ty <= ty1; ++ty) {
+        float y0 = float(ty) + 0.5 - kEdgeEps, y1 = float(ty) + 0.5 + kEdgeEps;
+        vec2 span = vec2(1e30, -1e30);
+        clipEdge(p0, p1, y0, y1, span);
+        clipEdge(p1, p2, y0, y1, span);
+        clipEdge(p2, p3, y0, y1, span);
+        clipEdge(p3, p0, y0, y1, span);
+        if (span.x > span.y) continue;
+        int tx0 = max(int(ceil(span.x - kEdgeEps - 0.5)), max(c.x - kmax, 0));
+        int tx1 = min(int(floor(span.y + kEdgeEps - 0.5)), min(c.x + kmax, n - 1));
+        for (int tx = tx0; tx <= tx1; ++tx) splatTexel(ivec2(tx, ty));
       }
+    } else {
+      ++windowPairs;
+      for (int ty = lo.y; ty <= hi.y; ++ty)
+        for (int tx = lo.x; tx <= hi.x; ++tx) splatTexel(octWrap(ivec2(tx, ty), n));
     }
   }
   if (visited > 0u) atomicAdd(stats[0], uint64_t(visited));
   if (atomics > 0u) atomicAdd(stats[1], uint64_t(atomics));
+  if (tests > 0u) atomicAdd(stats[4], uint64_t(tests));
+  if (windowPairs > 0u) atomicAdd(stats[5], uint64_t(windowPairs));
 }

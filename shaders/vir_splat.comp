@@ -30,22 +30,6 @@ layout(std430, set = 0, binding = 2) buffer Slots { uint64_t slots[]; };
 
 layout(push_constant) uniform Push { VirParams params; };
 
-// Texel index t (|t - [0, n)| < n) of the octahedral map -> the interior texel it denotes across the
-// fold: the map mirrors across each edge midpoint (as octBorderSource, generalised to several texels).
-ivec2 octWrap(ivec2 t, int n) {
-  if (t.x < 0) {
-    t = ivec2(-1 - t.x, n - 1 - t.y);
-  } else if (t.x >= n) {
-    t = ivec2(2 * n - 1 - t.x, n - 1 - t.y);
-  }
-  if (t.y < 0) {
-    t = ivec2(n - 1 - t.x, -1 - t.y);
-  } else if (t.y >= n) {
-    t = ivec2(n - 1 - t.x, 2 * n - 1 - t.y);
-  }
-  return clamp(t, ivec2(0), ivec2(n - 1));
-}
-
 void main() {
   uint s = gl_GlobalInvocationID.x;
   uint p = gl_GlobalInvocationID.y;

@@ -29,22 +29,28 @@ LFGI_INLINE vec2 octEncode(vec3 d) {
   return p;
 }
 
-// Point in [-1, 1]^2 -> unit direction. Inverse of octEncode.
-LFGI_INLINE vec3 octDecode(vec2 p) {
+// Point in [-1, 1]^2 -> the direction on the octahedron |x| + |y| + |z| = 1 (not unit length: between
+// 1 / sqrt(3) and 1), for callers that only need it up to scale.
+LFGI_INLINE vec3 octDecodeL1(vec2 p) {
   vec3 d = vec3(p.x, 1.0f - abs(p.x) - abs(p.y), p.y);
   if (d.y < 0.0f) {
     vec2 q = (vec2(1.0f) - abs(vec2(p.y, p.x))) * octSignNotZero(p);
     d.x = q.x;
     d.z = q.y;
   }
-  return normalize(d);
+  return d;
+}
+
+// Point in [-1, 1]^2 -> unit direction. Inverse of octEncode.
+LFGI_INLINE vec3 octDecode(vec2 p) { return normalize(octDecodeL1(p)); }
+
+// Centre of interior texel (i, j) of an N x N map -> [-1, 1]^2.
+LFGI_INLINE vec2 octTexelCentre(uvec2 texel, uint n) {
+  return (vec2(float(texel.x), float(texel.y)) + vec2(0.5f)) * (2.0f / float(n)) - vec2(1.0f);
 }
 
 // Centre of interior texel (i, j) of an N x N map -> unit direction.
-LFGI_INLINE vec3 octTexelDirection(uvec2 texel, uint n) {
-  vec2 uv = (vec2(float(texel.x), float(texel.y)) + vec2(0.5f)) * (2.0f / float(n)) - vec2(1.0f);
-  return octDecode(uv);
-}
+LFGI_INLINE vec3 octTexelDirection(uvec2 texel, uint n) { return octDecode(octTexelCentre(texel, n)); }
 
 // Unit direction -> interior texel of an N x N map that contains it (nearest-texel lookup).
 LFGI_INLINE uvec2 octDirectionTexel(vec3 d, uint n) {
@@ -72,6 +78,23 @@ LFGI_INLINE uvec2 octBorderSource(uvec2 b, uint n) {
     x = x < 0 ? 0 : last;
   }
   return uvec2(uint(x), uint(y));
+}
+
+// Texel index t of an N x N map, possibly outside it (|t - [0, N)| < N), -> the interior texel it denotes
+// across the fold: the map mirrors across each edge midpoint (as octBorderSource, generalised to several
+// texels); used by splat windows that straddle the map's border.
+LFGI_INLINE ivec2 octWrap(ivec2 t, int n) {
+  if (t.x < 0) {
+    t = ivec2(-1 - t.x, n - 1 - t.y);
+  } else if (t.x >= n) {
+    t = ivec2(2 * n - 1 - t.x, n - 1 - t.y);
+  }
+  if (t.y < 0) {
+    t = ivec2(n - 1 - t.x, -1 - t.y);
+  } else if (t.y >= n) {
+    t = ivec2(n - 1 - t.x, 2 * n - 1 - t.y);
+  }
+  return clamp(t, ivec2(0), ivec2(n - 1));
 }
 
 LFGI_SHARED_END

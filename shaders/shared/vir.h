@@ -4,8 +4,13 @@
 #define LFGI_SHARED_VIR_H
 
 #include "lfgi_shared.h"
+#include "surfel.h"
 
 LFGI_SHARED_BEGIN
+
+#ifdef __cplusplus
+using glm::sqrt;
+#endif
 
 struct VirParams {
   uint probeCount;          // probes, one N x N octahedral map each, stored one after another
@@ -33,6 +38,14 @@ LFGI_CHECK_SIZE(VirLodLink, 16)
 // Largest per-axis stretch of the octahedral map, texel coordinates per radian in units of N / 2 (measured
 // numerically: sqrt(2) where the fold's diagonals meet the equator), with a margin: bounds splat windows.
 #define LFGI_VIR_OCT_STRETCH 1.5f
+// First axis of a LOD node's rectangle frame (gpu/vir_lod.h), and of the bounding square of a leaf disc in
+// vir_lod_splat.comp: a world axis projected into the plane of normal n (walls: up; floors and roofs: +x),
+// so the axis-aligned walls and roofs of the synthetic city get tight rectangles. n: unit length.
+LFGI_INLINE vec3 virRectAxis(vec3 n) {
+  vec3 axis = abs(n.y) >= 0.5f ? vec3(1.0f, 0.0f, 0.0f) : vec3(0.0f, 1.0f, 0.0f);
+  return normalize(axis - dot(axis, n) * n);
+}
+
 #define LFGI_VIR_LOD_STACK 128  // traversal stack entries of one frontier-subtree walk (vir_lod_cut.comp)
 
 // Push constants of the LOD passes (vir_lod_radiance/vir_lod_cut/vir_lod_splat/vir_lod_resolve.comp).
@@ -56,6 +69,42 @@ struct VirLodParams {
 };
 LFGI_CHECK_SIZE(VirLodParams, 64)
 LFGI_CHECK_OFFSET(VirLodParams, maxRange, 48)
+
+#define LFGI_VIR_LOD_REFINE 0
+#define LFGI_VIR_LOD_ACCEPT 1
+#define LFGI_VIR_LOD_DROP 2
+
+// The cut's decision for one node of the LOD tree (gpu/vir_lod.h) seen from a probe block (sphere: xyz
+// centre, w radius), shared by vir_lod_cut.comp and the CPU replay gpu::virLodCut:
+//   drop   when the node's footprint lies beyond maxRange of the whole block, or when every node below it
+//          faces away from every probe of the block (the splat would cull them all): normals within the
+//          cone node.albedo.w = cos(half-angle) of the node normal, centres within
+//          r (1 + 1 / cos) + 2 thickness of the node centre (its rectangle bounds the projections of the
+//          rectangles below, which tilt by at most the cone), tested only for cones below 60 degrees;
+//   accept a leaf, or a coherent node whose footprint (radius r) is at most lodTexels texels wide seen from
+//          the block's nearest point (2 r / d <= lodTexels x 2 / N, the angle of a texel where the map is
+//          least stretched) and whose thickness is <= depthTolerance x that distance;
+//   refine otherwise (children next).
+LFGI_INLINE int virLodClassify(Surfel node, VirLodLink link, vec4 block, VirLodParams params) {
+  float r = node.positionRadius.w * params.footprintScale;
+  vec3 v = vec3(block) - vec3(node.positionRadius);
+  float lv = length(v);
+  float dmin = lv - block.w;
+  if (dmin - r > params.maxRange) return LFGI_VIR_LOD_DROP;
+  float cosA = node.albedo.w;
+  if (cosA > 0.5f && lv > 0.0f) {
+    float cosT = dot(vec3(node.normal), v) / lv;  // angle between the normal and the block centre
+    float sinT = sqrt(max(1.0f - cosT * cosT, 0.0f)), sinA = sqrt(max(1.0f - cosA * cosA, 0.0f));
+    float spread = link.childCount == 0u ? 0.0f : r * (1.0f + 1.0f / cosA) + 2.0f * node.emission.w;
+    // max over the cone's normals m of dot(m, v) = |v| cos(angle - cone half-angle)
+    if (lv * (cosT * cosA + sinT * sinA) + block.w + spread < 0.0f) return LFGI_VIR_LOD_DROP;
+  }
+  if (link.childCount == 0u) return LFGI_VIR_LOD_ACCEPT;
+  if ((link.flags & LFGI_VIR_LOD_COHERENT) != 0u && r * float(params.res) <= params.lodTexels * dmin &&
+      node.emission.w <= params.depthTolerance * dmin)
+    return LFGI_VIR_LOD_ACCEPT;
+  return LFGI_VIR_LOD_REFINE;
+}
 
 // Coverage generation stored in the w of the normal channel of a resolved map texel.
 #define LFGI_VIR_HOLE 0.0f     // no surfel and no filled value
