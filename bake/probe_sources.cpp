@@ -159,7 +159,7 @@ ProbeField codecProbeField(const CellFile& cell, const std::string& what, const 
       if (scene.occluded(f.probePosition(i), dir, 0.0f, missDistance)) continue;
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
-          const glm::ivec2 t = shared::relightOctWrap(c + glm::ivec2(dx, dy), n);
+          const glm::ivec2 t = shared::octWrap(c + glm::ivec2(dx, dy), n);
           const glm::vec3 L = worlds::skyRadiance(sky, octTexelDirection(t.x, t.y, n));
           for (int ch = 0; ch < 3; ++ch) f.radiance[(size_t(i) * n2 + size_t(t.y * n + t.x)) * 3 + size_t(ch)] = L[ch];
         }

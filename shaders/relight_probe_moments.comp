@@ -3,6 +3,7 @@
 // over the 3 x 3 texel neighbourhood (octahedral fold respected), so depth edges get the variance that
 // makes the Chebyshev bound soft instead of a binary depth test. A texel no surfel covered sees the sky
 // and counts as missDistance. One invocation per texel, probes along z; no barriers.
+#include "shared/octahedral.h"
 #include "shared/relight.h"
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
@@ -22,7 +23,7 @@ void main() {
   vec2 sum = vec2(0.0);
   for (int dy = -1; dy <= 1; ++dy) {
     for (int dx = -1; dx <= 1; ++dx) {
-      ivec2 t = relightOctWrap(ivec2(id.xy) + ivec2(dx, dy), n);
+      ivec2 t = octWrap(ivec2(id.xy) + ivec2(dx, dy), n);
       uint i = base + uint(t.y * n + t.x);
       sum += normals[i].w == 0.0 ? vec2(miss, miss * miss) : distanceMoments[i];
     }

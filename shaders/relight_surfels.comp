@@ -47,10 +47,10 @@ void octBilinear(vec3 d, int n, out ivec2 t[4], out vec4 w) {
   vec2 b = floor(f);
   vec2 a = f - b;
   ivec2 i0 = ivec2(b);
-  t[0] = relightOctWrap(i0, n);
-  t[1] = relightOctWrap(i0 + ivec2(1, 0), n);
-  t[2] = relightOctWrap(i0 + ivec2(0, 1), n);
-  t[3] = relightOctWrap(i0 + ivec2(1, 1), n);
+  t[0] = octWrap(i0, n);
+  t[1] = octWrap(i0 + ivec2(1, 0), n);
+  t[2] = octWrap(i0 + ivec2(0, 1), n);
+  t[3] = octWrap(i0 + ivec2(1, 1), n);
   w = vec4((1.0 - a.x) * (1.0 - a.y), a.x * (1.0 - a.y), (1.0 - a.x) * a.y, a.x * a.y);
 }
 

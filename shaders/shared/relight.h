@@ -72,22 +72,6 @@ struct RelightPrefilterParams {
 };
 LFGI_CHECK_SIZE(RelightPrefilterParams, 16)
 
-// Texel index t (|t - [0, n)| < n) of an octahedral map -> the interior texel it denotes across the fold:
-// the map mirrors across each edge midpoint (shared/octahedral.h octBorderSource, generalised).
-LFGI_INLINE ivec2 relightOctWrap(ivec2 t, int n) {
-  if (t.x < 0) {
-    t = ivec2(-1 - t.x, n - 1 - t.y);
-  } else if (t.x >= n) {
-    t = ivec2(2 * n - 1 - t.x, n - 1 - t.y);
-  }
-  if (t.y < 0) {
-    t = ivec2(n - 1 - t.x, -1 - t.y);
-  } else if (t.y >= n) {
-    t = ivec2(n - 1 - t.x, 2 * n - 1 - t.y);
-  }
-  return clamp(t, ivec2(0), ivec2(n - 1));
-}
-
 LFGI_SHARED_END
 
 #endif  // LFGI_SHARED_RELIGHT_H
