@@ -4,6 +4,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <string>
 
 #include "bake/embree_scene.h"
 #include "bake/world_bake.h"
@@ -51,13 +52,16 @@ struct SharedWorld {
   std::vector<worlds::CellCoord> networkCells;
 };
 
-// Bakes the tiny world once for every test here.
+// Bakes the tiny world once per process (every test here, when one binary runs them all). The directory is
+// named after the first test that asks for it: ctest runs each test in its own process, in parallel, and
+// processes sharing one directory would delete each other's files.
 const SharedWorld& sharedWorld() {
   static const SharedWorld w = [] {
     SharedWorld r;
     const worlds::SyntheticWorld world(worlds::WorldParams{3, 64.0, 32.0});
     const WorldBakeSettings s = tinySharedSettings();
-    r.dir = fs::path(LFGI_TEST_TMP_DIR) / "shared_codec_bake";
+    const ::testing::TestInfo* test = ::testing::UnitTest::GetInstance()->current_test_info();
+    r.dir = fs::path(LFGI_TEST_TMP_DIR) / (std::string("shared_codec_bake_") + (test ? test->name() : "all"));
     fs::remove_all(r.dir);
     fs::create_directories(r.dir / "baked" / "cells");
     worlds::writeWorldManifest(r.dir, world.params());
