@@ -268,13 +268,16 @@ CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const 
   } else {
     const GeneratorTrainingSet set = captureCell(world, in, probes, settings);
     r.captureSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    // Shared codec: a simple cell still stores no network; every other cell fits the shared model below.
     std::optional<CellModelChoice> noNetwork;
     if (settings.sharedCodec()) noNetwork = chooseNoNetworkModel(set, probes.flags, sizing);
-    CellModelChoice choice = noNetwork || settings.sharedCodec() ? CellModelChoice{} : chooseCellModel(set, probes.flags, sizing);
-    if (noNetwork) choice = std::move(*noNetwork);
+    const bool fitShared = settings.sharedCodec() && !noNetwork;
+    CellModelChoice choice = noNetwork    ? std::move(*noNetwork)
+                             : fitShared ? CellModelChoice{}
+                                         : chooseCellModel(set, probes.flags, sizing);
     cf.fallback = fallbackOf(set);
     cf.stats.errorTarget = settings.errorTarget;
-    if (settings.sharedCodec() && !noNetwork) {
+    if (fitShared) {
       // Latents + adapter against the frozen dequantized shared model, int8 quantized in the loop.
       const CellAdaptation fit = fitCellToSharedGenerator(
           shared->weights, set, sharedFitOptions(settings, settings.maxSteps, settings.errorTarget, 8));
@@ -374,17 +377,33 @@ std::vector<worlds::CellCoord> sharedModelCells(const worlds::SyntheticWorld& wo
   return chosen;
 }
 
-uint64_t sharedModelInputHash(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings) {
+namespace {
+
+// The sample cells of sharedModelCells prepared with their own (per-cell codec) inputs: their input hashes
+// enter the shared model's, and ensureSharedModel captures them, so each is prepared once.
+std::vector<CellBakeInputs> prepareSharedModelCells(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings) {
   WorldBakeSettings perCell = settings;  // the sample cells' own inputs, independent of the codec
   perCell.codec = "per-cell";
+  std::vector<CellBakeInputs> cells;
+  for (const worlds::CellCoord c : sharedModelCells(world, settings)) cells.push_back(prepareCellBake(world, c, perCell));
+  return cells;
+}
+
+uint64_t hashSharedModelInputs(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings,
+                               const std::vector<CellBakeInputs>& cells) {
   const GeneratorArch arch = sharedModelArch(settings);
   ContentHasher h;
   h.add(std::string("lfgi-shared-model-v1")).addValue(world.params().seed).addValue(settings.sharedSteps);
-  for (const worlds::CellCoord c : sharedModelCells(world, settings))
-    h.addValue(c.x).addValue(c.z).addValue(cellInputHash(world, c, perCell));
+  for (const CellBakeInputs& in : cells) h.addValue(in.cell.x).addValue(in.cell.z).addValue(in.inputHash);
   h.addValue(arch.latentDim).addValue(arch.condDim);
   for (int ch : arch.convChannels) h.addValue(ch);
   return h.digest();
+}
+
+}  // namespace
+
+uint64_t sharedModelInputHash(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings) {
+  return hashSharedModelInputs(world, settings, prepareSharedModelCells(world, settings));
 }
 
 uint64_t currentSharedModelHash(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings,
@@ -406,7 +425,8 @@ SharedModel ensureSharedModel(const worlds::SyntheticWorld& world, const WorldBa
                               bool* reused) {
   settings.validate();
   const fs::path path = sharedModelPath(outDir);
-  const uint64_t inputHash = sharedModelInputHash(world, settings);
+  std::vector<CellBakeInputs> cells = prepareSharedModelCells(world, settings);
+  const uint64_t inputHash = hashSharedModelInputs(world, settings, cells);
   std::error_code ec;
   if (reused) *reused = false;
   if (fs::exists(path, ec)) {
@@ -423,16 +443,13 @@ SharedModel ensureSharedModel(const worlds::SyntheticWorld& world, const WorldBa
   }
   using Clock = std::chrono::steady_clock;
   const auto t0 = Clock::now();
-  const std::vector<worlds::CellCoord> cells = sharedModelCells(world, settings);
-  WorldBakeSettings perCell = settings;
-  perCell.codec = "per-cell";
   std::vector<GeneratorTrainingSet> sets;
   std::string names;
-  for (const worlds::CellCoord c : cells) {
+  for (CellBakeInputs& in : cells) {
+    const worlds::CellCoord c = in.cell;
     if (InterruptGuard::interrupted()) fail("bake: interrupted while capturing the shared model's cells");
     std::fprintf(stderr, "shared model: capturing cell %d,%d (%s)\n", c.x, c.z,
                  std::string(worlds::cellKindName(world.cellKind(c))).c_str());
-    CellBakeInputs in = prepareCellBake(world, c, perCell);
     const ActiveProbes probes = activeProbes(in.built);
     sets.push_back(captureCell(world, in, probes, settings));
     names += fmt::format("{}{},{} {}", names.empty() ? "" : "; ", c.x, c.z, worlds::cellKindName(world.cellKind(c)));

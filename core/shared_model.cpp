@@ -118,9 +118,8 @@ ResolvedSharedModel loadSharedModel(const std::filesystem::path& path) {
   return r;
 }
 
-GeneratorWeights resolveCellWeights(const CellGenerator& g, const ResolvedSharedModel* shared,
-                                    const std::string& cellName) {
-  if (!g.shared) return dequantizeWeights(g.weights);
+void checkSharedReference(const CellGenerator& g, const ResolvedSharedModel* shared, const std::string& cellName) {
+  if (!g.shared) return;
   if (!shared)
     fail("{}: refers to shared model {:016x}, but no shared model file is loaded (the bake writes it as "
          "shared_model.vdb next to cells/)",
@@ -132,6 +131,12 @@ GeneratorWeights resolveCellWeights(const CellGenerator& g, const ResolvedShared
   if (a.latentDim != b.latentDim || a.condDim != b.condDim || a.convChannels != b.convChannels ||
       a.latentSource != b.latentSource)
     fail("{}: its architecture differs from the one of shared model {}", cellName, shared->name);
+}
+
+GeneratorWeights resolveCellWeights(const CellGenerator& g, const ResolvedSharedModel* shared,
+                                    const std::string& cellName) {
+  if (!g.shared) return dequantizeWeights(g.weights);
+  checkSharedReference(g, shared, cellName);
   try {
     return applyAdapter(shared->weights, dequantizeAdapter(g.shared->adapter));
   } catch (const Error& e) {

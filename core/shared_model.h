@@ -74,6 +74,8 @@ struct ResolvedSharedModel {
 ResolvedSharedModel loadSharedModel(const std::filesystem::path& path);
 GeneratorWeights resolveCellWeights(const CellGenerator& generator, const ResolvedSharedModel* shared,
                                     const std::string& cellName);
+// resolveCellWeights' checks without the fold (no weights built): for validating many cells at once.
+void checkSharedReference(const CellGenerator& generator, const ResolvedSharedModel* shared, const std::string& cellName);
 
 namespace detail {
 // Test seam as detail::encodeCellFileWithOverrides (same override rules) for shared model files.

@@ -336,7 +336,7 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
         checkCellFits(file, c, worldSeed_, layout_, path);
         // A shared-model cell is valid only with its world's shared model (loaded once, hash checked).
         if (file.generator && file.generator->shared)
-          (void)resolveCellWeights(*file.generator, sharedFor(file, path), path.string());
+          checkSharedReference(*file.generator, sharedFor(file, path), path.string());
         cellFileFallbackKeys(file, options_.weather, hours, keySh);
         keyRange_[size_t(layout_.linear(c))] = {uint32_t(keyHours_.size()), uint32_t(hours.size())};
         keyHours_.insert(keyHours_.end(), hours.begin(), hours.end());
