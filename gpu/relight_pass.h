@@ -57,7 +57,7 @@ struct RelightProbes {
 struct RelightOptions {
   int shadowResolution = 0;           // shadow map texels per side, [16, 4096]; 0: texel = 0.75 x mean surfel
                                       // radius, clamped to [64, 2048] texels
-  float shadowFootprintScale = 1.5f;  // disc radius multiplier of the shadow splat (as VirOptions)
+  float shadowFootprintScale = 1.3f;  // disc radius multiplier of the shadow splat (as VirOptions)
   int shadowMaxFootprintRadius = 16;  // shadow splat window half-size (texels), [0, 64]
   float shadowBiasConstant = 0.02f;   // m
   float shadowBiasSlope = 1.5f;       // texels x tan(theta)

@@ -32,7 +32,7 @@
 namespace lfgi::gpu {
 
 struct VirLodBuildOptions {
-  float footprintScale = 1.5f;     // as VirOptions::footprintScale (inner radii are stored divided by it)
+  float footprintScale = 1.3f;     // as VirOptions::footprintScale (inner radii are stored divided by it)
   float coherentConeDeg = 18.0f;   // max angle between an inner node's normal and any leaf normal below it
 };
 

@@ -40,8 +40,8 @@ namespace lfgi::gpu {
 struct VirOptions {
   int resolution = 16;          // N
   float maxRange = 64.0f;       // m; surfels farther from a probe are not splatted into it
-  float footprintScale = 1.5f;  // disc radius multiplier of the footprint test (see vir_splat.comp)
-  int maxFootprintRadius = 6;   // splat window half-size in texels (up to 13 x 13, near surfels only)
+  float footprintScale = 1.3f;  // disc radius multiplier of the footprint test (see vir_splat.comp)
+  int maxFootprintRadius = 6;   // full splat (lod off): window half-size in texels (up to 13 x 13, near surfels only)
   int fillPasses = 2;           // dilation passes, 0..kMaxFillPasses
   bool lod = true;              // splat a per-probe-block cut of the surfel LOD tree (see above)
   float lodTexels = 4.0f;       // LOD: a merged node may stand in for its surfels when <= this many texels wide

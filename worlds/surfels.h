@@ -26,11 +26,18 @@ struct SurfelOptions {
   uint64_t seed = 1;
 };
 
-// Samples the mesh: triangle t with A_t >= s^2 gets k = floor(A_t / s^2 + u_t) surfels (u_t a hash of
-// (seed, t)) of radius sqrt(A_t / (k pi)), so their disc areas sum to A_t exactly; smaller triangles are
-// sampled systematically in mesh order (a running sum of A_t / s^2; one surfel of area s^2 each time it
-// crosses an integer), so the total disc area is within s^2 of the mesh area. Positions follow a
-// randomly offset R2 low-discrepancy sequence (Roberts 2018) folded into the triangle.
+// Samples the mesh: triangle t with A_t >= s^2 gets the points of a hexagonal lattice of cell area s^2
+// that fall inside it (k ~ A_t / s^2), of radius sqrt(A_t / (k pi)), so their disc areas sum to A_t exactly.
+// The lattice lies in the triangle's plane along in-plane axes from the world origin (first axis: world x
+// projected for floors and roofs, world y for walls), offset by a hash of (seed, quantised plane), so
+// coplanar triangles share one lattice and their surfels tile across shared edges. An isotropic lattice
+// matters for VIR, which point-samples the discs along texel rays: per-triangle low-discrepancy points
+// (R2 in the triangle's barycentric square) were stretched with the triangle, and long street and
+// pavement triangles left ~half of their plane uncovered even with footprintScale 1.5 (rays fell
+// through to the ground below). A sliver that holds no lattice point gets floor(A_t / s^2 + u_t)
+// randomly offset R2 points (Roberts 2018) instead; smaller triangles are sampled systematically in
+// mesh order (a running sum of A_t / s^2; one surfel of area s^2 each time it crosses an integer), so the
+// total disc area is within s^2 of the mesh area.
 // Albedo = material albedo x texture at the interpolated uv; emission = material emission; normal =
 // geometric normal. Deterministic: same mesh + options => identical output. Throws lfgi::Error if
 // spacing is not finite and > 0, or the mesh fails validate().
