@@ -408,10 +408,12 @@ int main(int argc, char** argv) {
           const auto perProbe = [&](uint64_t total) { return double(total) / double(count); };
           if (method == "vir_lod")
             spdlog::info("vir_lod N={} probes={}: per probe {:.0f} cut pairs, {:.0f} texel tests, {:.0f} atomics; "
-                         "{:.1f} % of pairs through the wrapped window",
+                         "{:.1f} % of pairs through the wrapped window; device ms: node radiance {:.1f}, cut + "
+                         "splat {:.1f}, resolve {:.1f}, fill {:.1f}",
                          n, count, perProbe(atlas.splatPairs), perProbe(atlas.splatTexelTests),
                          perProbe(atlas.splatAtomics),
-                         atlas.splatPairs ? 100.0 * double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0);
+                         atlas.splatPairs ? 100.0 * double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0,
+                         atlas.lodRadianceMs, atlas.splatMs, atlas.resolveMs, atlas.fillMs);
           spdlog::info("{} N={} probes={}: {:.1f} ms device, {:.1f} ms wall ({:.3f} ms/probe, {:.0f} probes/s); dist "
                        "median {:.2e} p90 {:.4f} off>5% {:.4f}, normal median {:.2f} p90 {:.2f} deg, holes {:.4f}{}",
                        method, n, count, atlas.gpuMs, wallMs, m.msPerProbe, m.probesPerS, acc->distMedianRel,
