@@ -165,7 +165,6 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     lp.res = res;
     lp.blockProbes = uint32_t(bp);
     lp.rootNode = tree_.root();
-    lp.maxFootprintRadius = uint32_t(o.maxFootprintRadius);
     lp.maxRange = o.maxRange;
     lp.footprintScale = o.footprintScale;
     lp.lodTexels = o.lodTexels;

@@ -62,6 +62,15 @@ std::vector<Surfel> sampleSurfels(const TriangleMesh& mesh, const SurfelOptions&
   // (independent coin flips would leave a sqrt(count) s^2 error).
   double smallCarry = unitFloat(mix64(options.seed ^ 0x5bd1e995ull));
   std::vector<glm::dvec2> bary;  // (u, v) of this triangle's surfels
+  // Appends `count` points k = first, first + 1, ... of the R2 sequence offset by `hash`, folded from the
+  // unit square onto the triangle (uniform in area).
+  const auto appendR2 = [&](uint64_t hash, int first, int count) {
+    const double o1 = unitFloat(mix64(hash ^ 0x1234567ull)), o2 = unitFloat(mix64(hash ^ 0x89abcdefull));
+    for (int k = first; k < first + count; ++k) {
+      const double u = std::fmod(o1 + a1 * k, 1.0), v = std::fmod(o2 + a2 * k, 1.0);
+      bary.push_back(u + v > 1.0 ? glm::dvec2(1.0 - u, 1.0 - v) : glm::dvec2(u, v));
+    }
+  };
   struct PlaneSum {
     double area = 0.0;
     size_t count = 0;
@@ -112,27 +121,12 @@ std::vector<Surfel> sampleSurfels(const TriangleMesh& mesh, const SurfelOptions&
         }
       }
       onLattice = !bary.empty();
-      if (bary.empty()) {  // a sliver narrower than the lattice: R2 points, as many as its area asks
-        const int count = int(std::floor(expected + unitFloat(h64)));
-        const double o1 = unitFloat(mix64(h64 ^ 0x1234567ull)), o2 = unitFloat(mix64(h64 ^ 0x89abcdefull));
-        for (int k = 0; k < count; ++k) {
-          double u = std::fmod(o1 + a1 * (k + 1), 1.0), v = std::fmod(o2 + a2 * (k + 1), 1.0);
-          if (u + v > 1.0) {  // fold the unit square onto the triangle (uniform in area)
-            u = 1.0 - u;
-            v = 1.0 - v;
-          }
-          bary.emplace_back(u, v);
-        }
-      }
+      // A sliver narrower than the lattice: R2 points, as many as its area asks.
+      if (bary.empty()) appendR2(h64, 1, int(std::floor(expected + unitFloat(h64))));
     } else {
       const double before = std::floor(smallCarry);
       smallCarry += expected;
-      const int count = int(std::floor(smallCarry) - before);
-      const double u = unitFloat(mix64(h64 ^ 0x1234567ull)), v = unitFloat(mix64(h64 ^ 0x89abcdefull));
-      for (int k = 0; k < count; ++k) {
-        const double uk = std::fmod(u + a1 * k, 1.0), vk = std::fmod(v + a2 * k, 1.0);
-        bary.push_back(uk + vk > 1.0 ? glm::dvec2(1.0 - uk, 1.0 - vk) : glm::dvec2(uk, vk));
-      }
+      appendR2(h64, 0, int(std::floor(smallCarry) - before));
     }
     if (bary.empty()) continue;
     // Radius: small triangles a disc of area s^2; sliver R2 points share the sliver's area; lattice points

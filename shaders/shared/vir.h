@@ -57,7 +57,7 @@ struct VirLodParams {
   uint blockCount;          // blocks in this batch
   uint cutCapacity;         // cut entries per block
   uint rootNode;            // LOD tree root
-  uint maxFootprintRadius;  // as VirParams; unused by vir_lod_splat.comp (its spans cover whole footprints)
+  uint pad0;                // (the LOD splat's spans cover whole footprints: no maxFootprintRadius)
   uint nodeFirst;           // radiance pass: nodes [nodeFirst, nodeFirst + nodeCount) of one level
   uint nodeCount;           // cut pass: the number of frontier subtrees
   uint leafPass;            // radiance pass: 1 for the leaf level (emission + albedo E / pi)
