@@ -206,6 +206,8 @@ int main(int argc, char** argv) {
   int lodBlockProbes = gpu::VirOptions{}.lodBlockProbes;
   app.add_option("--lod-texels", lodTexels, "vir_lod: VirOptions::lodTexels");
   app.add_option("--lod-block-probes", lodBlockProbes, "vir_lod: VirOptions::lodBlockProbes");
+  float lodOcclusionRange = gpu::VirOptions{}.lodOcclusionRange;
+  app.add_option("--lod-occlusion-range", lodOcclusionRange, "vir_lod: VirOptions::lodOcclusionRange (m; 0: off)");
   std::string methodsArg = "all";
   bool lodStats = false;
   float statCone = gpu::VirLodBuildOptions{}.coherentConeDeg;
@@ -299,6 +301,7 @@ int main(int argc, char** argv) {
     vlod.lod = true;
     vlod.lodTexels = lodTexels;
     vlod.lodBlockProbes = lodBlockProbes;
+    vlod.lodOcclusionRange = lodOcclusionRange;
     vo.lod = false;
     gpu::CubemapRasterOptions co;
     {  // warm-up: lavapipe compiles each pipeline at its first use
@@ -407,11 +410,13 @@ int main(int argc, char** argv) {
           best[{method, n}] = m;
           const auto perProbe = [&](uint64_t total) { return double(total) / double(count); };
           if (method == "vir_lod")
-            spdlog::info("vir_lod N={} probes={}: per probe {:.0f} cut pairs, {:.0f} texel tests, {:.0f} atomics; "
+            spdlog::info("vir_lod N={} probes={}: per probe {:.0f} cut pairs ({:.0f} dropped as occluded, {:.1f} "
+                         "nodes per block culled), {:.0f} texel tests, {:.0f} atomics; "
                          "{:.1f} % of pairs through the wrapped window; device ms: node radiance {:.1f}, cut + "
                          "splat {:.1f}, resolve {:.1f}, fill {:.1f}",
-                         n, count, perProbe(atlas.splatPairs), perProbe(atlas.splatTexelTests),
-                         perProbe(atlas.splatAtomics),
+                         n, count, perProbe(atlas.splatPairs), perProbe(atlas.occludedPairs),
+                         double(atlas.occludedNodes) * double(vlod.lodBlockProbes) / double(count),
+                         perProbe(atlas.splatTexelTests), perProbe(atlas.splatAtomics),
                          atlas.splatPairs ? 100.0 * double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0,
                          atlas.lodRadianceMs, atlas.splatMs, atlas.resolveMs, atlas.fillMs);
           spdlog::info("{} N={} probes={}: {:.1f} ms device, {:.1f} ms wall ({:.3f} ms/probe, {:.0f} probes/s); dist "
@@ -473,6 +478,7 @@ int main(int argc, char** argv) {
     s["vir_splat_pairs_per_s"] = v16->second.splatPairsPerS;
     s["vir_surfel_probes_per_s"] = v16->second.probesPerS * double(built.surfels.size());
     s["lod_texels"] = lodTexels;
+    s["lod_occlusion_range_m"] = lodOcclusionRange;
     s["lod_block_probes"] = lodBlockProbes;
     s["lod_nodes"] = lodNodes;
     s["lod_build_ms"] = lodBuildMs;

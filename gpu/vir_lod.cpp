@@ -32,6 +32,8 @@ uint32_t normalClass(glm::vec3 n) {  // dominant axis and sign: 0..5
   return axis * 2u + (n[int(axis)] < 0.0f ? 1u : 0u);
 }
 
+constexpr float kBoundsMargin = 1.0f + 1e-5f;  // VirLodTree::bounds, against rounding in the sums
+
 struct NodeExtra {  // build-time bounds of the leaves below a node
   float footprintRadius = 0.0f;  // m, covers every leaf's footprint disc
   float coneRad = 0.0f;          // max angle between the node normal and a leaf normal below
@@ -90,6 +92,7 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     tree.nodes.push_back(s);
     tree.links.push_back({0u, 0u, LFGI_VIR_LOD_COHERENT, i});
     tree.rects.push_back(glm::vec4(0.0f, 0.0f, -1.0f, -1.0f));
+    tree.bounds.push_back(r * o.footprintScale * kBoundsMargin);
     extra.push_back({r * o.footprintScale, 0.0f, 0.0f, 0});
   }
   tree.levelStart.push_back(0);
@@ -157,6 +160,12 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
         const glm::vec2 mid = 0.5f * (lo2 + hi2), ext = 0.5f * (hi2 - lo2);
         const glm::vec3 rectCentre = centre + mid.x * t1 + mid.y * t2;
         e.footprintRadius = glm::length(ext);  // the rectangle's corners: bounds its angular extent
+        float bound = e.footprintRadius;
+        for (size_t c = c0; c < c1; ++c) {
+          const uint32_t ci = current[c].second;
+          bound = std::max(bound, glm::length(glm::vec3(tree.nodes[ci].positionRadius) - rectCentre) + tree.bounds[ci]);
+        }
+        tree.bounds.push_back(bound * kBoundsMargin);
         const uint32_t node = uint32_t(tree.nodes.size());
         tree.nodes.push_back({glm::vec4(rectCentre, e.footprintRadius / o.footprintScale), glm::vec4(n, area),
                               glm::vec4(albedo / area, std::cos(std::min(e.coneRad, 0.5f * std::numbers::pi_v<float>))),
@@ -180,6 +189,7 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     tree.nodes.push_back(tree.nodes[r]);
     tree.links.push_back({first, 1u, 0u, ~0u});  // incoherent: always refined to its one child
     tree.rects.push_back(tree.rects[r]);
+    tree.bounds.push_back(tree.bounds[r]);
     extra.push_back(extra[r]);
     ++extra.back().depth;
     tree.levelStart.push_back(uint32_t(tree.nodes.size()));

@@ -44,6 +44,10 @@ struct VirLodTree {
   // One per node: inner (octEncode(t1).xy, half extent along t1, along t2 = cross(normal, t1)), centred
   // at the node position; leaves (0, 0, -1, -1): a disc of radius r x footprintScale.
   std::vector<glm::vec4> rects;
+  // One per node: radius of a sphere about the node centre that holds every footprint of its subtree
+  // (leaf discs at footprintScale, the node's and its descendants' rectangles): occlusion culling of
+  // whole subtrees (vir_lod_cut.comp's far pass).
+  std::vector<float> bounds;
   std::vector<uint32_t> children;         // node indices, referenced by links[i].firstChild/childCount
   std::vector<uint32_t> levelStart;       // level l = nodes [levelStart[l], levelStart[l + 1]); level 0: leaves
   uint32_t leafCount = 0;

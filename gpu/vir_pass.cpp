@@ -22,7 +22,7 @@ Program requireInt64Atomics(Context& ctx, const char* name) {
 }
 
 constexpr size_t kMaxCutEntries = size_t(1) << 24;  // per batch of blocks (64 MiB of node indices)
-constexpr size_t kLodStats = 6;  // counters of vir_lod_cut.comp / vir_lod_splat.comp (see their Stats buffers)
+constexpr size_t kLodStats = 8;  // counters of vir_lod_cut.comp / vir_lod_splat.comp (see their Stats buffers)
 
 }  // namespace
 
@@ -34,7 +34,8 @@ VirPass::VirPass(Context& ctx)
       lodRadiance_(ctx, "vir_lod_radiance"),
       lodCut_(ctx, "vir_lod_cut"),
       lodSplat_(ctx, "vir_lod_splat"),
-      lodResolve_(ctx, "vir_lod_resolve") {}
+      lodResolve_(ctx, "vir_lod_resolve"),
+      lodHiz_(ctx, "vir_lod_hiz") {}
 
 void VirPass::grow(Buffer& buffer, size_t bytes) {
   bytes = std::max<size_t>(bytes, 16);
@@ -69,6 +70,8 @@ double VirPass::prepareSurfels(std::span<const shared::Surfel> surfels, const Vi
   grow(upBuf_, tree_.up.size() * sizeof(glm::uvec2));
   grow(rectBuf_, tree_.rects.size() * sizeof(glm::vec4));
   upload<glm::vec4>(ctx_, rectBuf_, tree_.rects);
+  grow(boundsBuf_, tree_.bounds.size() * sizeof(float));
+  upload<float>(ctx_, boundsBuf_, tree_.bounds);
   grow(frontierBuf_, tree_.frontier.size() * sizeof(uint32_t));
   upload<glm::uvec2>(ctx_, upBuf_, tree_.up);
   upload<uint32_t>(ctx_, frontierBuf_, tree_.frontier);
@@ -97,6 +100,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   if (!(std::isfinite(o.lodDepthTolerance) && o.lodDepthTolerance >= 0.0f && o.lodDepthTolerance <= 1.0f))
     fail("VIR: lodDepthTolerance {} outside [0, 1]", o.lodDepthTolerance);
   if (o.lodBlockProbes < 1 || o.lodBlockProbes > 64) fail("VIR: lodBlockProbes {} outside [1, 64]", o.lodBlockProbes);
+  if (!(std::isfinite(o.lodOcclusionRange) && o.lodOcclusionRange >= 0.0f))
+    fail("VIR: lodOcclusionRange {} must be finite and >= 0", o.lodOcclusionRange);
   if (!surfelIrradiance.empty() && surfelIrradiance.size() != surfels.size())
     fail("VIR: {} surfel irradiance values for {} surfels", surfelIrradiance.size(), surfels.size());
   const uint32_t* maxGroups = ctx_.properties.limits.maxComputeWorkGroupCount;
@@ -169,8 +174,20 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     lp.footprintScale = o.footprintScale;
     lp.lodTexels = o.lodTexels;
     lp.depthTolerance = o.lodDepthTolerance;
+    lp.nearRange = o.lodOcclusionRange;
     atlas.lodNodes = tree_.nodes.size();
   }
+  // Occlusion culling: HiZ levels 1..top (top: 1 x 1), hizProbeTexels uints per probe map.
+  const bool occlusion = o.lod && o.lodOcclusionRange > 0.0f && o.lodOcclusionRange < o.maxRange;
+  uint32_t hizLevels = 0;
+  if (occlusion) {
+    if (tree_.nodes.size() >= (size_t(1) << 31)) fail("VIR LOD: {} nodes exceed 2^31", tree_.nodes.size());
+    for (uint32_t dim = res; dim > 1; ++hizLevels) {
+      dim = (dim + 1) / 2;
+      lp.hizProbeTexels += dim * dim;
+    }
+  }
+  if (o.lod) grow(hizBuf_, size_t(lp.hizProbeTexels) * probeCount * sizeof(uint32_t));  // bound even when unused
 
   GpuTimer timer(ctx_, 5);
   for (;;) {
@@ -204,20 +221,37 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
       }
       timer.stamp(cmd, 1);
       if (o.lod) {
-        for (size_t b0 = 0; b0 < blockCount; b0 += batchBlocks) {
-          lp.blockFirst = uint32_t(b0);
-          lp.blockCount = uint32_t(std::min(batchBlocks, blockCount - b0));
-          vkCmdFillBuffer(cmd, cutCountBuf_.handle(), 0, VK_WHOLE_SIZE, 0u);
-          memoryBarrier(cmd);
-          lp.nodeCount = uint32_t(tree_.frontier.size());
-          dispatch(ctx_, cmd, lodCut_,
-                   {&nodeBuf_, &linkBuf_, &childBuf_, &upBuf_, &frontierBuf_, &blockBuf_, &cutBuf_, &cutCountBuf_,
-                    &statsBuf_},
-                   lp, {lp.blockCount, lp.nodeCount, 1});
-          memoryBarrier(cmd);
-          dispatch(ctx_, cmd, lodSplat_, {&nodeBuf_, &probeBuf_, &cutBuf_, &cutCountBuf_, &slots_, &statsBuf_, &rectBuf_}, lp,
-                   {lp.lanes, lp.blockProbes, lp.blockCount});
-          memoryBarrier(cmd);
+        // Cut + splat of every batch of blocks for one pass (LFGI_VIR_LOD_PASS_*).
+        const auto cutAndSplat = [&](uint32_t pass) {
+          lp.cutPass = pass;
+          for (size_t b0 = 0; b0 < blockCount; b0 += batchBlocks) {
+            lp.blockFirst = uint32_t(b0);
+            lp.blockCount = uint32_t(std::min(batchBlocks, blockCount - b0));
+            vkCmdFillBuffer(cmd, cutCountBuf_.handle(), 0, VK_WHOLE_SIZE, 0u);
+            memoryBarrier(cmd);
+            lp.nodeCount = uint32_t(tree_.frontier.size());
+            dispatch(ctx_, cmd, lodCut_,
+                     {&nodeBuf_, &linkBuf_, &childBuf_, &upBuf_, &frontierBuf_, &blockBuf_, &cutBuf_, &cutCountBuf_,
+                      &statsBuf_, &probeBuf_, &slots_, &hizBuf_, &boundsBuf_},
+                     lp, {lp.blockCount, lp.nodeCount, 1});
+            memoryBarrier(cmd);
+            dispatch(ctx_, cmd, lodSplat_,
+                     {&nodeBuf_, &probeBuf_, &cutBuf_, &cutCountBuf_, &slots_, &statsBuf_, &rectBuf_, &hizBuf_}, lp,
+                     {lp.lanes, lp.blockProbes, lp.blockCount});
+            memoryBarrier(cmd);
+          }
+        };
+        if (occlusion) {
+          cutAndSplat(LFGI_VIR_LOD_PASS_NEAR);
+          for (uint32_t l = 1, dim = res; l <= hizLevels; ++l) {
+            dim = (dim + 1) / 2;
+            lp.hizLevel = l;
+            dispatch(ctx_, cmd, lodHiz_, {&slots_, &hizBuf_}, lp, {dim, dim, probeCount});
+            memoryBarrier(cmd);
+          }
+          cutAndSplat(LFGI_VIR_LOD_PASS_FAR);
+        } else {
+          cutAndSplat(LFGI_VIR_LOD_PASS_ALL);
         }
       } else {
         dispatch(ctx_, cmd, splat_, {&surfelBuf_, &probeBuf_, &slots_}, params, {params.surfelCount, probeCount, 1});
@@ -252,6 +286,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
       atlas.splatAtomics = stats[1];
       atlas.splatTexelTests = stats[4];
       atlas.splatWindowPairs = stats[5];
+      atlas.occludedNodes = stats[6];
+      atlas.occludedPairs = stats[7];
       break;
     }
     if (cutCapacity_ >= kMaxCutEntries)

@@ -47,6 +47,11 @@ struct VirOptions {
   float lodTexels = 4.0f;       // LOD: a merged node may stand in for its surfels when <= this many texels wide
   int lodBlockProbes = 8;       // LOD: probes sharing one cut (consecutive along a Morton curve), [1, 64]
   float lodDepthTolerance = 0.01f;  // LOD: merged node thickness <= this x distance (relative depth error)
+  // LOD: occlusion culling. > 0: cut and splat the nodes within this range (m) of each probe block first,
+  // build a max-depth pyramid per probe map, then cut and splat the rest, dropping subtrees and pairs
+  // hidden behind what the first pass drew (shared/vir.h LFGI_VIR_LOD_PASS_*). Exact: the output is
+  // bit-identical to a run without it. 0 (or >= maxRange): one pass.
+  float lodOcclusionRange = 0.0f;
   static constexpr int kMaxFillPasses = 8;
 };
 
@@ -68,6 +73,8 @@ struct ProbeAtlas {
   uint64_t splatAtomics = 0;   // LOD: 64-bit atomicMin calls counted on the device; 0 without LOD
   uint64_t splatTexelTests = 0;   // LOD: texel-centre ray / footprint tests of the splat (device count)
   uint64_t splatWindowPairs = 0;  // LOD: front-facing pairs splatted through the wrapped square window
+  uint64_t occludedNodes = 0;     // LOD occlusion culling: far-pass cut nodes / subtrees dropped per block
+  uint64_t occludedPairs = 0;     // LOD occlusion culling: far-pass (node, probe) pairs the splat dropped
 };
 
 class VirPass {
@@ -93,6 +100,7 @@ class VirPass {
   Program lodCut_;
   Program lodSplat_;
   Program lodResolve_;
+  Program lodHiz_;
   // Resident state, reused across calls.
   std::vector<shared::Surfel> cachedSurfels_;
   bool cachedUploaded_ = false;   // surfelBuf_ holds cachedSurfels_
@@ -101,7 +109,7 @@ class VirPass {
   uint32_t cutCapacity_ = 0;  // cut entries per block, grown when a block's cut overflows
   Buffer surfelBuf_, probeBuf_, irrBuf_, slots_, distBuf_, normalBuf_, albedoBuf_, radianceBuf_, counters_;
   Buffer nodeBuf_, linkBuf_, childBuf_, upBuf_, rectBuf_, frontierBuf_, nodeRadianceBuf_, blockBuf_, cutBuf_, cutCountBuf_,
-      statsBuf_;
+      statsBuf_, boundsBuf_, hizBuf_;
 };
 
 }  // namespace lfgi::gpu

@@ -36,11 +36,15 @@ layout(std430, set = 0, binding = 1) readonly buffer Probes { vec4 probes[]; }; 
 layout(std430, set = 0, binding = 2) readonly buffer Cut { uint cut[]; };
 layout(std430, set = 0, binding = 3) readonly buffer CutCount { uint cutCount[]; };
 layout(std430, set = 0, binding = 4) buffer Slots { uint64_t slots[]; };
-// [1] atomicMin calls, [4] texel ray tests, [5] pairs through the wrapped window (vir_lod_cut.comp lists all)
+// [1] atomicMin calls, [4] texel ray tests, [5] pairs through the wrapped window, [7] pairs dropped as
+// occluded (vir_lod_cut.comp lists all)
 layout(std430, set = 0, binding = 5) buffer Stats { uint64_t stats[]; };
 layout(std430, set = 0, binding = 6) readonly buffer Rects { vec4 rects[]; };  // gpu/vir_lod.h VirLodTree::rects
+layout(std430, set = 0, binding = 7) readonly buffer Hiz { uint hiz[]; };  // far pass (vir_lod_hiz.comp)
 
 layout(push_constant) uniform Push { VirLodParams params; };
+
+#include "vir_lod_occlusion.glsl"
 
 const float kEdgeEps = 1.0 / 256.0;  // texels: outline spans widened against rounding (ray test decides)
 
@@ -51,7 +55,7 @@ float facing, r2;          // dot(n, probe - centre); disc radius^2 (leaves)
 bool isRect;
 uint base;
 uint64_t low;
-uint atomics = 0u, tests = 0u;
+uint atomics = 0u, tests = 0u, occluded = 0u;
 
 // The texel-centre ray of interior texel t against the footprint; the nearest hit per texel wins. The ray
 // direction stays unnormalised (octDecodeL1): only a hit needs the length, for the depth along the unit ray.
@@ -94,7 +98,8 @@ void main() {
   // The window's half-size is capped at one map width (a period of the wrapped map: a huge near node still
   // tests each texel a bounded number of times).
   int kmax = n;
-  base = uint(probes[p].w) * params.res * params.res;
+  uint map = uint(probes[p].w);
+  base = map * params.res * params.res;
   uint count = min(cutCount[gl_GlobalInvocationID.z], params.cutCapacity);
   uint cutBase = gl_GlobalInvocationID.z * params.cutCapacity;
   uint visited = 0u, windowPairs = 0u;
@@ -119,6 +124,12 @@ void main() {
     ivec2 lo = max(ivec2(ceil(tc - vec2(0.5 + rho))), c - ivec2(kmax));
     ivec2 hi = min(ivec2(floor(tc + vec2(rho - 0.5))), c + ivec2(kmax));
     if (any(greaterThan(lo, hi))) continue;
+    // Far pass of occlusion culling: the cut kept this node for the block; drop it for this probe when
+    // the near pass already covered every texel it could reach with something nearer.
+    if (params.cutPass == LFGI_VIR_LOD_PASS_FAR && virLodWindowOccluded(map, tc, rho + 1e-3, d - r)) {
+      ++occluded;
+      continue;
+    }
     vec4 rect = rects[s];
     isRect = rect.z >= 0.0;
     t1 = isRect ? octDecode(rect.xy) : virRectAxis(nrm);
@@ -156,4 +167,5 @@ void main() {
   if (atomics > 0u) atomicAdd(stats[1], uint64_t(atomics));
   if (tests > 0u) atomicAdd(stats[4], uint64_t(tests));
   if (windowPairs > 0u) atomicAdd(stats[5], uint64_t(windowPairs));
+  if (occluded > 0u) atomicAdd(stats[7], uint64_t(occluded));
 }

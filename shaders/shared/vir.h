@@ -57,7 +57,7 @@ struct VirLodParams {
   uint blockCount;          // blocks in this batch
   uint cutCapacity;         // cut entries per block
   uint rootNode;            // LOD tree root
-  uint pad0;                // (the LOD splat's spans cover whole footprints: no maxFootprintRadius)
+  uint cutPass;             // LFGI_VIR_LOD_PASS_*: one pass, or the near / far pass of the occlusion-culled cut
   uint nodeFirst;           // radiance pass: nodes [nodeFirst, nodeFirst + nodeCount) of one level
   uint nodeCount;           // cut pass: the number of frontier subtrees
   uint leafPass;            // radiance pass: 1 for the leaf level (emission + albedo E / pi)
@@ -66,9 +66,28 @@ struct VirLodParams {
   float footprintScale;     // disc radius multiplier (as VirParams)
   float lodTexels;          // a node may be splatted when its footprint diameter <= lodTexels texels
   float depthTolerance;     // cut: a merged node's thickness must be <= depthTolerance x its distance
+  float nearRange;          // occlusion culling: the near pass splats nodes within this range (m) of a block
+  uint hizProbeTexels;      // occlusion culling: uints per probe in the HiZ buffer (levels 1, 2, ...)
+  uint hizLevel;            // HiZ pass: the level written (>= 1); level 0 is the slots' depth words
+  uint pad1;
 };
-LFGI_CHECK_SIZE(VirLodParams, 64)
+LFGI_CHECK_SIZE(VirLodParams, 80)
 LFGI_CHECK_OFFSET(VirLodParams, maxRange, 48)
+
+// VirLodParams::cutPass. Occlusion culling (VirOptions::lodOcclusionRange > 0) runs the cut and splat
+// twice: the near pass keeps the nodes within nearRange of the block (virLodBeyond false for the node and
+// all its ancestors), then per probe a max-depth pyramid (HiZ) of what they covered is built, then the far
+// pass walks the whole tree again, emits only what the near pass did not, and drops a node when every
+// texel its bounding sphere can reach already holds a nearer surface in every probe of the block.
+#define LFGI_VIR_LOD_PASS_ALL 0u
+#define LFGI_VIR_LOD_PASS_NEAR 1u
+#define LFGI_VIR_LOD_PASS_FAR 2u
+
+// True when the node's footprint lies entirely beyond `range` of the whole block (the cut's range drop).
+LFGI_INLINE bool virLodBeyond(Surfel node, vec4 block, float range, float footprintScale) {
+  float dmin = length(vec3(block) - vec3(node.positionRadius)) - block.w;
+  return dmin - node.positionRadius.w * footprintScale > range;
+}
 
 #define LFGI_VIR_LOD_REFINE 0
 #define LFGI_VIR_LOD_ACCEPT 1
@@ -86,11 +105,11 @@ LFGI_CHECK_OFFSET(VirLodParams, maxRange, 48)
 //          least stretched) and whose thickness is <= depthTolerance x that distance;
 //   refine otherwise (children next).
 LFGI_INLINE int virLodClassify(Surfel node, VirLodLink link, vec4 block, VirLodParams params) {
+  if (virLodBeyond(node, block, params.maxRange, params.footprintScale)) return LFGI_VIR_LOD_DROP;
   float r = node.positionRadius.w * params.footprintScale;
   vec3 v = vec3(block) - vec3(node.positionRadius);
   float lv = length(v);
   float dmin = lv - block.w;
-  if (dmin - r > params.maxRange) return LFGI_VIR_LOD_DROP;
   float cosA = node.albedo.w;
   if (cosA > 0.5f && lv > 0.0f) {
     float cosT = dot(vec3(node.normal), v) / lv;  // angle between the normal and the block centre
