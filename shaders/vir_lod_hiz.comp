@@ -27,7 +27,5 @@ void main() {
   for (uint dy = 0u; dy < 2u; ++dy)
     for (uint dx = 0u; dx < 2u; ++dx)
       m = max(m, virHizRead(map, level - 1u, min(2u * t + uvec2(dx, dy), uvec2(below - 1u))));
-  uint offset = 0u;
-  for (uint l = 1u; l < level; ++l) offset += virHizLevelDim(l) * virHizLevelDim(l);
-  hiz[map * params.hizProbeTexels + offset + t.y * dim + t.x] = m;
+  hiz[virHizIndex(map, level, t)] = m;
 }

@@ -15,11 +15,16 @@
 
 uint virHizLevelDim(uint level) { return (params.res + (1u << level) - 1u) >> level; }
 
-uint virHizRead(uint map, uint level, uvec2 t) {
-  if (level == 0u) return uint(slots[map * params.res * params.res + t.y * params.res + t.x] >> 32);
+// Index in `hiz` of texel t of pyramid level >= 1 of a probe map.
+uint virHizIndex(uint map, uint level, uvec2 t) {
   uint offset = 0u;
   for (uint l = 1u; l < level; ++l) offset += virHizLevelDim(l) * virHizLevelDim(l);
-  return hiz[map * params.hizProbeTexels + offset + t.y * virHizLevelDim(level) + t.x];
+  return map * params.hizProbeTexels + offset + t.y * virHizLevelDim(level) + t.x;
+}
+
+uint virHizRead(uint map, uint level, uvec2 t) {
+  if (level == 0u) return uint(slots[map * params.res * params.res + t.y * params.res + t.x] >> 32);
+  return hiz[virHizIndex(map, level, t)];
 }
 
 // The window form: tc the continuous texel coordinates of the centre's image, rho the reach in texels,
