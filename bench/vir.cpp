@@ -11,6 +11,10 @@
 // whose time, projected from the previous count at the same N, exceeds the budget is skipped and listed
 // in summary.json ("skipped"): that happens on lavapipe, where the baseline rasterizes on the CPU.
 //
+// A fourth row per configuration, `vir_lod_relight`: the vir_lod splat kept (VirOptions::reuseSplat) and
+// only node radiance, resolve and fill rerun with new surfel irradiance, i.e. what relighting a resident
+// cell costs per frame; it generates nothing new, so it is reported beside the ratio (relight_*), not as it.
+//
 // Headline (summary.json): vir_lod vs cubemap; the full splat's ratio is vir_full_over_cubemap_probes_per_s;
 // ratio_by_resolution_and_probes lists every (N, probes) both measured. --lod-stats prints the LOD tree's
 // levels and one probe's CPU-replayed cut; --methods runs a subset.
@@ -213,7 +217,7 @@ int main(int argc, char** argv) {
   float statCone = gpu::VirLodBuildOptions{}.coherentConeDeg;
   app.add_option("--lod-stats-cone", statCone, "--lod-stats: VirLodBuildOptions::coherentConeDeg");
   app.add_flag("--lod-stats", lodStats, "Print the surfel LOD tree's statistics and one probe's cut, then exit");
-  app.add_option("--methods", methodsArg, "Comma-separated subset of vir_lod,vir,cubemap (default all; the "
+  app.add_option("--methods", methodsArg, "Comma-separated subset of vir_lod,vir_lod_relight,vir,cubemap (default all; the "
                                           "summary's ratios need vir_lod and cubemap)");
   double lodBuildMs = 0.0;
   uint64_t lodNodes = 0;
@@ -302,7 +306,14 @@ int main(int argc, char** argv) {
     vlod.lodTexels = lodTexels;
     vlod.lodBlockProbes = lodBlockProbes;
     vlod.lodOcclusionRange = lodOcclusionRange;
+    vlod.reuseSplat = false;  // vir_lod measures the splat; vir_lod_relight reuses it
     vo.lod = false;
+    vo.reuseSplat = false;
+    // vir_lod_relight: the same LOD splat's winners kept (VirOptions::reuseSplat), new surfel irradiance:
+    // what relighting a resident cell (time of day, weather, bounces) costs per frame.
+    std::vector<glm::vec4> relightIrradiance(built.surfels.size());
+    for (size_t i = 0; i < relightIrradiance.size(); ++i)
+      relightIrradiance[i] = glm::vec4(1.0f + float(i % 7), 2.0f, 1.0f + float(i % 3), 0.0f);
     gpu::CubemapRasterOptions co;
     {  // warm-up: lavapipe compiles each pipeline at its first use
       vo.resolution = co.resolution = 8;
@@ -334,7 +345,7 @@ int main(int argc, char** argv) {
     std::map<std::tuple<std::string, int, size_t>, double> perCount;  // (method, N, probes) -> probes/s
     InterruptGuard guard;
     std::vector<std::string> methods;
-    for (const std::string m : {"vir_lod", "vir", "cubemap"})
+    for (const std::string m : {"vir_lod", "vir_lod_relight", "vir", "cubemap"})
       if (methodsArg.find(m + ",") != std::string::npos || methodsArg.ends_with(m) || methodsArg == "all")
         methods.push_back(m);
     Progress progress("vir bench configurations", resolutions.size() * counts.size() * methods.size(), "configs");
@@ -381,6 +392,14 @@ int main(int argc, char** argv) {
             atlas = vir.run(built.surfels, ps, vlod);
             splat = atlas.splatMs;
             resolve = atlas.resolveMs + atlas.fillMs;
+          } else if (method == "vir_lod_relight") {
+            gpu::VirOptions reuse = vlod;
+            reuse.reuseSplat = true;
+            vir.run(built.surfels, ps, reuse);  // the splat to keep (untimed)
+            atlas = vir.run(built.surfels, ps, reuse, relightIrradiance);
+            if (!atlas.splatReused) fail("vir_lod_relight N={} probes={}: the splat was not reused", n, count);
+            splat = atlas.splatMs;
+            resolve = atlas.resolveMs + atlas.fillMs;
           } else if (method == "vir") {
             atlas = vir.run(built.surfels, ps, vo);
             splat = atlas.splatMs;
@@ -403,10 +422,11 @@ int main(int argc, char** argv) {
           m.acc = *acc;
           // Over VIR's whole device time, not the splat's stamps: on lavapipe the splat's work shows up in
           // later timestamp intervals (its own interval reads ~0), so only the total is trustworthy there.
+          const bool relit = method == "vir_lod_relight";  // splat counters are the kept splat's
           m.atomicsPerS = method == "vir"       ? atomicsPerProbe * double(count) / (atlas.gpuMs * 1e-3)
                           : method == "vir_lod" ? double(atlas.splatAtomics) / (atlas.gpuMs * 1e-3)
                                                 : 0.0;
-          m.splatPairsPerS = double(atlas.splatPairs) / (atlas.gpuMs * 1e-3);
+          m.splatPairsPerS = relit ? 0.0 : double(atlas.splatPairs) / (atlas.gpuMs * 1e-3);
           best[{method, n}] = m;
           const auto perProbe = [&](uint64_t total) { return double(total) / double(count); };
           if (method == "vir_lod")
@@ -434,8 +454,8 @@ int main(int argc, char** argv) {
                     bench::num(acc->holeFractionOfHits), bench::num(acc->captureDistMedianRel),
                     bench::num(acc->captureNormalMedianDeg),
                     method == "cubemap" ? "0" : bench::num(m.splatPairsPerS),
-                    method == "vir_lod" ? std::to_string(lodNodes) : "0",
-                    method == "vir_lod" ? bench::num(lodBuildMs) : "0", bench::num(perProbe(atlas.splatPairs)),
+                    method.starts_with("vir_lod") ? std::to_string(lodNodes) : "0",
+                    method.starts_with("vir_lod") ? bench::num(lodBuildMs) : "0", bench::num(perProbe(atlas.splatPairs)),
                     bench::num(perProbe(atlas.splatTexelTests)), bench::num(perProbe(atlas.splatAtomics)),
                     bench::num(atlas.splatPairs ? double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0)});
           perCount[{method, n, count}] = m.probesPerS;
@@ -482,6 +502,14 @@ int main(int argc, char** argv) {
     s["lod_block_probes"] = lodBlockProbes;
     s["lod_nodes"] = lodNodes;
     s["lod_build_ms"] = lodBuildMs;
+    const auto r16 = best.find({"vir_lod_relight", 16});
+    if (r16 != best.end()) {
+      // Relighting keeps the winners, so it is not a generation rate: reported beside, not as the ratio.
+      s["relight_probes_per_s"] = r16->second.probesPerS;
+      s["relight_probes"] = r16->second.probes;
+      s["relight_over_vir_lod"] = r16->second.probesPerS / v16->second.probesPerS;
+      s["relight_over_cubemap_probes_per_s"] = r16->second.probesPerS / c16->second.probesPerS;
+    }
     if (f16 != best.end()) {
       s["vir_full_over_cubemap_probes_per_s"] = f16->second.probesPerS / c16->second.probesPerS;
       s["vir_full_probes_per_s"] = f16->second.probesPerS;
@@ -503,6 +531,11 @@ int main(int argc, char** argv) {
                                     {"vir_hole_fraction", v->second.acc.holeFractionOfHits},
                                     {"vir_atomics_fraction_of_ceiling", ceiling > 0.0 ? v->second.atomicsPerS / ceiling : 0.0}};
         if (f != best.end()) byRes[std::to_string(n)]["vir_full_ratio"] = f->second.probesPerS / c->second.probesPerS;
+        const auto r = best.find({"vir_lod_relight", n});
+        if (r != best.end()) {
+          byRes[std::to_string(n)]["relight_probes_per_s"] = r->second.probesPerS;
+          byRes[std::to_string(n)]["relight_over_cubemap"] = r->second.probesPerS / c->second.probesPerS;
+        }
       }
       for (size_t count : counts) {
         const auto vc = perCount.find({"vir_lod", n, count}), cc = perCount.find({"cubemap", n, count});

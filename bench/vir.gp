@@ -1,5 +1,5 @@
 # Charts for `scripts/bench.sh vir`: VIR vs cubemap rasterization on the same device and cell.
-# results.csv columns: 1 method (vir_lod: VirPass default, LOD cut; vir: full splat; cubemap), 2 resolution, 3 probes, 7 ms_per_probe, 8 probes_per_s,
+# results.csv columns: 1 method (vir_lod: VirPass default, LOD cut; vir_lod_relight: its splat kept; vir: full splat; cubemap), 2 resolution, 3 probes, 7 ms_per_probe, 8 probes_per_s,
 # 15 dist_p90_rel_error, 16 dist_frac_off_5pct, 19 hole_fraction.
 set datafile separator ','
 set terminal pngcairo size 1100,460 font ',10' noenhanced
@@ -7,12 +7,14 @@ set key left top
 
 # Throughput: probes/s vs probe count, per octahedral size N.
 set output dir.'/vir_throughput.png'
-set title 'probe generation throughput on '.device.' (thick: VIR LOD, dotted: VIR full splat, dashed: cubemap baseline)'
+set title 'probe generation throughput on '.device.' (thick: VIR LOD, thin dash-dot: VIR LOD relight with the splat kept, dotted: VIR full splat, dashed: cubemap baseline)'
 set xlabel 'probes per run'
 set ylabel 'probes per second'
 set logscale xy
 plot for [n in '8 16 32 64'] dir.'/results.csv' every ::1 \
        using ((strcol(1) eq 'vir_lod' && $2 == n+0) ? $3 : 1/0):8 with linespoints lw 3 lc (n+0 == 8 ? 1 : n+0 == 16 ? 2 : n+0 == 32 ? 3 : 4) pt 9 title 'VIR LOD N='.n, \
+     for [n in '8 16 32 64'] dir.'/results.csv' every ::1 \
+       using ((strcol(1) eq 'vir_lod_relight' && $2 == n+0) ? $3 : 1/0):8 with linespoints lw 1 dt 4 lc (n+0 == 8 ? 1 : n+0 == 16 ? 2 : n+0 == 32 ? 3 : 4) pt 8 title 'relight N='.n, \
      for [n in '8 16 32 64'] dir.'/results.csv' every ::1 \
        using ((strcol(1) eq 'vir' && $2 == n+0) ? $3 : 1/0):8 with linespoints lw 1 dt 3 lc (n+0 == 8 ? 1 : n+0 == 16 ? 2 : n+0 == 32 ? 3 : 4) pt 7 title 'VIR full N='.n, \
      for [n in '8 16 32 64'] dir.'/results.csv' every ::1 \

@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/octahedral.h"
 #include "gpu/timing.h"
+#include "shared/octahedral.h"
 
 namespace lfgi::gpu {
 
@@ -137,7 +138,8 @@ RelightPass::RelightPass(Context& ctx)
       probeIrradiance_(ctx, "relight_probe_irradiance"),
       probeMoments_(ctx, "relight_probe_moments"),
       prefilter_(ctx, "relight_prefilter_ggx"),
-      emitterShadow_(ctx) {}
+      emitterShadow_(ctx),
+      emitterProbes_(ctx) {}
 
 RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, const RelightProbes& probes,
                                    const shared::SkyParams& sky, const ProbeLighting* previous,
@@ -320,35 +322,44 @@ ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyPa
   out.irradiance.resize(size_t(m) * m * size_t(atlas.probeCount));
   out.moments.resize(texels);
 
-  shared::RelightFrame frame{};
-  frame.sky = sky;
+  // Probe-independent tables (see relight_probe_irradiance.comp): cosine x solid-angle weights of each
+  // input texel for every group of 16 output texels, and the sky radiance of each input texel.
+  const uint32_t n = uint32_t(atlas.resolution), groups = (m * m + 15) / 16;
   const std::vector<double> omega = octTexelSolidAngles(atlas.resolution);
-  const std::vector<float> omegaF(omega.begin(), omega.end());
+  std::vector<glm::vec4> weights(size_t(groups) * n2 * 4, glm::vec4(0.0f)), skyTable(n2);
+  for (uint32_t t = 0; t < n2; ++t) {
+    const glm::vec3 w = shared::octTexelDirection(glm::uvec2(t % n, t / n), n);
+    skyTable[t] = glm::vec4(shared::skyRadiance(sky, w), 0.0f);
+    for (uint32_t o2 = 0; o2 < m * m; ++o2) {
+      const double c = double(glm::dot(shared::octTexelDirection(glm::uvec2(o2 % m, o2 / m), m), w));
+      if (c > 0.0) weights[(size_t(o2 / 16) * n2 + t) * 4 + (o2 % 16) / 4][int(o2 % 4)] = float(c * omega[t]);
+    }
+  }
   shared::RelightParams params{};
   params.probeCount = uint32_t(atlas.probeCount);
   params.irradianceRes = m;
-  params.distanceRes = uint32_t(atlas.resolution);
+  params.distanceRes = n;
   params.flags = (o.skyInProbes ? LFGI_RELIGHT_SKY : 0u) | (o.filledTexelsSeeSky ? LFGI_RELIGHT_FILLED_SKY : 0u);
   params.missDistance = o.missDistance;
 
-  Buffer frameBuf = storage(ctx_, sizeof(frame));
   Buffer radBuf = storage(ctx_, texels * sizeof(glm::vec4));
   Buffer normalBuf = storage(ctx_, texels * sizeof(glm::vec4));
   Buffer distBuf = storage(ctx_, texels * sizeof(glm::vec2));
-  Buffer omegaBuf = storage(ctx_, omegaF.size() * sizeof(float));
+  Buffer weightBuf = storage(ctx_, weights.size() * sizeof(glm::vec4));
+  Buffer skyBuf = storage(ctx_, skyTable.size() * sizeof(glm::vec4));
   Buffer irrBuf = storage(ctx_, out.irradiance.size() * sizeof(glm::vec4));
   Buffer momBuf = storage(ctx_, texels * sizeof(glm::vec2));
-  upload<shared::RelightFrame>(ctx_, frameBuf, std::span(&frame, 1));
   upload<glm::vec4>(ctx_, radBuf, atlas.radiance);
   upload<glm::vec4>(ctx_, normalBuf, atlas.normal);
   upload<glm::vec2>(ctx_, distBuf, atlas.distance);
-  upload<float>(ctx_, omegaBuf, omegaF);
+  upload<glm::vec4>(ctx_, weightBuf, weights);
+  upload<glm::vec4>(ctx_, skyBuf, skyTable);
   GpuTimer timer(ctx_, 2);
   submitAndWait(ctx_, [&](VkCommandBuffer cmd) {
     timer.reset(cmd);
     timer.stamp(cmd, 0);
-    dispatch(ctx_, cmd, probeIrradiance_, {&frameBuf, &radBuf, &normalBuf, &omegaBuf, &irrBuf}, params,
-             {m, m, params.probeCount});
+    dispatch(ctx_, cmd, probeIrradiance_, {&radBuf, &normalBuf, &weightBuf, &skyBuf, &irrBuf}, params,
+             {params.probeCount, groups, 1});
     dispatch(ctx_, cmd, probeMoments_, {&distBuf, &normalBuf, &momBuf}, params,
              {params.distanceRes, params.distanceRes, params.probeCount});
     memoryBarrier(cmd);
@@ -413,7 +424,7 @@ RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const s
     state.reflected = relight.convolve(state.atlas, sky, options);
     // The emitters alone: where one of them is the nearest surface of a texel (same distance as in the
     // full splat), its emission joins that texel's reflected radiance.
-    const ProbeAtlas lit = vir.run(lamps, probes.positions, virOptions);
+    const ProbeAtlas lit = relight.emitterProbeVir().run(lamps, probes.positions, virOptions);
     ProbeAtlas& a = state.atlas;
     for (size_t t = 0; t < a.radiance.size(); ++t)
       if (lit.normal[t].w == LFGI_VIR_COVERED && a.normal[t].w != LFGI_VIR_HOLE &&

@@ -18,7 +18,9 @@
 //     summed per receiving surfel (relight_surfels.comp). The probes' own view of the emitters stays
 //     VIR's (texels that see an emitter surfel), but the gather then reads maps without emission
 //     (CellLighting::reflected) so the emitters' direct light reaches surfels once.
-// then VirPass::run re-splats with that irradiance (radiance = emission + albedo E / pi) and convolve()
+// then VirPass::run re-splats with that irradiance (radiance = emission + albedo E / pi; from the second
+// frame on with unchanged surfels and probes it keeps the last splat's winners and only resolves again,
+// VirOptions::reuseSplat) and convolve()
 // turns the new radiance maps into the probe irradiance + distance moments of the next frame. Multi-
 // bounce therefore converges over frames: after k frames a closed furnace holds
 // pi Le (1 - a^k) / (1 - a) (gpu/relight_pass_test.cpp).
@@ -131,6 +133,10 @@ class RelightPass {
   std::vector<glm::vec4> prefilterGgx(std::span<const glm::vec4> radiance, int n, int probeCount, float roughness,
                                       int outN, double* gpuMs = nullptr);
 
+  // The VirPass relightFrame splats the emitters alone with (NEE): its own, so that the caller's VirPass
+  // and this one each keep their winners from frame to frame (VirOptions::reuseSplat).
+  VirPass& emitterProbeVir() { return emitterProbes_; }
+
  private:
   Context& ctx_;
   Program shadowSplat_;
@@ -139,6 +145,7 @@ class RelightPass {
   Program probeMoments_;
   Program prefilter_;
   VirPass emitterShadow_;
+  VirPass emitterProbes_;
 };
 
 // One frame for one cell: relight (with state.probes from the last frame) -> VirPass::run with the new

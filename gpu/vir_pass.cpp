@@ -42,6 +42,13 @@ void VirPass::grow(Buffer& buffer, size_t bytes) {
   if (buffer.handle() == VK_NULL_HANDLE || buffer.size() < bytes) buffer = createStorageBuffer(ctx_, bytes);
 }
 
+bool VirPass::sameSplat(const VirOptions& a, const VirOptions& b) {
+  return a.resolution == b.resolution && a.maxRange == b.maxRange && a.footprintScale == b.footprintScale &&
+         a.maxFootprintRadius == b.maxFootprintRadius && a.lod == b.lod && a.lodTexels == b.lodTexels &&
+         a.lodBlockProbes == b.lodBlockProbes && a.lodDepthTolerance == b.lodDepthTolerance &&
+         a.lodOcclusionRange == b.lodOcclusionRange;
+}
+
 double VirPass::prepareSurfels(std::span<const shared::Surfel> surfels, const VirOptions& o) {
   const bool same = cachedSurfels_.size() == surfels.size() &&
                     std::memcmp(cachedSurfels_.data(), surfels.data(), surfels.size_bytes()) == 0;
@@ -49,6 +56,7 @@ double VirPass::prepareSurfels(std::span<const shared::Surfel> surfels, const Vi
     cachedSurfels_.assign(surfels.begin(), surfels.end());
     cachedUploaded_ = false;
     cachedLodScale_ = -1.0f;
+    splatValid_ = false;
   }
   if (!o.lod) {
     if (!cachedUploaded_) {
@@ -79,6 +87,7 @@ double VirPass::prepareSurfels(std::span<const shared::Surfel> surfels, const Vi
   upload<shared::VirLodLink>(ctx_, linkBuf_, tree_.links);
   if (!tree_.children.empty()) upload<uint32_t>(ctx_, childBuf_, tree_.children);
   cachedLodScale_ = o.footprintScale;
+  splatValid_ = false;
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
@@ -163,7 +172,9 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     }
     grow(blockBuf_, blocks.size() * sizeof(glm::vec4));
     upload<glm::vec4>(ctx_, blockBuf_, blocks);
-    if (cutCapacity_ == 0) cutCapacity_ = uint32_t(std::clamp<size_t>(16 * n2, 4096, kMaxCutEntries));
+    // First guess 128 N^2 entries per block: a block of a city cell at N = 16 cuts ~30 k nodes, and an
+    // overflow redoes the whole run (16 N^2 cost one extra run per new VirPass on a 15 k-probe cell).
+    if (cutCapacity_ == 0) cutCapacity_ = uint32_t(std::clamp<size_t>(128 * n2, 4096, kMaxCutEntries));
     grow(cutCountBuf_, blockCount * sizeof(uint32_t));
     grow(statsBuf_, kLodStats * sizeof(uint64_t));
     lp.probeCount = probeCount;
@@ -189,6 +200,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   }
   if (o.lod) grow(hizBuf_, size_t(lp.hizProbeTexels) * probeCount * sizeof(uint32_t));  // bound even when unused
 
+  const bool reuse = o.reuseSplat && splatValid_ && sameSplat(o, splatOptions_) && splatProbes_ == probe4;
+  splatValid_ = splatValid_ && reuse;  // this run overwrites slots_ unless it reuses them
   GpuTimer timer(ctx_, 5);
   for (;;) {
     if (o.lod) {
@@ -202,7 +215,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     submitAndWait(ctx_, [&](VkCommandBuffer cmd) {
       timer.reset(cmd);
       timer.stamp(cmd, 0);
-      vkCmdFillBuffer(cmd, slots_.handle(), 0, texels * sizeof(uint64_t), 0xFFFFFFFFu);
+      if (!reuse) vkCmdFillBuffer(cmd, slots_.handle(), 0, texels * sizeof(uint64_t), 0xFFFFFFFFu);
       vkCmdFillBuffer(cmd, counters_.handle(), 0, VK_WHOLE_SIZE, 0u);
       if (surfelIrradiance.empty()) vkCmdFillBuffer(cmd, irrBuf_.handle(), 0, VK_WHOLE_SIZE, 0u);
       if (o.lod) vkCmdFillBuffer(cmd, statsBuf_.handle(), 0, VK_WHOLE_SIZE, 0u);
@@ -220,7 +233,9 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
         }
       }
       timer.stamp(cmd, 1);
-      if (o.lod) {
+      if (reuse) {
+        // slots_ holds this splat's winners already.
+      } else if (o.lod) {
         // Cut + splat of every batch of blocks for one pass (LFGI_VIR_LOD_PASS_*).
         const auto cutAndSplat = [&](uint32_t pass) {
           lp.cutPass = pass;
@@ -276,7 +291,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
       }
       timer.stamp(cmd, 4);
     });
-    if (!o.lod) break;
+    if (!o.lod || reuse) break;
     std::array<uint64_t, kLodStats> stats{};
     readback<uint64_t>(ctx_, statsBuf_, stats);
     if (stats[2] > 0)
@@ -293,9 +308,25 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     if (cutCapacity_ >= kMaxCutEntries)
       fail("VIR LOD: a probe block's cut has {} nodes, more than {}: use fewer lodBlockProbes or more lodTexels",
            stats[3], kMaxCutEntries);
+    spdlog::debug("VIR LOD: a probe block's cut has {} nodes, more than its {} entries: splatting again", stats[3],
+                  cutCapacity_);
     cutCapacity_ = uint32_t(std::min<uint64_t>(kMaxCutEntries, stats[3] + stats[3] / 4));  // and run again
   }
   if (!o.lod) atlas.splatPairs = uint64_t(surfels.size()) * probes.size();
+  if (reuse) {
+    atlas.splatPairs = splatStats_.splatPairs;
+    atlas.splatAtomics = splatStats_.splatAtomics;
+    atlas.splatTexelTests = splatStats_.splatTexelTests;
+    atlas.splatWindowPairs = splatStats_.splatWindowPairs;
+    atlas.occludedNodes = splatStats_.occludedNodes;
+    atlas.occludedPairs = splatStats_.occludedPairs;
+    atlas.splatReused = true;
+  } else {
+    splatValid_ = true;
+    splatOptions_ = o;
+    splatProbes_ = probe4;
+    splatStats_ = atlas;  // counters only: the channels are filled below
+  }
 
   atlas.resolution = o.resolution;
   atlas.probeCount = int(probes.size());

@@ -52,6 +52,12 @@ struct VirOptions {
   // hidden behind what the first pass drew (shared/vir.h LFGI_VIR_LOD_PASS_*). Exact: the output is
   // bit-identical to a run without it. 0 (or >= maxRange): one pass.
   float lodOcclusionRange = 0.0f;
+  // Relighting: when the surfels (bytes), the probes and every option above but fillPasses equal the
+  // previous run's, that run's per-texel winners (the 64-bit depth | node slots) still hold, so the clear,
+  // cut and splat are skipped and only node radiance, resolve and fill run again with the new irradiance:
+  // bit-identical to a fresh splat (the winners do not depend on irradiance). false: always splat
+  // (benchmarks of the splat itself).
+  bool reuseSplat = true;
   static constexpr int kMaxFillPasses = 8;
 };
 
@@ -75,6 +81,8 @@ struct ProbeAtlas {
   uint64_t splatWindowPairs = 0;  // LOD: front-facing pairs splatted through the wrapped square window
   uint64_t occludedNodes = 0;     // LOD occlusion culling: far-pass cut nodes / subtrees dropped per block
   uint64_t occludedPairs = 0;     // LOD occlusion culling: far-pass (node, probe) pairs the splat dropped
+  bool splatReused = false;       // VirOptions::reuseSplat hit: the previous run's winners; the splat
+                                  // counters above are that run's, splatMs ~0
 };
 
 class VirPass {
@@ -91,6 +99,7 @@ class VirPass {
  private:
   // Uploads surfels and (LOD) builds the tree unless the cached copy matches; returns build ms.
   double prepareSurfels(std::span<const shared::Surfel> surfels, const VirOptions& options);
+  static bool sameSplat(const VirOptions& a, const VirOptions& b);
   void grow(Buffer& buffer, size_t bytes);
   Context& ctx_;
   Program splat_;
@@ -107,6 +116,11 @@ class VirPass {
   float cachedLodScale_ = -1.0f;  // footprintScale of the resident tree; < 0: none
   VirLodTree tree_;
   uint32_t cutCapacity_ = 0;  // cut entries per block, grown when a block's cut overflows
+  // The splat that slots_ holds (VirOptions::reuseSplat): valid until the surfels, probes or options change.
+  bool splatValid_ = false;
+  VirOptions splatOptions_;
+  std::vector<glm::vec4> splatProbes_;
+  ProbeAtlas splatStats_;  // its counters only
   Buffer surfelBuf_, probeBuf_, irrBuf_, slots_, distBuf_, normalBuf_, albedoBuf_, radianceBuf_, counters_;
   Buffer nodeBuf_, linkBuf_, childBuf_, upBuf_, rectBuf_, frontierBuf_, nodeRadianceBuf_, blockBuf_, cutBuf_, cutCountBuf_,
       statsBuf_, boundsBuf_, hizBuf_;

@@ -15,6 +15,20 @@
 namespace lfgi::gpu {
 namespace {
 
+// Texels of two same-sized atlases that differ in any bit of any channel.
+size_t differingTexels(const ProbeAtlas& a, const ProbeAtlas& b) {
+  EXPECT_EQ(a.distance.size(), b.distance.size());
+  size_t differ = 0;
+  for (size_t t = 0; t < std::min(a.distance.size(), b.distance.size()); ++t)
+    differ += std::memcmp(&a.distance[t], &b.distance[t], sizeof(glm::vec2)) != 0 ||
+                      std::memcmp(&a.normal[t], &b.normal[t], sizeof(glm::vec4)) != 0 ||
+                      std::memcmp(&a.albedo[t], &b.albedo[t], sizeof(glm::vec4)) != 0 ||
+                      std::memcmp(&a.radiance[t], &b.radiance[t], sizeof(glm::vec4)) != 0
+                  ? 1
+                  : 0;
+  return differ;
+}
+
 // Distance from o (inside) along unit d to the box [-h, h]^3, and the inward normal of the wall hit.
 float boxDistance(glm::vec3 o, glm::vec3 d, float h, glm::vec3* normal) {
   float best = 1e30f;
@@ -271,16 +285,9 @@ TEST(VirPass, LodOcclusionCullingIsExactAndDropsHiddenSurfels) {
     const ProbeAtlas a = pass.run(surfels, probes, off, irradiance);
     const ProbeAtlas b = pass.run(surfels, probes, on, irradiance);
     ASSERT_EQ(a.distance.size(), b.distance.size());
-    size_t differ = 0, covered = 0;
-    for (size_t t = 0; t < a.distance.size(); ++t) {
-      covered += a.normal[t].w == LFGI_VIR_COVERED ? 1 : 0;
-      differ += std::memcmp(&a.distance[t], &b.distance[t], sizeof(glm::vec2)) != 0 ||
-                        std::memcmp(&a.normal[t], &b.normal[t], sizeof(glm::vec4)) != 0 ||
-                        std::memcmp(&a.albedo[t], &b.albedo[t], sizeof(glm::vec4)) != 0 ||
-                        std::memcmp(&a.radiance[t], &b.radiance[t], sizeof(glm::vec4)) != 0
-                    ? 1
-                    : 0;
-    }
+    const size_t differ = differingTexels(a, b);
+    size_t covered = 0;
+    for (size_t t = 0; t < a.distance.size(); ++t) covered += a.normal[t].w == LFGI_VIR_COVERED ? 1 : 0;
     std::printf("VIR LOD occlusion culling, N=%d: %zu + %zu surfels, %zu probes; pairs %llu -> %llu (%llu nodes "
                 "and %llu pairs dropped as occluded), atomics %llu -> %llu; %zu of %zu texels differ; splat %.1f "
                 "-> %.1f ms\n",
@@ -303,6 +310,73 @@ TEST(VirPass, LodOcclusionCullingIsExactAndDropsHiddenSurfels) {
   VirOptions bad;
   bad.lodOcclusionRange = -1.0f;
   EXPECT_THROW(pass.run(surfels, probes, bad), Error);
+  EXPECT_EQ(ctx->validationErrors.load(), 0u);
+}
+
+// VirOptions::reuseSplat: a run whose surfels, probes and splat options equal the previous run's keeps its
+// winners and only resolves again. With new irradiance the result must be bit-identical to a fresh splat
+// (a second VirPass with reuse off), for the LOD and the full splat; changing a probe, a surfel or a splat
+// option must splat again, and so must a run after another surfel set (one cache, as relightFrame's NEE
+// runs would alternate if they shared a VirPass); fillPasses alone does not.
+TEST(VirPass, ReusedSplatIsBitIdenticalToAFreshSplat) {
+  auto ctx = createContext();
+  VirPass pass(*ctx), fresh(*ctx);
+  std::vector<shared::Surfel> surfels = test::inwardBoxSurfels(6.0f, 0.5f);
+  for (const shared::Surfel& sf : test::inwardBoxSurfels(1.0f, 0.25f)) {  // an occluder inside
+    shared::Surfel o = sf;
+    o.normal = -o.normal;
+    o.positionRadius += glm::vec4(2.0f, 0.5f, 1.0f, 0.0f);
+    surfels.push_back(o);
+  }
+  const auto irradianceFor = [&](uint32_t seed) {
+    std::vector<glm::vec4> e(surfels.size());
+    for (size_t i = 0; i < e.size(); ++i)
+      e[i] = glm::vec4(4.0f * test::hash01(uint32_t(i) * 3 + seed), 1.0f + float(seed), 0.5f, 0.0f);
+    return e;
+  };
+  const std::vector<glm::vec3> probes = {{0, 0, 0}, {-2, 1, 0}, {1, -2, -3}, {3, 3, 3}, {-4, -1, 2}};
+  for (const bool lod : {true, false}) {
+    VirOptions o;
+    o.resolution = 16;
+    o.maxRange = 50.0f;
+    o.lod = lod;
+    VirOptions noReuse = o;
+    noReuse.reuseSplat = false;
+    const ProbeAtlas first = pass.run(surfels, probes, o, irradianceFor(1));
+    EXPECT_FALSE(first.splatReused);
+    const ProbeAtlas again = pass.run(surfels, probes, o, irradianceFor(2));
+    EXPECT_TRUE(again.splatReused) << lod;
+    const ProbeAtlas ref = fresh.run(surfels, probes, noReuse, irradianceFor(2));
+    EXPECT_FALSE(ref.splatReused);
+    EXPECT_EQ(differingTexels(again, ref), 0u) << lod;
+    EXPECT_EQ(again.splatPairs, ref.splatPairs);
+    EXPECT_EQ(again.holeFractionAfterFill, ref.holeFractionAfterFill);
+    EXPECT_GT(differingTexels(first, again), 0u);  // the radiance did change
+
+    VirOptions fill = o;
+    fill.fillPasses = 0;
+    VirOptions fillRef = noReuse;
+    fillRef.fillPasses = 0;
+    const ProbeAtlas unfilled = pass.run(surfels, probes, fill, irradianceFor(3));
+    EXPECT_TRUE(unfilled.splatReused);
+    EXPECT_EQ(differingTexels(unfilled, fresh.run(surfels, probes, fillRef, irradianceFor(3))), 0u);
+
+    std::vector<glm::vec3> moved = probes;
+    moved[2].x += 0.25f;
+    EXPECT_FALSE(pass.run(surfels, moved, o, irradianceFor(4)).splatReused);
+    const ProbeAtlas back = pass.run(surfels, probes, o, irradianceFor(2));
+    EXPECT_FALSE(back.splatReused);  // the moved probes' splat replaced the cached one
+    EXPECT_EQ(differingTexels(back, ref), 0u);
+    VirOptions finer = o;
+    finer.footprintScale = 1.4f;
+    EXPECT_FALSE(pass.run(surfels, probes, finer, irradianceFor(2)).splatReused);
+    std::vector<shared::Surfel> shifted = surfels;
+    shifted.back().positionRadius.y += 0.01f;
+    EXPECT_FALSE(pass.run(shifted, probes, o, irradianceFor(2)).splatReused);
+    EXPECT_FALSE(pass.run(surfels, probes, o, irradianceFor(2)).splatReused);
+    EXPECT_TRUE(pass.run(surfels, probes, o, irradianceFor(5)).splatReused);
+    EXPECT_FALSE(pass.run(surfels, probes, noReuse, irradianceFor(5)).splatReused);
+  }
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
 }
 
