@@ -2,9 +2,15 @@
 // Probe distance moments for Chebyshev visibility (McGuire et al. 2017): the VIR map's (r, r^2) averaged
 // over the 3 x 3 texel neighbourhood (octahedral fold respected), so depth edges get the variance that
 // makes the Chebyshev bound soft instead of a binary depth test. A texel no surfel covered sees the sky
-// and counts as missDistance. One invocation per texel, probes along z; no barriers.
+// and counts as missDistance, and so does a texel only the VIR hole fill covered when
+// LFGI_RELIGHT_FILLED_SKY is set, as in relight_probe_irradiance.comp: at N = 8 two dilation passes
+// fill most of the sky of a probe 0.5 m above a ground plane with the plane's depth (looking straight
+// up: r = 1.2 m), so Chebyshev hid the plane's surfels from the probe above them and their gathered
+// bounce light was lost (a plane under the overcast sky: surfel E median 0 instead of 0.9 of the exact
+// value; probe downward irradiance 24 % low). One invocation per texel, probes along z; no barriers.
 #include "shared/octahedral.h"
 #include "shared/relight.h"
+#include "shared/vir.h"
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
@@ -20,12 +26,15 @@ void main() {
   if (id.x >= uint(n) || id.y >= uint(n) || id.z >= params.probeCount) return;
   uint base = id.z * uint(n * n);
   float miss = params.missDistance;
+  bool filledSky = (params.flags & LFGI_RELIGHT_FILLED_SKY) != 0u;
   vec2 sum = vec2(0.0);
   for (int dy = -1; dy <= 1; ++dy) {
     for (int dx = -1; dx <= 1; ++dx) {
       ivec2 t = octWrap(ivec2(id.xy) + ivec2(dx, dy), n);
       uint i = base + uint(t.y * n + t.x);
-      sum += normals[i].w == 0.0 ? vec2(miss, miss * miss) : distanceMoments[i];
+      float coverage = normals[i].w;
+      bool sky = coverage == LFGI_VIR_HOLE || (filledSky && coverage != LFGI_VIR_COVERED);
+      sum += sky ? vec2(miss, miss * miss) : distanceMoments[i];
     }
   }
   moments[base + id.y * uint(n) + id.x] = sum * (1.0 / 9.0);
