@@ -7,7 +7,7 @@ set key left top
 
 # Throughput: probes/s vs probe count, per octahedral size N.
 set output dir.'/vir_throughput.png'
-set title 'probe generation throughput on '.device.' (thick: VIR LOD, thin dash-dot: VIR LOD relight with the splat kept, dotted: VIR full splat, dashed: cubemap baseline)'
+set title 'probes/s on '.device.' (thick: VIR LOD; dash-dot: relight, splat kept; dotted: full splat; dashed: cubemap)'
 set xlabel 'probes per run'
 set ylabel 'probes per second'
 set logscale xy
