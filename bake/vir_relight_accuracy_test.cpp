@@ -238,7 +238,8 @@ TEST(VirRelightAccuracy, CityCellMatchesEmbree) {
   // Measured (N = 16, 4 frames, 15:00 clear; lattice surfels, footprint 1.3 since 2026-12-02): probe
   // irradiance median rel 0.0137, rel RMS 0.030 (median signed -0.010; R2 surfels at 1.5 before: 0.0165,
   // 0.034, -0.001); surfel E median rel 0.020 (p90 0.69: surfels in contact shadows and corners that the
-  // probe grid cannot resolve); shadow map == Embree shadow ray for 151 of 158 (96 %) sampled sun-facing
+  // probe grid cannot resolve; 0.97 since hole-filled texels count as sky in the gather's distance moments,
+  // probe rel RMS 0.0296, median 0.0137, surfel median 0.019); shadow map == Embree shadow ray for 151 of 158 (96 %) sampled sun-facing
   // surfels (1 m surfels, 0.42 m shadow texels; 92 % before). Bounds leave ~25-50 % headroom.
   ASSERT_GT(c.probeTexels, size_t(200));
   EXPECT_LE(c.probeMedian, 0.025);
