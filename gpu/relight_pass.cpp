@@ -327,11 +327,13 @@ ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyPa
   const uint32_t n = uint32_t(atlas.resolution), groups = (m * m + 15) / 16;
   const std::vector<double> omega = octTexelSolidAngles(atlas.resolution);
   std::vector<glm::vec4> weights(size_t(groups) * n2 * 4, glm::vec4(0.0f)), skyTable(n2);
+  std::vector<glm::vec3> normals(size_t(m) * m);
+  for (uint32_t o2 = 0; o2 < m * m; ++o2) normals[o2] = shared::octTexelDirection(glm::uvec2(o2 % m, o2 / m), m);
   for (uint32_t t = 0; t < n2; ++t) {
     const glm::vec3 w = shared::octTexelDirection(glm::uvec2(t % n, t / n), n);
     skyTable[t] = glm::vec4(shared::skyRadiance(sky, w), 0.0f);
     for (uint32_t o2 = 0; o2 < m * m; ++o2) {
-      const double c = double(glm::dot(shared::octTexelDirection(glm::uvec2(o2 % m, o2 / m), m), w));
+      const double c = double(glm::dot(normals[o2], w));
       if (c > 0.0) weights[(size_t(o2 / 16) * n2 + t) * 4 + (o2 % 16) / 4][int(o2 % 4)] = float(c * omega[t]);
     }
   }

@@ -297,12 +297,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     if (stats[2] > 0)
       spdlog::warn("VIR LOD: {} nodes splatted coarser than lodTexels (cut walk stack full)", stats[2]);
     if (stats[3] == 0) {
-      atlas.splatPairs = stats[0];
-      atlas.splatAtomics = stats[1];
-      atlas.splatTexelTests = stats[4];
-      atlas.splatWindowPairs = stats[5];
-      atlas.occludedNodes = stats[6];
-      atlas.occludedPairs = stats[7];
+      splatStats_.assign(stats.begin(), stats.end());
       break;
     }
     if (cutCapacity_ >= kMaxCutEntries)
@@ -312,20 +307,21 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
                   cutCapacity_);
     cutCapacity_ = uint32_t(std::min<uint64_t>(kMaxCutEntries, stats[3] + stats[3] / 4));  // and run again
   }
-  if (!o.lod) atlas.splatPairs = uint64_t(surfels.size()) * probes.size();
-  if (reuse) {
-    atlas.splatPairs = splatStats_.splatPairs;
-    atlas.splatAtomics = splatStats_.splatAtomics;
-    atlas.splatTexelTests = splatStats_.splatTexelTests;
-    atlas.splatWindowPairs = splatStats_.splatWindowPairs;
-    atlas.occludedNodes = splatStats_.occludedNodes;
-    atlas.occludedPairs = splatStats_.occludedPairs;
-    atlas.splatReused = true;
+  if (o.lod) {  // this run's counters, or the reused splat's
+    atlas.splatPairs = splatStats_[0];
+    atlas.splatAtomics = splatStats_[1];
+    atlas.splatTexelTests = splatStats_[4];
+    atlas.splatWindowPairs = splatStats_[5];
+    atlas.occludedNodes = splatStats_[6];
+    atlas.occludedPairs = splatStats_[7];
   } else {
+    atlas.splatPairs = uint64_t(surfels.size()) * probes.size();
+  }
+  atlas.splatReused = reuse;
+  if (!reuse) {
     splatValid_ = true;
     splatOptions_ = o;
     splatProbes_ = probe4;
-    splatStats_ = atlas;  // counters only: the channels are filled below
   }
 
   atlas.resolution = o.resolution;

@@ -120,7 +120,7 @@ class VirPass {
   bool splatValid_ = false;
   VirOptions splatOptions_;
   std::vector<glm::vec4> splatProbes_;
-  ProbeAtlas splatStats_;  // its counters only
+  std::vector<uint64_t> splatStats_;  // its LOD device counters (statsBuf_)
   Buffer surfelBuf_, probeBuf_, irrBuf_, slots_, distBuf_, normalBuf_, albedoBuf_, radianceBuf_, counters_;
   Buffer nodeBuf_, linkBuf_, childBuf_, upBuf_, rectBuf_, frontierBuf_, nodeRadianceBuf_, blockBuf_, cutBuf_, cutCountBuf_,
       statsBuf_, boundsBuf_, hizBuf_;

@@ -15,7 +15,6 @@
 // the same for every lane; no barriers. (One invocation per output texel, with the directions, the
 // cosine and the sky evaluated per pair, took ~8 s per call on a 15 k-probe city cell on lavapipe.)
 #include "shared/relight.h"
-#include "shared/vir.h"
 
 layout(local_size_x = 64, local_size_y = 1, local_size_z = 1) in;
 
@@ -33,7 +32,6 @@ void main() {
   uint n2 = params.distanceRes * params.distanceRes;
   if (probe >= params.probeCount || g * 16u >= m2) return;
   bool useSky = (params.flags & LFGI_RELIGHT_SKY) != 0u;
-  bool filledSky = (params.flags & LFGI_RELIGHT_FILLED_SKY) != 0u;
   uint base = probe * n2;
   vec3 e[16] = vec3[16](vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0),
                         vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0));
@@ -43,7 +41,7 @@ void main() {
     if (w0 + w1 + w2 + w3 == vec4(0.0)) continue;  // behind all 16 normals (keeps Inf x 0 out of the sums)
     vec3 l = radiance[base + t].rgb;
     float coverage = normals[base + t].w;
-    if (coverage == LFGI_VIR_HOLE || (filledSky && coverage != LFGI_VIR_COVERED)) l = useSky ? sky[t].rgb : vec3(0.0);
+    if (relightTexelSeesSky(coverage, params.flags)) l = useSky ? sky[t].rgb : vec3(0.0);
     e[0] += l * w0.x; e[1] += l * w0.y; e[2] += l * w0.z; e[3] += l * w0.w;
     e[4] += l * w1.x; e[5] += l * w1.y; e[6] += l * w1.z; e[7] += l * w1.w;
     e[8] += l * w2.x; e[9] += l * w2.y; e[10] += l * w2.z; e[11] += l * w2.w;

@@ -10,7 +10,6 @@
 // value; probe downward irradiance 24 % low). One invocation per texel, probes along z; no barriers.
 #include "shared/octahedral.h"
 #include "shared/relight.h"
-#include "shared/vir.h"
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
@@ -26,15 +25,12 @@ void main() {
   if (id.x >= uint(n) || id.y >= uint(n) || id.z >= params.probeCount) return;
   uint base = id.z * uint(n * n);
   float miss = params.missDistance;
-  bool filledSky = (params.flags & LFGI_RELIGHT_FILLED_SKY) != 0u;
   vec2 sum = vec2(0.0);
   for (int dy = -1; dy <= 1; ++dy) {
     for (int dx = -1; dx <= 1; ++dx) {
       ivec2 t = octWrap(ivec2(id.xy) + ivec2(dx, dy), n);
       uint i = base + uint(t.y * n + t.x);
-      float coverage = normals[i].w;
-      bool sky = coverage == LFGI_VIR_HOLE || (filledSky && coverage != LFGI_VIR_COVERED);
-      sum += sky ? vec2(miss, miss * miss) : distanceMoments[i];
+      sum += relightTexelSeesSky(normals[i].w, params.flags) ? vec2(miss, miss * miss) : distanceMoments[i];
     }
   }
   moments[base + id.y * uint(n) + id.x] = sum * (1.0 / 9.0);

@@ -6,6 +6,7 @@
 
 #include "lfgi_shared.h"
 #include "sky.h"
+#include "vir.h"
 
 LFGI_SHARED_BEGIN
 
@@ -36,6 +37,12 @@ LFGI_CHECK_OFFSET(RelightFrame, gridDims, 368)
 #define LFGI_RELIGHT_SKY 8u        // probe convolution: texels no surfel covered see the sky (no disc)
 #define LFGI_RELIGHT_FILLED_SKY 16u  // probe convolution: texels only the hole fill covered count as uncovered
 #define LFGI_RELIGHT_EMITTERS 32u    // add emitter next-event estimation (RelightEmitter samples)
+
+// Whether a probe texel of coverage `coverage` (the VIR normal.w) sees the sky in the probe convolution and
+// the distance moments: no surfel covered it, or, with LFGI_RELIGHT_FILLED_SKY in flags, only the hole fill.
+LFGI_INLINE bool relightTexelSeesSky(float coverage, uint flags) {
+  return coverage == LFGI_VIR_HOLE || ((flags & LFGI_RELIGHT_FILLED_SKY) != 0u && coverage != LFGI_VIR_COVERED);
+}
 
 // One emitter sample for next-event estimation: a disc standing for `area` of emissive surface (the
 // sampled surfel's own area scaled up when its cluster has more surfels than samples).
