@@ -37,7 +37,7 @@ struct Comparison {
   double surfelMedian = 0.0, surfelP90 = 0.0;
   size_t probeTexels = 0, surfelsCompared = 0;
   size_t keyFacing = 0, keyAgree = 0, keyFalseShadow = 0;
-  size_t surfelsBuried = 0;
+  size_t surfelsBuried = 0, surfelsUnseen = 0;
   std::vector<double> probeSigned, surfelSigned;  // (relit - Embree) / Embree  // sampled surfels facing the
                                                   // key disc; shadow map agrees with Embree
 };
@@ -114,6 +114,21 @@ Comparison compare(const char* label, const worlds::TriangleMesh& mesh, const wo
       ++c.surfelsBuried;
       continue;
     }
+    // A surfel no probe can see (under a floor slab that dips below the ground plane, whose Embree paths
+    // escape under the world to the sky below the horizon) never reaches a probe texel, so its error
+    // never reaches a shaded pixel: counted, not compared.
+    bool seen = false;
+    for (size_t q = 0; q < probes.positions.size() && !seen; ++q) {
+      if (!probes.active.empty() && !probes.active[q]) continue;
+      const glm::vec3 toProbe = probes.positions[q] - origin;
+      const float dist = glm::length(toProbe);
+      seen = dist < maxRange && glm::dot(toProbe, n) > 0.0f &&
+             !scene.occluded(origin, toProbe / dist, 0.0f, dist * (1.0f - 1e-4f));
+    }
+    if (!seen) {
+      ++c.surfelsUnseen;
+      continue;
+    }
     glm::vec3 e(0.0f);
     for (int d = 0; d < discs.count; ++d)
       if (glm::dot(n, discs.light[d]->direction) > 0.0f) {
@@ -161,8 +176,8 @@ Comparison compare(const char* label, const worlds::TriangleMesh& mesh, const wo
   if (c.keyFacing)
     std::printf(
         "[ measure  ] %s: shadow map visibility agrees with an Embree shadow ray for %zu of %zu sampled "
-        "surfels facing the sun (%zu wrongly shadowed); %zu buried surfels skipped\n",
-        label, c.keyAgree, c.keyFacing, c.keyFalseShadow, c.surfelsBuried);
+        "surfels facing the sun (%zu wrongly shadowed); %zu buried and %zu unseen surfels skipped\n",
+        label, c.keyAgree, c.keyFacing, c.keyFalseShadow, c.surfelsBuried, c.surfelsUnseen);
   return c;
 }
 
@@ -192,7 +207,8 @@ TEST(VirRelightAccuracy, CornellBoxMatchesEmbree) {
   // the light, get the probes' much stronger direct term. With emitter NEE (the default: the lamp's surfels
   // summed at every surfel, shadowed by VIR-splatted depth maps from the lamp's clusters): probe median rel
   // 0.098 (0.112), rel RMS 0.086 (0.101), signed +0.044 (+0.013); surfel E median 0.45 (0.41), signed +0.10
-  // (+0.03). At footprint 1.5 with lattice surfels the lamp's discs overhang its edges (+13 % signed: median
+  // (+0.03); 0.42, signed +0.063 over the 114 surfels a probe sees, since unseen ones are skipped
+  // (2026-12-03; no-NEE run: 0.93, +0.72 unchanged). At footprint 1.5 with lattice surfels the lamp's discs overhang its edges (+13 % signed: median
   // 0.147, RMS 0.170, failing these bounds). Bounds leave ~25 % headroom.
   ASSERT_GT(c.probeTexels, size_t(300));  // two of the 8 preset probes sit inside the boxes (Embree: 0)
   EXPECT_LE(c.probeMedian, 0.14);
@@ -236,15 +252,19 @@ TEST(VirRelightAccuracy, CityCellMatchesEmbree) {
   const Comparison c =
       compare("city cell", built.mesh, sky, built.surfels, probes, chosen, 4, 64.0f, 128, 16);
   // Measured (N = 16, 4 frames, 15:00 clear; lattice surfels, footprint 1.3 since 2026-12-02): probe
-  // irradiance median rel 0.0137, rel RMS 0.030 (median signed -0.010; R2 surfels at 1.5 before: 0.0165,
-  // 0.034, -0.001); surfel E median rel 0.020 (p90 0.69: surfels in contact shadows and corners that the
-  // probe grid cannot resolve; 0.97 since hole-filled texels count as sky in the gather's distance moments,
-  // probe rel RMS 0.0296, median 0.0137, surfel median 0.019); shadow map == Embree shadow ray for 151 of 158 (96 %) sampled sun-facing
+  // irradiance median rel 0.0137, rel RMS 0.0296 (median signed -0.010; R2 surfels at 1.5 before: 0.0165,
+  // 0.034, -0.001); surfel E over the 170 surfels some probe sees: median rel 0.018, p90 0.30 (the tail:
+  // the 6 sun-facing surfels whose shadow-map visibility disagrees with Embree's shadow ray, then contact
+  // shadows and corners the probe grid cannot resolve). Before unseen surfels were skipped, p90 read 0.69,
+  // then 0.97 once hole-filled texels counted as sky in the gather's moments: 11 of those 181 were the
+  // underside of a floor slab below the ground plane, relit 0 (no probe sees them) against Embree's ~30
+  // klux of below-horizon sky. Shadow map == Embree shadow ray for 149 of 155 (96 %) sampled sun-facing
   // surfels (1 m surfels, 0.42 m shadow texels; 92 % before). Bounds leave ~25-50 % headroom.
   ASSERT_GT(c.probeTexels, size_t(200));
   EXPECT_LE(c.probeMedian, 0.025);
   EXPECT_LE(c.probeRelRms, 0.05);
   EXPECT_LE(c.surfelMedian, 0.04);
+  EXPECT_LE(c.surfelP90, 0.40);
   ASSERT_GT(c.keyFacing, size_t(50));
   EXPECT_GE(double(c.keyAgree) / double(c.keyFacing), 0.88);
 }
