@@ -251,20 +251,24 @@ TEST(VirRelightAccuracy, CityCellMatchesEmbree) {
               built.mesh.triangleCount(), probes.grid.dims.x, probes.grid.dims.y, probes.grid.dims.z);
   const Comparison c =
       compare("city cell", built.mesh, sky, built.surfels, probes, chosen, 4, 64.0f, 128, 16);
-  // Measured (N = 16, 4 frames, 15:00 clear; lattice surfels, footprint 1.3 since 2026-12-02): probe
-  // irradiance median rel 0.0137, rel RMS 0.0296 (median signed -0.010; R2 surfels at 1.5 before: 0.0165,
-  // 0.034, -0.001); surfel E over the 170 surfels some probe sees: median rel 0.018, p90 0.30 (the tail:
-  // the 6 sun-facing surfels whose shadow-map visibility disagrees with Embree's shadow ray, then contact
-  // shadows and corners the probe grid cannot resolve). Before unseen surfels were skipped, p90 read 0.69,
-  // then 0.97 once hole-filled texels counted as sky in the gather's moments: 11 of those 181 were the
-  // underside of a floor slab below the ground plane, relit 0 (no probe sees them) against Embree's ~30
-  // klux of below-horizon sky. Shadow map == Embree shadow ray for 149 of 155 (96 %) sampled sun-facing
-  // surfels (1 m surfels, 0.42 m shadow texels; 92 % before). Bounds leave ~25-50 % headroom.
+  // Measured (N = 16, 4 frames, 15:00 clear; lattice surfels, footprint 1.3 since 2026-12-02; buried
+  // surfaces dropped by buildCell since 2026-12-03): probe irradiance median rel 0.0135, rel RMS 0.0295
+  // (median signed -0.005; R2 surfels at 1.5 before: 0.0165, 0.034, -0.001); surfel E over 265 sampled
+  // surfels: median rel 0.017, p90 0.35 (the tail: the sun-facing surfels whose shadow-map visibility
+  // disagrees with Embree's shadow ray, then contact shadows and corners the probe grid cannot resolve).
+  // Before buried surfels were dropped, 70 of every 261 sampled were buried (terrain under the ground
+  // slab) and 21 unseen (slab undersides below the ground plane, relit 0 against Embree's ~30 klux of
+  // below-horizon sky; p90 0.97 with them, 0.30 over the 170 others). Shadow map == Embree shadow ray for
+  // 234 of 245 (96 %) sampled sun-facing surfels (1 m surfels, 0.42 m shadow texels). Bounds leave
+  // ~15-50 % headroom.
   ASSERT_GT(c.probeTexels, size_t(200));
   EXPECT_LE(c.probeMedian, 0.025);
   EXPECT_LE(c.probeRelRms, 0.05);
   EXPECT_LE(c.surfelMedian, 0.04);
   EXPECT_LE(c.surfelP90, 0.40);
+  // buildCell dropped every surfel that faces the inside of a solid or that no probe sees (by Embree here).
+  EXPECT_EQ(c.surfelsBuried, 0u);
+  EXPECT_EQ(c.surfelsUnseen, 0u);
   ASSERT_GT(c.keyFacing, size_t(50));
   EXPECT_GE(double(c.keyAgree) / double(c.keyFacing), 0.88);
 }

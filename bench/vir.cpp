@@ -216,6 +216,9 @@ int main(int argc, char** argv) {
   bool lodStats = false;
   float statCone = gpu::VirLodBuildOptions{}.coherentConeDeg;
   app.add_option("--lod-stats-cone", statCone, "--lod-stats: VirLodBuildOptions::coherentConeDeg");
+  bool keepBuried = false;
+  app.add_flag("--keep-buried", keepBuried,
+               "Keep the cell's buried triangles and surfels (worlds::CellBuildOptions::dropBuried = false)");
   app.add_flag("--lod-stats", lodStats, "Print the surfel LOD tree's statistics and one probe's cut, then exit");
   app.add_option("--methods", methodsArg, "Comma-separated subset of vir_lod,vir_lod_relight,vir,cubemap (default all; the "
                                           "summary's ratios need vir_lod and cubemap)");
@@ -234,7 +237,9 @@ int main(int argc, char** argv) {
 
     const worlds::SyntheticWorld world(worlds::WorldParams::smallDefault(1));
     if (!world.contains({cx, cz})) fail("--cell {},{} outside the default world", cx, cz);
-    const worlds::BuiltCell built = worlds::buildCell(world, {cx, cz});
+    worlds::CellBuildOptions buildOptions;
+    buildOptions.dropBuried = !keepBuried;
+    const worlds::BuiltCell built = worlds::buildCell(world, {cx, cz}, buildOptions);
     const gpu::CubemapScene scene = bench::toCubemapScene(built.mesh);
     std::vector<glm::vec3> active;
     for (int64_t i = 0; i < built.probes.grid.probeCount(); ++i)
@@ -550,6 +555,7 @@ int main(int argc, char** argv) {
     s["cell"] = {cx, cz};
     s["surfels"] = built.surfels.size();
     s["triangles"] = scene.triangleCount();
+    s["buried_dropped"] = {{"triangles", built.stats.trianglesBuried}, {"surfels", built.stats.surfelsBuried}};
     s["accuracy_probes"] = accuracyProbes;
     s["accuracy_reference"] = "Embree closest hit along each texel-centre ray (deterministic)";
     s["budget_s_per_config"] = budgetS;

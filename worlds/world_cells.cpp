@@ -3,8 +3,10 @@
 #include "worlds/cell_probe_file.h"
 
 #include <fmt/format.h>
+#include <glm/gtc/constants.hpp>
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -21,6 +23,93 @@ double msSince(std::chrono::steady_clock::time_point t0) {
 
 std::string cellName(CellCoord c) { return fmt::format("cell_{}_{}", c.x, c.z); }
 
+// Solid boxes binned over XZ (cell's own and its 8 neighbours'), for the buried-surface tests below.
+class SolidIndex {
+ public:
+  SolidIndex(std::vector<Aabb> boxes, float binM) : boxes_(std::move(boxes)), bin_(binM) {
+    for (const Aabb& b : boxes_) lo_ = glm::min(lo_, glm::vec2(b.min.x, b.min.z)), hi_ = glm::max(hi_, glm::vec2(b.max.x, b.max.z));
+    if (boxes_.empty()) return;
+    dims_ = glm::max(glm::ivec2(1), glm::ivec2(glm::ceil((hi_ - lo_) / bin_)));
+    bins_.resize(size_t(dims_.x) * size_t(dims_.y));
+    for (uint32_t i = 0; i < boxes_.size(); ++i) {
+      const glm::ivec2 a = binOf({boxes_[i].min.x, boxes_[i].min.z}), b = binOf({boxes_[i].max.x, boxes_[i].max.z});
+      for (int z = a.y; z <= b.y; ++z)
+        for (int x = a.x; x <= b.x; ++x) bins_[size_t(z) * size_t(dims_.x) + size_t(x)].push_back(i);
+    }
+  }
+  // Index of a box that holds every point strictly (open box), or -1.
+  template <size_t K>
+  int holder(const std::array<glm::vec3, K>& pts) const {
+    if (boxes_.empty()) return -1;
+    for (const glm::vec3& p : pts)
+      if (p.x <= lo_.x || p.z <= lo_.y || p.x >= hi_.x || p.z >= hi_.y) return -1;
+    const glm::ivec2 c = binOf({pts[0].x, pts[0].z});
+    for (const uint32_t i : bins_[size_t(c.y) * size_t(dims_.x) + size_t(c.x)]) {
+      const Aabb& b = boxes_[i];
+      bool all = true;
+      for (const glm::vec3& p : pts)
+        all = all && glm::all(glm::greaterThan(p, b.min)) && glm::all(glm::lessThan(p, b.max));
+      if (all) return int(i);
+    }
+    return -1;
+  }
+
+ private:
+  glm::ivec2 binOf(glm::vec2 p) const {
+    return glm::clamp(glm::ivec2(glm::floor((p - lo_) / bin_)), glm::ivec2(0), dims_ - 1);
+  }
+  std::vector<Aabb> boxes_;
+  float bin_;
+  glm::vec2 lo_{1e30f}, hi_{-1e30f};
+  glm::ivec2 dims_{0};
+  std::vector<std::vector<uint32_t>> bins_;
+};
+
+// A surface is buried when the space right in front of it is inside a closed solid box (terrain through
+// a city's ground slab; a wall's bottom face on a floor slab), under the terrain (slab undersides 0.1 m
+// below ground) or under a road strip (the terrain beneath it): no probe, camera or shadow ray reaches it, so it is dropped before surfels are sampled
+// (whole triangles) and after (surfels of triangles only partly inside). The offset is 1 cm along the
+// normal; a point counts as under the terrain only when 2 cm or more below it, so the terrain's own
+// surfels in concave creases are never taken for buried.
+constexpr float kBuriedProbeM = 0.01f;
+constexpr float kBuriedTerrainM = 0.02f;
+
+size_t dropBuriedTriangles(TriangleMesh& mesh, const SolidIndex& solids) {
+  std::vector<uint32_t> indices;
+  std::vector<uint32_t> materials;
+  indices.reserve(mesh.indices.size());
+  materials.reserve(mesh.triangleMaterial.size());
+  size_t dropped = 0;
+  for (size_t t = 0; t < mesh.triangleCount(); ++t) {
+    const glm::vec3 d = mesh.faceNormal(t) * kBuriedProbeM;
+    // Boxes are convex: a triangle whose three offset corners lie inside one box lies inside it entirely.
+    if (solids.holder(std::array{mesh.vertex(t, 0) + d, mesh.vertex(t, 1) + d, mesh.vertex(t, 2) + d}) >= 0) {
+      ++dropped;
+      continue;
+    }
+    indices.insert(indices.end(), mesh.indices.begin() + std::ptrdiff_t(3 * t),
+                   mesh.indices.begin() + std::ptrdiff_t(3 * t + 3));
+    materials.push_back(mesh.triangleMaterial[t]);
+  }
+  // Compact the vertices the dropped triangles alone used (uploads and bounds see only what is drawn).
+  std::vector<uint32_t> remap(mesh.positions.size(), ~0u);
+  std::vector<glm::vec3> positions;
+  std::vector<glm::vec2> uvs;
+  for (uint32_t& i : indices) {
+    if (remap[i] == ~0u) {
+      remap[i] = uint32_t(positions.size());
+      positions.push_back(mesh.positions[i]);
+      if (!mesh.uvs.empty()) uvs.push_back(mesh.uvs[i]);
+    }
+    i = remap[i];
+  }
+  mesh.positions = std::move(positions);
+  mesh.uvs = std::move(uvs);
+  mesh.indices = std::move(indices);
+  mesh.triangleMaterial = std::move(materials);
+  return dropped;
+}
+
 }  // namespace
 
 BuiltCell buildCell(const SyntheticWorld& world, CellCoord c, const CellBuildOptions& options) {
@@ -35,24 +124,27 @@ BuiltCell buildCell(const SyntheticWorld& world, CellCoord c, const CellBuildOpt
   out.layout = std::move(gen.layout);
   s.generateMs = msSince(t0);
   s.kind = out.layout.kind;
-  s.meshHash = out.mesh.contentHash();
-  s.triangles = out.mesh.triangleCount();
-  s.surfaceAreaM2 = out.mesh.totalArea();
-  s.categoryTriangles = out.mesh.categoryTriangleCounts();
 
   // Probe placement against the cell mesh + neighbours' solid boxes.
   t0 = Clock::now();
   const double cellM = world.cellSizeM();
-  s.probeSpacingM = chooseProbeSpacing(s.surfaceAreaM2, cellM * cellM);
+  // Spacing from the generated mesh's area (buried surfaces included, as before they were dropped below,
+  // so probe layouts did not move).
+  s.probeSpacingM = chooseProbeSpacing(out.mesh.totalArea(), cellM * cellM);
   TriangleMesh context = out.mesh;
   Material proxy;
   proxy.category = SurfaceCategory::kWall;
   const uint32_t proxyMat = context.addMaterial(proxy);
+  std::vector<Aabb> solidBoxes;  // the cell's and its neighbours', for the buried-surface tests
+  for (const SolidBox& b : out.layout.solids) solidBoxes.push_back(b.box);
   for (int dz = -1; dz <= 1; ++dz)
     for (int dx = -1; dx <= 1; ++dx) {
       CellCoord n{c.x + dx, c.z + dz};
       if ((dx == 0 && dz == 0) || !world.contains(n)) continue;
-      for (const SolidBox& b : world.describeCell(n).solids) context.addBox(b.box.min, b.box.max, proxyMat);
+      for (const SolidBox& b : world.describeCell(n).solids) {
+        context.addBox(b.box.min, b.box.max, proxyMat);
+        solidBoxes.push_back(b.box);
+      }
     }
   TriangleBvh bvh(context);
   const Aabb cellBox = world.cellBounds(c);
@@ -82,14 +174,35 @@ BuiltCell buildCell(const SyntheticWorld& world, CellCoord c, const CellBuildOpt
   s.probesDisabled = out.probes.disabled;
   s.probesSkyOnly = out.probes.skyOnly;
 
+  // Buried surfaces go before surfels are sampled (placement above saw the whole mesh; it gives the same
+  // answer without them, since no probe ray from outside the solids reaches one).
   t0 = Clock::now();
+  const SolidIndex solids(std::move(solidBoxes), 4.0f);
+  if (options.dropBuried) s.trianglesBuried = dropBuriedTriangles(out.mesh, solids);
+  s.meshHash = out.mesh.contentHash();
+  s.triangles = out.mesh.triangleCount();
+  s.surfaceAreaM2 = out.mesh.totalArea();
+  s.categoryTriangles = out.mesh.categoryTriangleCounts();
+
   SurfelOptions so;
   so.spacing = surfelSpacingForProbeSpacing(s.probeSpacingM);
   so.seed = options.surfelSeed ^ (uint64_t(uint32_t(c.x)) << 32 | uint32_t(c.z));
   out.surfels = sampleSurfels(out.mesh, so);
+  if (options.dropBuried) std::erase_if(out.surfels, [&](const Surfel& sf) {
+    const glm::vec3 q = glm::vec3(sf.positionRadius) + glm::vec3(sf.normal) * kBuriedProbeM;
+    // Under a road strip: the terrain (y = 0 on roads) between it and the strip raised kRoadRaiseM above,
+    // closed by kerbs wherever the neighbour is not road.
+    const bool buried = solids.holder(std::array{q}) >= 0 || q.y < world.terrainHeight(q.x, q.z) - kBuriedTerrainM ||
+                        (q.y < kRoadRaiseM && world.isRoad(q.x, q.z));
+    if (buried) {
+      ++s.surfelsBuried;
+      s.surfelBuriedAreaM2 += glm::pi<double>() * double(sf.positionRadius.w) * double(sf.positionRadius.w);
+    }
+    return buried;
+  });
   SurfelCodecStats cs;
   out.surfelBytes = encodeSurfels(out.surfels, options.surfelPositionBits, &cs);
-  s.surfelMs = msSince(t0);
+  s.surfelMs = msSince(t0);  // buried-surface culling included
   s.surfels = out.surfels.size();
   s.surfelSpacingM = so.spacing;
   s.surfelRawBytes = cs.rawBytes;
@@ -113,6 +226,9 @@ nlohmann::ordered_json cellStatsJson(const CellStats& s) {
   j["probes"] = {{"total", s.probes},       {"active", s.probesActive},     {"relocated", s.probesRelocated},
                  {"disabled", s.probesDisabled}, {"sky_only", s.probesSkyOnly},
                  {"disabled_by_layout_check", s.probesDisabledByLayout}};
+  j["buried"] = {{"triangles", s.trianglesBuried},
+                 {"surfels", s.surfelsBuried},
+                 {"surfel_area_m2", s.surfelBuriedAreaM2}};
   j["surfels"] = {{"count", s.surfels},
                   {"spacing_m", s.surfelSpacingM},
                   {"raw_bytes", s.surfelRawBytes},

@@ -40,6 +40,10 @@ struct CellStats {
   size_t probes = 0, probesActive = 0, probesRelocated = 0, probesDisabled = 0, probesSkyOnly = 0;
   size_t probesDisabledByLayout = 0;  // active after ray placement but inside a solid box / under terrain
   size_t surfels = 0;
+  // Buried surfaces dropped (see buildCell): whole triangles before sampling, surfels of partly buried
+  // triangles after; surfels + surfelsBuried is what sampling the whole remaining mesh gave.
+  size_t trianglesBuried = 0, surfelsBuried = 0;
+  double surfelBuriedAreaM2 = 0.0;
   float surfelSpacingM = 0.0f;
   size_t surfelRawBytes = 0, surfelEncodedBytes = 0;
   double generateMs = 0.0, placeMs = 0.0, surfelMs = 0.0;
@@ -58,12 +62,18 @@ struct CellBuildOptions {
   ProbePlacementOptions placement;
   int surfelPositionBits = 16;
   uint64_t surfelSeed = 1;
+  bool dropBuried = true;  // false keeps buried triangles and surfels (to measure what dropping them saves)
 };
 
 // Generates cell c and everything the bake needs from it. Rays for probe placement see the cell's mesh
 // plus its 8 neighbours' solid boxes (describeCell, cheap), so border probes are classified with what is
 // next door. After ray placement, every probe is checked against the cell's analytic solids and the
 // terrain height; any that ray placement left inside is disabled and counted (probesDisabledByLayout).
+// Buried surfaces are then dropped: triangles lying wholly inside one solid box (offset 1 cm along their
+// normal), and surfels whose point 1 cm in front lies inside a solid box or 2 cm under the terrain (terrain
+// through a city's ground slab, wall bottoms on slabs, slab undersides below ground). Nothing outside the
+// solids sees them, so probes, shading and shadows are unchanged while VIR splats, relights and stores
+// fewer surfels (trianglesBuried, surfelsBuried). `mesh` is the mesh without the buried triangles.
 BuiltCell buildCell(const SyntheticWorld& world, CellCoord c, const CellBuildOptions& options = {});
 
 nlohmann::ordered_json cellStatsJson(const CellStats& s);

@@ -4,12 +4,15 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstdio>
+#include <set>
 #include <random>
 #include <utility>
 
 #include "core/error.h"
 #include "core/file_util.h"
 #include "worlds/cell_probe_file.h"
+#include "worlds/triangle_bvh.h"
 
 namespace lfgi::worlds {
 namespace {
@@ -52,9 +55,105 @@ TEST(WorldCells, CityCellHasNoActiveProbeInsideSolidAndSurfelsCoverTheMesh) {
     ASSERT_GE(p.y, w.terrainHeight(p.x, p.z));
     ASSERT_TRUE(cell.probes.grid.owns(cell.probes.grid.probePosition(cell.probes.grid.probeCoord(i))));
   }
-  EXPECT_NEAR(surfelArea(cell.surfels) / cell.mesh.totalArea(), 1.0, 0.01);
+  // The surfels kept plus those dropped as buried cover the (buried-triangle-free) mesh.
+  EXPECT_NEAR((surfelArea(cell.surfels) + s.surfelBuriedAreaM2) / cell.mesh.totalArea(), 1.0, 0.01);
   EXPECT_EQ(decodeSurfels(cell.surfelBytes, "cell").size(), cell.surfels.size());
   EXPECT_GT(double(s.surfelRawBytes) / double(s.surfelEncodedBytes), 2.0);
+}
+
+// Buried surfaces (buildCell): what is dropped is a large part of a city cell, and no probe sees any of
+// it. The dropped surfels are those of sampleSurfels(cell.mesh) (the call buildCell makes) that it did
+// not keep (erase_if keeps order); the dropped triangles are the generated mesh's triangles missing from
+// cell.mesh. "Seen": a segment from 1 mm in front of the point to an active probe within 3 probe
+// spacings, on its front side, hits nothing in the whole generated mesh plus the neighbours' solids (the
+// context probe placement uses). And no kept surfel faces a back face right in front (inside something).
+TEST(WorldCells, BuriedSurfacesAreDroppedAndNoProbeSeesThem) {
+  const SyntheticWorld& w = smallWorld();
+  const CellCoord c = firstCellOfKind(CellKind::kCity);
+  const BuiltCell cell = buildCell(w, c);
+  const CellStats& s = cell.stats;
+  GeneratedCell gen = w.generate(c);
+  ASSERT_GT(s.trianglesBuried, 0u);
+  ASSERT_GT(s.surfelsBuried, 0u);
+  ASSERT_EQ(gen.mesh.triangleCount(), s.triangles + s.trianglesBuried);
+  const double droppedArea = gen.mesh.totalArea() - cell.mesh.totalArea() + s.surfelBuriedAreaM2;
+  std::printf("city cell %d,%d: %zu of %zu triangles and %zu of %zu surfels buried, %.0f of %.0f m^2 (%.1f %%)\n",
+              c.x, c.z, s.trianglesBuried, gen.mesh.triangleCount(), s.surfelsBuried, s.surfelsBuried + s.surfels,
+              droppedArea, gen.mesh.totalArea(), 100.0 * droppedArea / gen.mesh.totalArea());
+  EXPECT_GT(droppedArea / gen.mesh.totalArea(), 0.10);
+
+  // Points to check: the dropped surfels, and each dropped triangle's centroid and corners pulled 10 %
+  // towards it.
+  std::vector<std::pair<glm::vec3, glm::vec3>> dropped;  // (point, normal)
+  SurfelOptions so;
+  so.spacing = s.surfelSpacingM;
+  so.seed = CellBuildOptions{}.surfelSeed ^ (uint64_t(uint32_t(c.x)) << 32 | uint32_t(c.z));
+  const std::vector<Surfel> resampled = sampleSurfels(cell.mesh, so);
+  ASSERT_EQ(resampled.size(), s.surfels + s.surfelsBuried);
+  for (size_t i = 0, k = 0; i < resampled.size(); ++i) {
+    if (k < cell.surfels.size() && resampled[i].positionRadius == cell.surfels[k].positionRadius &&
+        resampled[i].normal == cell.surfels[k].normal) {
+      ++k;
+      continue;
+    }
+    dropped.push_back({glm::vec3(resampled[i].positionRadius), glm::vec3(resampled[i].normal)});
+  }
+  ASSERT_EQ(dropped.size(), s.surfelsBuried);
+  std::set<std::array<float, 9>> kept;
+  auto corners = [](const TriangleMesh& m, size_t t) {
+    const glm::vec3 a = m.vertex(t, 0), b = m.vertex(t, 1), d = m.vertex(t, 2);
+    return std::array<float, 9>{a.x, a.y, a.z, b.x, b.y, b.z, d.x, d.y, d.z};
+  };
+  for (size_t t = 0; t < cell.mesh.triangleCount(); ++t) kept.insert(corners(cell.mesh, t));
+  size_t droppedTriangles = 0;
+  for (size_t t = 0; t < gen.mesh.triangleCount(); ++t) {
+    if (kept.count(corners(gen.mesh, t))) continue;
+    ++droppedTriangles;
+    const glm::vec3 centroid = (gen.mesh.vertex(t, 0) + gen.mesh.vertex(t, 1) + gen.mesh.vertex(t, 2)) / 3.0f;
+    dropped.push_back({centroid, gen.mesh.faceNormal(t)});
+    for (int v = 0; v < 3; ++v) dropped.push_back({glm::mix(gen.mesh.vertex(t, v), centroid, 0.1f), gen.mesh.faceNormal(t)});
+  }
+  EXPECT_EQ(droppedTriangles, s.trianglesBuried);
+
+  TriangleMesh context = gen.mesh;
+  const uint32_t proxy = context.addMaterial(Material{});
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dx = -1; dx <= 1; ++dx)
+      if ((dx != 0 || dz != 0) && w.contains({c.x + dx, c.z + dz}))
+        for (const SolidBox& b : w.describeCell({c.x + dx, c.z + dz}).solids) context.addBox(b.box.min, b.box.max, proxy);
+  const TriangleBvh bvh(context);
+  std::vector<glm::vec3> probes;
+  for (int64_t i = 0; i < int64_t(s.probes); ++i)
+    if (!(cell.probes.flags[size_t(i)] & kProbeDisabledSolid)) probes.push_back(cell.probes.position(i));
+  const float range = 3.0f * s.probeSpacingM;
+  size_t seen = 0, tested = 0;
+  for (size_t k = 0; k < dropped.size(); k += 3) {
+    const auto [p, n] = dropped[k];
+    const glm::vec3 o = p + n * 1e-3f;
+    ++tested;
+    for (const glm::vec3& q : probes) {
+      const glm::vec3 d = q - o;
+      const float dist = glm::length(d);
+      if (dist < range && glm::dot(d, n) > 0.0f && !bvh.intersect(o, d / dist, dist * (1.0f - 1e-4f))) {
+        if (++seen <= 5)
+          ADD_FAILURE() << "dropped point " << p.x << "," << p.y << "," << p.z << " (normal " << n.x << "," << n.y
+                        << "," << n.z << ") is seen from probe " << q.x << "," << q.y << "," << q.z;
+        break;
+      }
+    }
+  }
+  EXPECT_GT(tested, 1000u);
+  EXPECT_EQ(seen, 0u) << "of " << tested << " dropped points tested";
+
+  size_t inside = 0;
+  for (const Surfel& k : cell.surfels) {
+    const glm::vec3 n(k.normal), o = glm::vec3(k.positionRadius) + n * 1e-3f;
+    const auto hit = bvh.intersect(o, n, 4.0f * k.positionRadius.w);
+    if (hit && hit->backface && ++inside <= 5)
+      ADD_FAILURE() << "kept surfel at " << o.x << "," << o.y << "," << o.z << " (normal " << n.x << "," << n.y << ","
+                    << n.z << ") faces the back of triangle " << hit->triangle << " at " << hit->t << " m";
+  }
+  EXPECT_EQ(inside, 0u) << "kept surfels facing a back face right in front (inside a solid)";
 }
 
 TEST(WorldCells, FieldCellUsesSparseProbes) {
