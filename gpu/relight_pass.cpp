@@ -306,7 +306,8 @@ RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, cons
   return result;
 }
 
-ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyParams& sky, const RelightOptions& o) {
+ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyParams& sky, const RelightOptions& o,
+                                   const ProbeLighting* sameGeometry) {
   validate(o);
   const size_t n2 = size_t(atlas.resolution) * size_t(atlas.resolution);
   const size_t texels = n2 * size_t(atlas.probeCount);
@@ -314,13 +315,18 @@ ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyPa
       atlas.normal.size() != texels || atlas.distance.size() != texels)
     fail("relight: atlas of {} probes at N={} has {} radiance, {} normal, {} distance texels", atlas.probeCount,
          atlas.resolution, atlas.radiance.size(), atlas.normal.size(), atlas.distance.size());
+  if (sameGeometry && (sameGeometry->distanceResolution != atlas.resolution ||
+                       sameGeometry->probeCount != atlas.probeCount || sameGeometry->moments.size() != texels))
+    fail("relight: moments of {} probes at N={} ({} texels) given for an atlas of {} probes at N={}",
+         sameGeometry->probeCount, sameGeometry->distanceResolution, sameGeometry->moments.size(), atlas.probeCount,
+         atlas.resolution);
   const uint32_t m = uint32_t(o.irradianceResolution);
   ProbeLighting out;
   out.irradianceResolution = int(m);
   out.distanceResolution = atlas.resolution;
   out.probeCount = atlas.probeCount;
   out.irradiance.resize(size_t(m) * m * size_t(atlas.probeCount));
-  out.moments.resize(texels);
+  if (!sameGeometry) out.moments.resize(texels);
 
   // Probe-independent tables (see relight_probe_irradiance.comp): cosine x solid-angle weights of each
   // input texel for every group of 16 output texels, and the sky radiance of each input texel.
@@ -346,14 +352,14 @@ ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyPa
 
   Buffer radBuf = storage(ctx_, texels * sizeof(glm::vec4));
   Buffer normalBuf = storage(ctx_, texels * sizeof(glm::vec4));
-  Buffer distBuf = storage(ctx_, texels * sizeof(glm::vec2));
+  Buffer distBuf = storage(ctx_, (sameGeometry ? 1 : texels) * sizeof(glm::vec2));
   Buffer weightBuf = storage(ctx_, weights.size() * sizeof(glm::vec4));
   Buffer skyBuf = storage(ctx_, skyTable.size() * sizeof(glm::vec4));
   Buffer irrBuf = storage(ctx_, out.irradiance.size() * sizeof(glm::vec4));
-  Buffer momBuf = storage(ctx_, texels * sizeof(glm::vec2));
+  Buffer momBuf = storage(ctx_, (sameGeometry ? 1 : texels) * sizeof(glm::vec2));
   upload<glm::vec4>(ctx_, radBuf, atlas.radiance);
   upload<glm::vec4>(ctx_, normalBuf, atlas.normal);
-  upload<glm::vec2>(ctx_, distBuf, atlas.distance);
+  if (!sameGeometry) upload<glm::vec2>(ctx_, distBuf, atlas.distance);
   upload<glm::vec4>(ctx_, weightBuf, weights);
   upload<glm::vec4>(ctx_, skyBuf, skyTable);
   GpuTimer timer(ctx_, 2);
@@ -362,14 +368,18 @@ ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyPa
     timer.stamp(cmd, 0);
     dispatch(ctx_, cmd, probeIrradiance_, {&radBuf, &normalBuf, &weightBuf, &skyBuf, &irrBuf}, params,
              {params.probeCount, groups, 1});
-    dispatch(ctx_, cmd, probeMoments_, {&distBuf, &normalBuf, &momBuf}, params,
-             {params.distanceRes, params.distanceRes, params.probeCount});
+    if (!sameGeometry)
+      dispatch(ctx_, cmd, probeMoments_, {&distBuf, &normalBuf, &momBuf}, params,
+               {params.distanceRes, params.distanceRes, params.probeCount});
     memoryBarrier(cmd);
     timer.stamp(cmd, 1);
   });
   out.gpuMs = timer.elapsedMs(0, 1);
   readback<glm::vec4>(ctx_, irrBuf, out.irradiance);
-  readback<glm::vec2>(ctx_, momBuf, out.moments);
+  if (sameGeometry)
+    out.moments = sameGeometry->moments;
+  else
+    readback<glm::vec2>(ctx_, momBuf, out.moments);
   return out;
 }
 
@@ -433,7 +443,7 @@ RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const s
           lit.distance[t].x <= a.distance[t].x * 1.001f + 1e-5f)
         a.radiance[t] += glm::vec4(glm::vec3(lit.radiance[t]), 0.0f);
     a.gpuMs += lit.gpuMs;
-    state.probes = relight.convolve(a, sky, options);
+    state.probes = relight.convolve(a, sky, options, &state.reflected);  // same distances: moments once
   }
   state.surfelIrradiance = result.irradiance;
   ++state.frames;

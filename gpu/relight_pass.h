@@ -123,8 +123,12 @@ class RelightPass {
                         const RelightOptions& options);
 
   // Probe irradiance (exact cosine convolution of the atlas' radiance, sky in uncovered texels) and
-  // filtered distance moments, on the GPU. Throws lfgi::Error on an empty or inconsistent atlas.
-  ProbeLighting convolve(const ProbeAtlas& atlas, const shared::SkyParams& sky, const RelightOptions& options);
+  // filtered distance moments, on the GPU. The moments depend only on the atlas' distance and coverage:
+  // given sameGeometry (the convolution of an atlas with the same distance and normal maps, e.g. the
+  // emission-free atlas of the same splat), its moments are copied instead of computed. Throws
+  // lfgi::Error on an empty or inconsistent atlas, or a sameGeometry of another size.
+  ProbeLighting convolve(const ProbeAtlas& atlas, const shared::SkyParams& sky, const RelightOptions& options,
+                         const ProbeLighting* sameGeometry = nullptr);
 
   // GGX-prefiltered radiance (split sum, N = V = R) of probeCount N x N radiance maps (rgb used) into
   // outN x outN maps: the GPU version of bake::prefilterRadianceGgx (same normalised kernel, exact texel

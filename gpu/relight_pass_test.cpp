@@ -258,6 +258,25 @@ TEST(RelightPass, EmitterNextEventEstimationMatchesAnalyticAndIsShadowed) {
   RelightOptions off;
   off.emitterNee = false;
   EXPECT_EQ(pass.relight(open, probes, sky, nullptr, off).irradiance[0].y, 0.0f);
+
+  // relightFrame with NEE convolves twice (emission-free atlas -> state.reflected, with the emitters added
+  // -> state.probes) and computes the distance moments once: moments and irradiance must equal a fresh
+  // convolution's of the final atlas.
+  VirPass vir(*ctx);
+  VirOptions virOptions;
+  virOptions.resolution = 16;
+  virOptions.maxRange = 10.0f;
+  CellLighting state;
+  for (int k = 0; k < 2; ++k) relightFrame(pass, vir, open, probes, sky, virOptions, one, state);
+  const ProbeLighting fresh = pass.convolve(state.atlas, sky, one);
+  EXPECT_EQ(state.probes.moments, fresh.moments);
+  EXPECT_EQ(state.probes.moments, state.reflected.moments);
+  ASSERT_EQ(state.probes.irradiance.size(), fresh.irradiance.size());
+  for (size_t t = 0; t < fresh.irradiance.size(); ++t)
+    ASSERT_EQ(state.probes.irradiance[t], fresh.irradiance[t]) << "texel " << t;
+  ProbeLighting other = fresh;
+  other.moments.pop_back();
+  EXPECT_THROW(pass.convolve(state.atlas, sky, one, &other), Error);
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
 }
 
