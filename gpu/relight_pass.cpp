@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <numbers>
 #include <tuple>
@@ -435,14 +436,27 @@ RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const s
     state.atlas = vir.run(dark, probes.positions, virOptions, result.irradiance);
     state.reflected = relight.convolve(state.atlas, sky, options);
     // The emitters alone: where one of them is the nearest surface of a texel (same distance as in the
-    // full splat), its emission joins that texel's reflected radiance.
-    const ProbeAtlas lit = relight.emitterProbeVir().run(lamps, probes.positions, virOptions);
+    // full splat), its emission joins that texel's reflected radiance. Their splat depends only on the
+    // emitter surfels, the probes and the splat options, so its texels are kept in state.
     ProbeAtlas& a = state.atlas;
-    for (size_t t = 0; t < a.radiance.size(); ++t)
-      if (lit.normal[t].w == LFGI_VIR_COVERED && a.normal[t].w != LFGI_VIR_HOLE &&
-          lit.distance[t].x <= a.distance[t].x * 1.001f + 1e-5f)
-        a.radiance[t] += glm::vec4(glm::vec3(lit.radiance[t]), 0.0f);
-    a.gpuMs += lit.gpuMs;
+    const bool cached = virOptions.reuseSplat && state.emitterTexelsValid && state.emitterSurfels.size() == lamps.size() &&
+                        std::memcmp(state.emitterSurfels.data(), lamps.data(), lamps.size() * sizeof(shared::Surfel)) == 0 &&
+                        state.emitterProbes == probes.positions && VirPass::sameSplat(virOptions, state.emitterOptions);
+    if (!cached) {
+      const ProbeAtlas lit = relight.emitterProbeVir().run(lamps, probes.positions, virOptions);
+      state.emitterTexels.clear();
+      for (size_t t = 0; t < lit.normal.size(); ++t)
+        if (lit.normal[t].w == LFGI_VIR_COVERED)
+          state.emitterTexels.push_back({uint32_t(t), lit.distance[t].x, glm::vec3(lit.radiance[t])});
+      state.emitterSurfels = std::move(lamps);
+      state.emitterProbes = probes.positions;
+      state.emitterOptions = virOptions;
+      state.emitterTexelsValid = true;
+      a.gpuMs += lit.gpuMs;
+    }
+    for (const EmitterTexel& e : state.emitterTexels)
+      if (a.normal[e.texel].w != LFGI_VIR_HOLE && e.distance <= a.distance[e.texel].x * 1.001f + 1e-5f)
+        a.radiance[e.texel] += glm::vec4(e.radiance, 0.0f);
     state.probes = relight.convolve(a, sky, options, &state.reflected);  // same distances: moments once
   }
   state.surfelIrradiance = result.irradiance;

@@ -100,6 +100,14 @@ struct RelightResult {
   double emitterShadowMs = 0.0;  // VIR splat of the clusters' depth maps
 };
 
+// With emitter NEE: a probe texel whose nearest surface in the emitters-only splat is an emitter (texel
+// index into the atlas, that distance, the emitted radiance).
+struct EmitterTexel {
+  uint32_t texel = 0;
+  float distance = 0.0f;
+  glm::vec3 radiance{0.0f};
+};
+
 // Everything a cell keeps between frames.
 struct CellLighting {
   ProbeAtlas atlas;                     // last VIR atlas (radiance holds the last relit radiance)
@@ -108,6 +116,14 @@ struct CellLighting {
                                         // input); empty when no surfel emits or NEE is off
   std::vector<glm::vec4> surfelIrradiance;
   int frames = 0;
+  // The emitters-only splat's texels (see relightFrame), kept while the emitter surfels, probe positions
+  // and splat options stay the same (and VirOptions::reuseSplat is on): the emitters-only VIR run and its
+  // readback then happen once per cell, not once per frame.
+  std::vector<EmitterTexel> emitterTexels;
+  std::vector<shared::Surfel> emitterSurfels;
+  std::vector<glm::vec3> emitterProbes;
+  VirOptions emitterOptions;
+  bool emitterTexelsValid = false;
 };
 
 class RelightPass {
@@ -158,7 +174,8 @@ class RelightPass {
 // With emitter NEE and emissive surfels: relight gathers from state.reflected; VIR runs on the surfels
 // with their emission zeroed (-> state.reflected) and once more on the emitters alone, whose radiance is
 // added to the texels where an emitter is the nearest surface (same distance): state.atlas / state.probes
-// hold emission + reflection as without NEE.
+// hold emission + reflection as without NEE. The emitters-only texels are cached in state (see
+// CellLighting::emitterTexels).
 RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const shared::Surfel> surfels,
                            const RelightProbes& probes, const shared::SkyParams& sky, const VirOptions& virOptions,
                            const RelightOptions& options, CellLighting& state);

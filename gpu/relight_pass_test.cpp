@@ -277,6 +277,30 @@ TEST(RelightPass, EmitterNextEventEstimationMatchesAnalyticAndIsShadowed) {
   ProbeLighting other = fresh;
   other.moments.pop_back();
   EXPECT_THROW(pass.convolve(state.atlas, sky, one, &other), Error);
+
+  // The emitters-only splat's texels are kept in state between frames: bit-identical to splatting the
+  // emitters every frame (reuseSplat off, a second pass pair), also when the lamp's emission changes.
+  RelightPass pass2(*ctx);
+  VirPass vir2(*ctx);
+  VirOptions fresh2 = virOptions;
+  fresh2.reuseSplat = false;
+  CellLighting kept, redone;
+  std::vector<shared::Surfel> lamp = open;
+  const RelightProbes under = singleProbe({0.0f, 0.5f, 0.0f});  // sees the lamp (the probe above does not)
+  for (int k = 0; k < 3; ++k) {
+    if (k == 2)
+      for (size_t i = floorCount; i < lamp.size(); ++i) lamp[i].emission *= 2.0f;
+    relightFrame(pass, vir, lamp, under, sky, virOptions, one, kept);
+    relightFrame(pass2, vir2, lamp, under, sky, fresh2, one, redone);
+    ASSERT_TRUE(kept.emitterTexelsValid);
+    ASSERT_FALSE(kept.emitterTexels.empty());
+    ASSERT_EQ(kept.atlas.radiance.size(), redone.atlas.radiance.size());
+    size_t differ = 0;
+    for (size_t t = 0; t < kept.atlas.radiance.size(); ++t) differ += kept.atlas.radiance[t] != redone.atlas.radiance[t];
+    EXPECT_EQ(differ, 0u) << "frame " << k;
+    EXPECT_EQ(kept.probes.irradiance, redone.probes.irradiance) << "frame " << k;
+  }
+  EXPECT_EQ(kept.emitterSurfels.front().emission, 2.0f * open[floorCount].emission);
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
 }
 

@@ -96,10 +96,12 @@ class VirPass {
   ProbeAtlas run(std::span<const shared::Surfel> surfels, std::span<const glm::vec3> probes,
                  const VirOptions& options, std::span<const glm::vec4> surfelIrradiance = {});
 
+  // True when the two option sets give the same splat winners (every field but fillPasses / reuseSplat).
+  static bool sameSplat(const VirOptions& a, const VirOptions& b);
+
  private:
   // Uploads surfels and (LOD) builds the tree unless the cached copy matches; returns build ms.
   double prepareSurfels(std::span<const shared::Surfel> surfels, const VirOptions& options);
-  static bool sameSplat(const VirOptions& a, const VirOptions& b);
   void grow(Buffer& buffer, size_t bytes);
   Context& ctx_;
   Program splat_;
