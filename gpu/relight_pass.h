@@ -175,7 +175,8 @@ class RelightPass {
 // with their emission zeroed (-> state.reflected) and once more on the emitters alone, whose radiance is
 // added to the texels where an emitter is the nearest surface (same distance): state.atlas / state.probes
 // hold emission + reflection as without NEE. The emitters-only texels are cached in state (see
-// CellLighting::emitterTexels).
+// CellLighting::emitterTexels); state.probes is state.reflected plus those texels' cosine sums (the
+// convolution is linear in radiance), same moments.
 RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const shared::Surfel> surfels,
                            const RelightProbes& probes, const shared::SkyParams& sky, const VirOptions& virOptions,
                            const RelightOptions& options, CellLighting& state);
