@@ -9,6 +9,7 @@
 #include "core/progress.h"
 #include "core/sh.h"
 #include "shared/octahedral.h"
+#include "shared/relight.h"
 #include "shared/vir.h"
 
 namespace lfgi::gpu {
@@ -170,6 +171,7 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
   }
 
   const ProbeAtlas& atlas = state.atlas;
+  const uint32_t skyFlags = ro.filledTexelsSeeSky ? LFGI_RELIGHT_FILLED_SKY : 0u;
   for (size_t k = 0; k < toFull.size(); ++k) {
     const size_t i = toFull[k];
     if (!probes.active[k]) continue;
@@ -187,9 +189,10 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
     } else {
       for (size_t t = 0; t < n2; ++t) {
         const size_t a = k * n2 + t;
-        // As the relight convolution: texels no surfel covered, or only the hole fill covered, see the sky.
-        const bool covered = atlas.normal[a].w == LFGI_VIR_COVERED;
-        const glm::vec3 L = covered ? glm::vec3(atlas.radiance[a]) : skyL[t];
+        // As the relight convolution: texels no surfel covered (and, with filledTexelsSeeSky, those only
+        // the hole fill covered) see the sky.
+        const bool seesSky = shared::relightTexelSeesSky(atlas.normal[a].w, skyFlags);
+        const glm::vec3 L = seesSky ? skyL[t] : glm::vec3(atlas.radiance[a]);
         for (int c = 0; c < 3; ++c) rad[t * 3 + size_t(c)] = L[c];
         dist[t * 2] = state.probes.moments[a].x;
         dist[t * 2 + 1] = state.probes.moments[a].y;
@@ -198,7 +201,8 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
         for (int c = 0; c < 3; ++c) irr[t * 3 + size_t(c)] = state.probes.irradiance[k * m2 + t][c];
     }
     for (const Disc& d : discs) {
-      if (!near_.empty() && atlas.normal[k * n2 + d.texel].w == LFGI_VIR_COVERED) continue;  // blocked
+      if (!near_.empty() && !shared::relightTexelSeesSky(atlas.normal[k * n2 + d.texel].w, skyFlags))
+        continue;  // blocked
       st.discVisible[i] |= d.bit;
       for (int c = 0; c < 3; ++c) rad[d.texel * 3 + size_t(c)] += d.irradiance[c] / d.omega;
       for (size_t t = 0; t < m2; ++t) {
