@@ -307,15 +307,20 @@ RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, cons
   return result;
 }
 
+uint32_t probeSkyFlags(const RelightOptions& o) {
+  return (o.skyInProbes ? LFGI_RELIGHT_SKY : 0u) | (o.filledTexelsSeeSky ? LFGI_RELIGHT_FILLED_SKY : 0u);
+}
+
 // max(0, n_o . w_t) dOmega_t for output texel o of an M x M irradiance map and input texel t of an N x N
 // map (the table convolve() uploads; also the CPU's sparse updates in relightFrame).
 class CosineWeights {
  public:
-  CosineWeights(int n, int m) : n_(uint32_t(n)), omega_(octTexelSolidAngles(n)), normals_(size_t(m) * size_t(m)) {
+  CosineWeights(int n, int m)
+      : omega_(octTexelSolidAngles(n)), normals_(size_t(m) * size_t(m)), dirs_(size_t(n) * size_t(n)) {
     for (uint32_t o = 0; o < normals_.size(); ++o)
       normals_[o] = shared::octTexelDirection(glm::uvec2(o % uint32_t(m), o / uint32_t(m)), uint32_t(m));
-    dirs_.resize(size_t(n) * size_t(n));
-    for (uint32_t t = 0; t < dirs_.size(); ++t) dirs_[t] = shared::octTexelDirection(glm::uvec2(t % n_, t / n_), n_);
+    for (uint32_t t = 0; t < dirs_.size(); ++t)
+      dirs_[t] = shared::octTexelDirection(glm::uvec2(t % uint32_t(n), t / uint32_t(n)), uint32_t(n));
   }
   float weight(uint32_t o, uint32_t t) const {
     const double c = double(glm::dot(normals_[o], dirs_[t]));
@@ -324,7 +329,6 @@ class CosineWeights {
   size_t outputs() const { return normals_.size(); }
 
  private:
-  uint32_t n_;
   std::vector<double> omega_;
   std::vector<glm::vec3> normals_, dirs_;
 };
@@ -365,7 +369,7 @@ ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyPa
   params.probeCount = uint32_t(atlas.probeCount);
   params.irradianceRes = m;
   params.distanceRes = n;
-  params.flags = (o.skyInProbes ? LFGI_RELIGHT_SKY : 0u) | (o.filledTexelsSeeSky ? LFGI_RELIGHT_FILLED_SKY : 0u);
+  params.flags = probeSkyFlags(o);
   params.missDistance = o.missDistance;
 
   Buffer radBuf = storage(ctx_, texels * sizeof(glm::vec4));
@@ -456,9 +460,10 @@ RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const s
     // full splat), its emission joins that texel's reflected radiance. Their splat depends only on the
     // emitter surfels, the probes and the splat options, so its texels are kept in state.
     ProbeAtlas& a = state.atlas;
-    const bool cached = virOptions.reuseSplat && state.emitterTexelsValid && state.emitterSurfels.size() == lamps.size() &&
-                        std::memcmp(state.emitterSurfels.data(), lamps.data(), lamps.size() * sizeof(shared::Surfel)) == 0 &&
-                        state.emitterProbes == probes.positions && VirPass::sameSplat(virOptions, state.emitterOptions);
+    const bool cached =
+        virOptions.reuseSplat && state.emitterTexelsValid && state.emitterSurfels.size() == lamps.size() &&
+        std::memcmp(state.emitterSurfels.data(), lamps.data(), lamps.size() * sizeof(shared::Surfel)) == 0 &&
+        state.emitterProbes == probes.positions && VirPass::sameSplat(virOptions, state.emitterOptions);
     if (!cached) {
       const ProbeAtlas lit = relight.emitterProbeVir().run(lamps, probes.positions, virOptions);
       state.emitterTexels.clear();
@@ -478,13 +483,14 @@ RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const s
     state.probes.gpuMs = 0.0;
     const uint32_t n2 = uint32_t(a.resolution * a.resolution);
     const CosineWeights cw(a.resolution, state.probes.irradianceResolution);
-    const uint32_t flags = options.filledTexelsSeeSky ? LFGI_RELIGHT_FILLED_SKY : 0u;
+    const uint32_t flags = probeSkyFlags(options);
     for (const EmitterTexel& e : state.emitterTexels) {
       if (a.normal[e.texel].w == LFGI_VIR_HOLE || e.distance > a.distance[e.texel].x * 1.001f + 1e-5f) continue;
       a.radiance[e.texel] += glm::vec4(e.radiance, 0.0f);
       if (shared::relightTexelSeesSky(a.normal[e.texel].w, flags)) continue;  // the convolution reads the sky
       glm::vec4* out = &state.probes.irradiance[size_t(e.texel / n2) * cw.outputs()];
-      for (uint32_t o = 0; o < cw.outputs(); ++o) out[o] += glm::vec4(e.radiance * cw.weight(o, e.texel % n2), 0.0f);
+      for (uint32_t o = 0; o < cw.outputs(); ++o)
+        out[o] += glm::vec4(e.radiance * cw.weight(o, e.texel % n2), 0.0f);
     }
   }
   state.surfelIrradiance = result.irradiance;

@@ -80,6 +80,10 @@ struct RelightOptions {
   float emitterBiasSlope = 1.5f;      // depth bias in texel angles x distance (>= 0)
 };
 
+// How the probe convolution treats uncovered texels (LFGI_RELIGHT_SKY, LFGI_RELIGHT_FILLED_SKY of
+// RelightOptions::skyInProbes / filledTexelsSeeSky): the flags for shared::relightTexelSeesSky.
+uint32_t probeSkyFlags(const RelightOptions& options);
+
 // Per-probe maps derived from one VIR atlas: the next frame's relight input.
 struct ProbeLighting {
   int irradianceResolution = 0;  // M

@@ -171,7 +171,7 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
   }
 
   const ProbeAtlas& atlas = state.atlas;
-  const uint32_t skyFlags = ro.filledTexelsSeeSky ? LFGI_RELIGHT_FILLED_SKY : 0u;
+  const uint32_t skyFlags = probeSkyFlags(ro);
   for (size_t k = 0; k < toFull.size(); ++k) {
     const size_t i = toFull[k];
     if (!probes.active[k]) continue;

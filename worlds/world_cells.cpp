@@ -3,13 +3,14 @@
 #include "worlds/cell_probe_file.h"
 
 #include <fmt/format.h>
-#include <glm/gtc/constants.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <span>
 
 #include "core/error.h"
 #include "core/file_util.h"
@@ -27,7 +28,10 @@ std::string cellName(CellCoord c) { return fmt::format("cell_{}_{}", c.x, c.z); 
 class SolidIndex {
  public:
   SolidIndex(std::vector<Aabb> boxes, float binM) : boxes_(std::move(boxes)), bin_(binM) {
-    for (const Aabb& b : boxes_) lo_ = glm::min(lo_, glm::vec2(b.min.x, b.min.z)), hi_ = glm::max(hi_, glm::vec2(b.max.x, b.max.z));
+    for (const Aabb& b : boxes_) {
+      lo_ = glm::min(lo_, glm::vec2(b.min.x, b.min.z));
+      hi_ = glm::max(hi_, glm::vec2(b.max.x, b.max.z));
+    }
     if (boxes_.empty()) return;
     dims_ = glm::max(glm::ivec2(1), glm::ivec2(glm::ceil((hi_ - lo_) / bin_)));
     bins_.resize(size_t(dims_.x) * size_t(dims_.y));
@@ -67,8 +71,9 @@ class SolidIndex {
 
 // A surface is buried when the space right in front of it is inside a closed solid box (terrain through
 // a city's ground slab; a wall's bottom face on a floor slab), under the terrain (slab undersides 0.1 m
-// below ground) or under a road strip (the terrain beneath it): no probe, camera or shadow ray reaches it, so it is dropped before surfels are sampled
-// (whole triangles) and after (surfels of triangles only partly inside). The offset is 1 cm along the
+// below ground) or under a road strip (the terrain beneath it): no probe, camera or shadow ray reaches
+// it, so it is dropped before surfels are sampled (whole triangles) and after (surfels of triangles only
+// partly inside). The offset is 1 cm along the
 // normal; a point counts as under the terrain only when 2 cm or more below it, so the terrain's own
 // surfels in concave creases are never taken for buried.
 constexpr float kBuriedProbeM = 0.01f;
@@ -188,18 +193,18 @@ BuiltCell buildCell(const SyntheticWorld& world, CellCoord c, const CellBuildOpt
   so.spacing = surfelSpacingForProbeSpacing(s.probeSpacingM);
   so.seed = options.surfelSeed ^ (uint64_t(uint32_t(c.x)) << 32 | uint32_t(c.z));
   out.surfels = sampleSurfels(out.mesh, so);
-  if (options.dropBuried) std::erase_if(out.surfels, [&](const Surfel& sf) {
-    const glm::vec3 q = glm::vec3(sf.positionRadius) + glm::vec3(sf.normal) * kBuriedProbeM;
-    // Under a road strip: the terrain (y = 0 on roads) between it and the strip raised kRoadRaiseM above,
-    // closed by kerbs wherever the neighbour is not road.
-    const bool buried = solids.holder(std::array{q}) >= 0 || q.y < world.terrainHeight(q.x, q.z) - kBuriedTerrainM ||
-                        (q.y < kRoadRaiseM && world.isRoad(q.x, q.z));
-    if (buried) {
-      ++s.surfelsBuried;
-      s.surfelBuriedAreaM2 += glm::pi<double>() * double(sf.positionRadius.w) * double(sf.positionRadius.w);
-    }
-    return buried;
-  });
+  if (options.dropBuried) {
+    const auto buried = std::stable_partition(out.surfels.begin(), out.surfels.end(), [&](const Surfel& sf) {
+      const glm::vec3 q = glm::vec3(sf.positionRadius) + glm::vec3(sf.normal) * kBuriedProbeM;
+      // Under a road strip: the terrain (y = 0 on roads) between it and the strip raised kRoadRaiseM
+      // above, closed by kerbs wherever the neighbour is not road.
+      return !(solids.holder(std::array{q}) >= 0 || q.y < world.terrainHeight(q.x, q.z) - kBuriedTerrainM ||
+               (q.y < kRoadRaiseM && world.isRoad(q.x, q.z)));
+    });
+    s.surfelsBuried = size_t(out.surfels.end() - buried);
+    s.surfelBuriedAreaM2 = surfelArea(std::span(buried, out.surfels.end()));
+    out.surfels.erase(buried, out.surfels.end());
+  }
   SurfelCodecStats cs;
   out.surfelBytes = encodeSurfels(out.surfels, options.surfelPositionBits, &cs);
   s.surfelMs = msSince(t0);  // buried-surface culling included
