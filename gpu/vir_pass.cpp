@@ -80,9 +80,7 @@ double VirPass::prepareSurfels(std::span<const shared::Surfel> surfels, const Vi
   upload<glm::vec4>(ctx_, rectBuf_, tree_.rects);
   grow(boundsBuf_, tree_.bounds.size() * sizeof(float));
   upload<float>(ctx_, boundsBuf_, tree_.bounds);
-  grow(frontierBuf_, tree_.frontier.size() * sizeof(uint32_t));
   upload<glm::uvec2>(ctx_, upBuf_, tree_.up);
-  upload<uint32_t>(ctx_, frontierBuf_, tree_.frontier);
   upload<shared::Surfel>(ctx_, nodeBuf_, tree_.nodes);
   upload<shared::VirLodLink>(ctx_, linkBuf_, tree_.links);
   if (!tree_.children.empty()) upload<uint32_t>(ctx_, childBuf_, tree_.children);
@@ -175,7 +173,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     // First guess 128 N^2 entries per block: a block of a city cell at N = 16 cuts ~30 k nodes, and an
     // overflow redoes the whole run (16 N^2 cost one extra run per new VirPass on a 15 k-probe cell).
     if (cutCapacity_ == 0) cutCapacity_ = uint32_t(std::clamp<size_t>(128 * n2, 4096, kMaxCutEntries));
-    grow(cutCountBuf_, blockCount * sizeof(uint32_t));
+    grow(cutCountBuf_, 2 * blockCount * sizeof(uint32_t));  // cut and todo entries per block of a batch
     grow(statsBuf_, kLodStats * sizeof(uint64_t));
     lp.probeCount = probeCount;
     lp.res = res;
@@ -208,9 +206,12 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
       batchBlocks = std::clamp<size_t>(kMaxCutEntries / cutCapacity_, 1, blockCount);
       batchBlocks = std::min<size_t>(batchBlocks, std::min(maxGroups[1], maxGroups[2]));
       grow(cutBuf_, batchBlocks * cutCapacity_ * sizeof(uint32_t));
+      grow(todoBuf_, batchBlocks * tree_.frontier.size() * sizeof(uint32_t));
       lp.cutCapacity = cutCapacity_;
-      // Splat invocations per probe: about <= 512 cut entries each (llvmpipe's loop limit, see the shader).
-      lp.lanes = std::clamp((cutCapacity_ / 512 + 63) / 64 * 64, 64u, 1024u);
+      // Splat invocations per block: about <= 512 (cut entry, probe) pairs each (llvmpipe's loop limit,
+      // see the shader).
+      const uint32_t entriesPerLane = std::max(1u, 512u / lp.blockProbes);
+      lp.lanes = std::clamp((cutCapacity_ / entriesPerLane + 63) / 64 * 64, 64u, 8192u);
     }
     submitAndWait(ctx_, [&](VkCommandBuffer cmd) {
       timer.reset(cmd);
@@ -245,14 +246,17 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
             vkCmdFillBuffer(cmd, cutCountBuf_.handle(), 0, VK_WHOLE_SIZE, 0u);
             memoryBarrier(cmd);
             lp.nodeCount = uint32_t(tree_.frontier.size());
-            dispatch(ctx_, cmd, lodCut_,
-                     {&nodeBuf_, &linkBuf_, &childBuf_, &upBuf_, &frontierBuf_, &blockBuf_, &cutBuf_, &cutCountBuf_,
-                      &statsBuf_, &probeBuf_, &slots_, &hizBuf_, &boundsBuf_},
-                     lp, {lp.blockCount, lp.nodeCount, 1});
-            memoryBarrier(cmd);
+            for (const uint32_t stage : {LFGI_VIR_LOD_STAGE_TOP, LFGI_VIR_LOD_STAGE_SUBTREES}) {
+              lp.cutStage = stage;
+              dispatch(ctx_, cmd, lodCut_,
+                       {&nodeBuf_, &linkBuf_, &childBuf_, &upBuf_, &todoBuf_, &blockBuf_, &cutBuf_, &cutCountBuf_,
+                        &statsBuf_, &probeBuf_, &slots_, &hizBuf_, &boundsBuf_},
+                       lp, {lp.blockCount, stage == LFGI_VIR_LOD_STAGE_TOP ? 1u : lp.nodeCount, 1});
+              memoryBarrier(cmd);
+            }
             dispatch(ctx_, cmd, lodSplat_,
                      {&nodeBuf_, &probeBuf_, &cutBuf_, &cutCountBuf_, &slots_, &statsBuf_, &rectBuf_, &hizBuf_}, lp,
-                     {lp.lanes, lp.blockProbes, lp.blockCount});
+                     {lp.lanes, 1, lp.blockCount});
             memoryBarrier(cmd);
           }
         };

@@ -6,13 +6,15 @@
 // of the block: the splat would cull all of it); incoherent nodes (normal cone too wide) are always
 // refined. vir_lod_splat.comp splats the cut into each probe of the block.
 //
-// The walk is split into one invocation per (frontier subtree, block): the frontier (VirLodTree::frontier)
-// cuts the tree into subtrees of <= 2048 nodes. An invocation first replays the walk along its subtree
-// root's ancestors: if the walk would stop above it (accept or drop), only the ancestor's designated
-// frontier invocation emits that node; otherwise it walks its subtree depth first. This keeps every
-// invocation's loop short (llvmpipe stops a shader invocation's loops after 65535 iterations in total,
-// which silently truncated one long walk per block) and gives a GPU blocks x frontier parallel work.
-// No shared memory, no barriers; entries are appended through a 32-entry private buffer and one
+// The walk runs in two stages (VirLodParams::cutStage). Top: one invocation per block walks the nodes
+// above the frontier (VirLodTree::frontier cuts the tree into subtrees of <= 2048 nodes; up[i].y != ~0u
+// marks a node above it), emits what it accepts there and lists the frontier subtrees its walk reaches
+// (`todo`, with the far bit). Subtrees: one invocation per (listed subtree, block) walks its subtree depth
+// first. This keeps every invocation's loop short (llvmpipe stops a shader invocation's loops after
+// 65535 iterations in total, which silently truncated one long walk per block) and gives a GPU
+// blocks x subtrees parallel work; unlike one invocation per frontier subtree that first replayed the walk
+// along its ancestors (~60 % of the cut's time at N = 8), each node above the frontier is classified once
+// per block. No shared memory, no barriers; entries are appended through a 32-entry private buffer and one
 // atomicAdd per flush (the cut's order does not matter: the splat's atomicMin is order independent).
 //
 // Occlusion culling (cutPass, shared/vir.h): the near pass classifies with maxRange = min(maxRange,
@@ -31,11 +33,13 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 layout(std430, set = 0, binding = 0) readonly buffer Nodes { Surfel nodes[]; };
 layout(std430, set = 0, binding = 1) readonly buffer Links { VirLodLink links[]; };
 layout(std430, set = 0, binding = 2) readonly buffer Children { uint children[]; };
-layout(std430, set = 0, binding = 3) readonly buffer Up { uvec2 up[]; };  // (parent, designated frontier)
-layout(std430, set = 0, binding = 4) readonly buffer Frontier { uint frontier[]; };
+// (parent, designated frontier node: ~0u for frontier nodes and below)
+layout(std430, set = 0, binding = 3) readonly buffer Up { uvec2 up[]; };
+layout(std430, set = 0, binding = 4) buffer Todo { uint todo[]; };  // blockCount x nodeCount: node | kFarBit
 layout(std430, set = 0, binding = 5) readonly buffer Blocks { vec4 blocks[]; };  // xyz centre, w radius
 layout(std430, set = 0, binding = 6) writeonly buffer Cut { uint cut[]; };      // blockCount x cutCapacity
-layout(std430, set = 0, binding = 7) buffer CutCount { uint cutCount[]; };      // zeroed before each batch
+// [b]: cut entries of block b; [blockCount + b]: its todo entries (zeroed before each batch)
+layout(std430, set = 0, binding = 7) buffer CutCount { uint cutCount[]; };
 // [0] cut entries x probes (vir_lod_splat), [1] splat atomics, [2] nodes accepted for lack of stack,
 // [3] entries a block needed beyond cutCapacity (0: none), [4] texel ray tests and [5] pairs through the
 // wrapped square window (vir_lod_splat)
@@ -95,46 +99,23 @@ void emit(uint b, uint s) {
 
 void main() {
   uint b = gl_GlobalInvocationID.x;
-  uint fi = gl_GlobalInvocationID.y;
-  if (fi >= params.nodeCount || b >= params.blockCount) return;
+  uint k = gl_GlobalInvocationID.y;
+  if (b >= params.blockCount) return;
+  bool top = params.cutStage == LFGI_VIR_LOD_STAGE_TOP;
+  if (top ? k != 0u : k >= min(cutCount[params.blockCount + b], params.nodeCount)) return;
   globalBlock = params.blockFirst + b;
   blk = blocks[globalBlock];
   cp = params;
   if (params.cutPass == LFGI_VIR_LOD_PASS_NEAR) cp.maxRange = min(params.maxRange, params.nearRange);
   bool farPass = params.cutPass == LFGI_VIR_LOD_PASS_FAR;
-  uint f = frontier[fi];
-
-  // The top-down walk stops at the topmost ancestor that is accepted or dropped.
-  uint decider = 0xFFFFFFFFu;
-  int decision = LFGI_VIR_LOD_REFINE;
-  for (uint a = up[f].x; a != 0xFFFFFFFFu; a = up[a].x) {
-    int c = classify(a);
-    if (c != LFGI_VIR_LOD_REFINE) {
-      decider = a;
-      decision = c;
-    }
-  }
-  // Far pass: the walk down to the decider (or to f's parent) passed a node beyond nearRange.
-  bool far = false;
-  if (farPass)
-    for (uint a = decider != 0xFFFFFFFFu ? decider : up[f].x; a != 0xFFFFFFFFu && !far; a = up[a].x) far = beyondNear(a);
-  if (decider != 0xFFFFFFFFu) {
-    if (decision == LFGI_VIR_LOD_ACCEPT && up[decider].y == fi) {
-      if (!farPass) {
-        emit(b, decider);
-      } else if (far) {
-        if (culled(decider, decision)) atomicAdd(stats[6], uint64_t(1));
-        else emit(b, decider);
-      }
-      flush(b);
-    }
-    return;
-  }
+  uint todoBase = b * params.nodeCount;
 
   uint stack[LFGI_VIR_LOD_STACK];
   int sp = 0;
-  stack[sp++] = f | (far ? kFarBit : 0u);
-  uint forced = 0u, dropped = 0u;
+  uint forced = 0u, dropped = 0u, listed = 0u;
+  if (!top) stack[sp++] = todo[todoBase + k];
+  else if (up[params.rootNode].y != 0xFFFFFFFFu) stack[sp++] = params.rootNode;
+  else todo[todoBase + listed++] = params.rootNode;  // the root is a frontier node: a one-subtree tree
   while (sp > 0) {
     uint e = stack[--sp];
     uint s = e & ~kFarBit;
@@ -156,12 +137,18 @@ void main() {
     if (c == LFGI_VIR_LOD_ACCEPT) {
       if (!farPass || isFar) emit(b, s);
     } else {
-      // Pushed in reverse, so the walk pops children in Morton order.
+      // Pushed in reverse, so the walk pops children in Morton order. The top stage lists the frontier
+      // subtrees it reaches instead of walking them.
       uint bit = isFar ? kFarBit : 0u;
-      for (uint k = link.childCount; k > 0u; --k) stack[sp++] = children[link.firstChild + k - 1u] | bit;
+      for (uint i = link.childCount; i > 0u; --i) {
+        uint ch = children[link.firstChild + i - 1u];
+        if (top && up[ch].y == 0xFFFFFFFFu) todo[todoBase + listed++] = ch | bit;
+        else stack[sp++] = ch | bit;
+      }
     }
   }
   flush(b);
+  if (top) cutCount[params.blockCount + b] = listed;
   if (forced > 0u) atomicAdd(stats[2], uint64_t(forced));
   if (dropped > 0u) atomicAdd(stats[6], uint64_t(dropped));
 }

@@ -59,9 +59,9 @@ struct VirLodParams {
   uint rootNode;            // LOD tree root
   uint cutPass;             // LFGI_VIR_LOD_PASS_*: one pass, or the near / far pass of the occlusion-culled cut
   uint nodeFirst;           // radiance pass: nodes [nodeFirst, nodeFirst + nodeCount) of one level
-  uint nodeCount;           // cut pass: the number of frontier subtrees
+  uint nodeCount;           // cut pass: the number of frontier subtrees (todo entries per block)
   uint leafPass;            // radiance pass: 1 for the leaf level (emission + albedo E / pi)
-  uint lanes;               // splat pass: invocations sharing one probe's cut
+  uint lanes;               // splat pass: invocations sharing one probe block's cut
   float maxRange;           // m
   float footprintScale;     // disc radius multiplier (as VirParams)
   float lodTexels;          // a node may be splatted when its footprint diameter <= lodTexels texels
@@ -69,7 +69,7 @@ struct VirLodParams {
   float nearRange;          // occlusion culling: the near pass splats nodes within this range (m) of a block
   uint hizProbeTexels;      // occlusion culling: uints per probe in the HiZ buffer (levels 1, 2, ...)
   uint hizLevel;            // HiZ pass: the level written (>= 1); level 0 is the slots' depth words
-  uint pad1;
+  uint cutStage;            // cut pass: LFGI_VIR_LOD_STAGE_TOP or _SUBTREES (vir_lod_cut.comp)
 };
 LFGI_CHECK_SIZE(VirLodParams, 80)
 LFGI_CHECK_OFFSET(VirLodParams, maxRange, 48)
@@ -82,6 +82,11 @@ LFGI_CHECK_OFFSET(VirLodParams, maxRange, 48)
 #define LFGI_VIR_LOD_PASS_ALL 0u
 #define LFGI_VIR_LOD_PASS_NEAR 1u
 #define LFGI_VIR_LOD_PASS_FAR 2u
+
+// VirLodParams::cutStage: the walk above the tree's frontier (one invocation per block, listing the
+// frontier subtrees to walk), then the walks of the listed subtrees.
+#define LFGI_VIR_LOD_STAGE_TOP 0u
+#define LFGI_VIR_LOD_STAGE_SUBTREES 1u
 
 // True when the node's footprint lies entirely beyond `range` of the whole block (the cut's range drop).
 LFGI_INLINE bool virLodBeyond(Surfel node, vec4 block, float range, float footprintScale) {
