@@ -25,24 +25,31 @@ void main() {
   uint i = base + id.y * n + id.x;
   if (normals[i].w != LFGI_VIR_HOLE) return;
   float limit = float(params.fillPass) + 1.0;
+  // Coverage of the 8 neighbours first (one word each): most holes of an outdoor probe are sky with no
+  // valid neighbour, and skip the channel reads.
+  uint src[8];
+  uint valid = 0u;
+  for (int k = 0; k < 8; ++k) {
+    int d = k < 4 ? k : k + 1;  // the 3 x 3 neighbourhood without its centre
+    uvec2 t = octBorderSource(uvec2(ivec2(id.xy) + ivec2(d % 3, d / 3)), n);
+    src[k] = base + t.y * n + t.x;
+    float w = normals[src[k]].w;
+    if (w > 0.0 && w <= limit) valid |= 1u << k;
+  }
   vec2 dist = vec2(0.0);
   vec3 nrm = vec3(0.0);
   vec4 alb = vec4(0.0);
   vec4 rad = vec4(0.0);
   float count = 0.0;
-  for (int dy = -1; dy <= 1; ++dy) {
-    for (int dx = -1; dx <= 1; ++dx) {
-      if (dx == 0 && dy == 0) continue;
-      uvec2 src = octBorderSource(uvec2(ivec2(id.xy) + ivec2(1 + dx, 1 + dy)), n);
-      uint j = base + src.y * n + src.x;
-      vec4 nj = normals[j];
-      if (nj.w > 0.0 && nj.w <= limit) {
-        dist += distanceMoments[j];
-        nrm += nj.xyz;
-        alb += albedos[j];
-        rad += radiances[j];
-        count += 1.0;
-      }
+  if (valid != 0u) {
+    for (int k = 0; k < 8; ++k) {
+      if ((valid & (1u << k)) == 0u) continue;
+      uint j = src[k];
+      dist += distanceMoments[j];
+      nrm += normals[j].xyz;
+      alb += albedos[j];
+      rad += radiances[j];
+      count += 1.0;
     }
   }
   if (count == 0.0) {
