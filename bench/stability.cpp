@@ -268,7 +268,7 @@ struct VirRelight {
   // surfelScale: surfel spacing relative to worlds' default for the probe spacing; filledSeeSky:
   // RelightOptions::filledTexelsSeeSky.
   VirRelight(gpu::Context& ctx, const worlds::TriangleMesh& mesh, const ProbeField& f, float surfelScale = 1.0f,
-             bool filledSeeSky = true)
+             bool filledSeeSky = gpu::RelightOptions{}.filledTexelsSeeSky)
       : relight(ctx), vir(ctx) {
     worlds::SurfelOptions so;
     so.spacing = surfelScale * worlds::surfelSpacingForProbeSpacing(f.grid.spacing.x);

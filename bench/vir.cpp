@@ -130,6 +130,10 @@ double atomicCeilingPerSecond(gpu::Context& ctx) {
 struct Accuracy {
   double distMedianRel = 0.0, distP90Rel = 0.0, fracOff5pct = 0.0, normalMedianDeg = 0.0, normalP90Deg = 0.0;
   double holeFractionOfHits = 0.0;
+  // Texels whose ray sees the sky (no Embree hit) but the method stores geometry: a disc overhanging a
+  // silhouette or the cell's edge (covered: the accuracy probes are the first in grid order, on the cell's
+  // border, and look out past its last surfels) or the hole fill growing a silhouette (filled).
+  double skyCoveredFraction = 0.0, skyFilledFraction = 0.0;
   double captureDistMedianRel = 0.0, captureNormalMedianDeg = 0.0;  // vs bake/probe_capture.h texel means
   size_t compared = 0;
 };
@@ -139,13 +143,18 @@ Accuracy accuracy(const gpu::ProbeAtlas& atlas, const std::vector<std::vector<st
                   size_t probes) {
   const size_t n2 = size_t(atlas.resolution) * size_t(atlas.resolution);
   std::vector<double> rel, angle;
-  size_t hits = 0, holes = 0;
+  size_t hits = 0, holes = 0, sky = 0, skyCovered = 0, skyFilled = 0;
   for (size_t p = 0; p < probes; ++p)
     for (size_t t = 0; t < n2; ++t) {
       const auto& hit = ref[p][t];
-      if (!hit) continue;
-      ++hits;
       const size_t i = p * n2 + t;
+      if (!hit) {
+        ++sky;
+        skyCovered += atlas.normal[i].w == LFGI_VIR_COVERED ? 1 : 0;
+        skyFilled += atlas.normal[i].w > LFGI_VIR_COVERED ? 1 : 0;
+        continue;
+      }
+      ++hits;
       if (atlas.normal[i].w == 0.0f) {
         ++holes;
         continue;
@@ -164,6 +173,8 @@ Accuracy accuracy(const gpu::ProbeAtlas& atlas, const std::vector<std::vector<st
   a.fracOff5pct = rel.empty() ? 0.0 : double(std::count_if(rel.begin(), rel.end(), [](double e) { return e > 0.05; })) /
                                           double(rel.size());
   a.holeFractionOfHits = hits ? double(holes) / double(hits) : 0.0;
+  a.skyCoveredFraction = sky ? double(skyCovered) / double(sky) : 0.0;
+  a.skyFilledFraction = sky ? double(skyFilled) / double(sky) : 0.0;
   a.compared = rel.size();
   return a;
 }
@@ -337,7 +348,8 @@ int main(int argc, char** argv) {
                   "dist_median_rel_error", "dist_p90_rel_error", "dist_frac_off_5pct", "normal_median_deg",
                   "normal_p90_deg", "hole_fraction", "dist_median_rel_error_vs_capture",
                   "normal_median_deg_vs_capture", "splat_pairs_per_s", "lod_nodes", "lod_build_ms", "splat_pairs_per_probe",
-                  "texel_tests_per_probe", "atomics_per_probe", "window_pair_fraction"});
+                  "texel_tests_per_probe", "atomics_per_probe", "window_pair_fraction", "sky_covered_fraction",
+                  "sky_filled_fraction"});
     nlohmann::ordered_json skipped = nlohmann::ordered_json::array();
     struct Measured {
       double probesPerS = 0.0, msPerProbe = 0.0;
@@ -446,10 +458,11 @@ int main(int argc, char** argv) {
                          atlas.splatPairs ? 100.0 * double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0,
                          atlas.lodRadianceMs, atlas.splatMs, atlas.resolveMs, atlas.fillMs);
           spdlog::info("{} N={} probes={}: {:.1f} ms device, {:.1f} ms wall ({:.3f} ms/probe, {:.0f} probes/s); dist "
-                       "median {:.2e} p90 {:.4f} off>5% {:.4f}, normal median {:.2f} p90 {:.2f} deg, holes {:.4f}{}",
+                       "median {:.2e} p90 {:.4f} off>5% {:.4f}, normal median {:.2f} p90 {:.2f} deg, holes {:.4f}, sky texels "
+                       "covered {:.4f} filled {:.4f}{}",
                        method, n, count, atlas.gpuMs, wallMs, m.msPerProbe, m.probesPerS, acc->distMedianRel,
                        acc->distP90Rel, acc->fracOff5pct, acc->normalMedianDeg, acc->normalP90Deg,
-                       acc->holeFractionOfHits,
+                       acc->holeFractionOfHits, acc->skyCoveredFraction, acc->skyFilledFraction,
                        m.atomicsPerS > 0 ? fmt::format(", {:.1f} M atomics/s", m.atomicsPerS * 1e-6) : "");
           o.addRow({method, std::to_string(n), std::to_string(count), std::to_string(built.surfels.size()),
                     std::to_string(scene.triangleCount()), bench::num(atlas.gpuMs), bench::num(m.msPerProbe),
@@ -463,7 +476,8 @@ int main(int argc, char** argv) {
                     method.starts_with("vir_lod") ? std::to_string(lodNodes) : "0",
                     method.starts_with("vir_lod") ? bench::num(lodBuildMs) : "0", bench::num(perProbe(atlas.splatPairs)),
                     bench::num(perProbe(atlas.splatTexelTests)), bench::num(perProbe(atlas.splatAtomics)),
-                    bench::num(atlas.splatPairs ? double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0)});
+                    bench::num(atlas.splatPairs ? double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0),
+                    bench::num(acc->skyCoveredFraction), bench::num(acc->skyFilledFraction)});
           perCount[{method, n, count}] = m.probesPerS;
         }
       }
@@ -492,6 +506,9 @@ int main(int argc, char** argv) {
     s["cubemap_distance_median_rel_error"] = c16->second.acc.distMedianRel;
     s["cubemap_normal_median_deg"] = c16->second.acc.normalMedianDeg;
     s["cubemap_hole_fraction"] = c16->second.acc.holeFractionOfHits;
+    s["sky_covered_fraction"] = v16->second.acc.skyCoveredFraction;
+    s["sky_filled_fraction"] = v16->second.acc.skyFilledFraction;
+    s["cubemap_sky_covered_fraction"] = c16->second.acc.skyCoveredFraction;
     s["distance_p90_rel_error"] = v16->second.acc.distP90Rel;
     s["cubemap_distance_p90_rel_error"] = c16->second.acc.distP90Rel;
     s["distance_frac_off_5pct"] = v16->second.acc.fracOff5pct;

@@ -127,6 +127,59 @@ TEST(VirPass, HoleFillClosesGapsBetweenShrunkenDiscs) {
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
 }
 
+// A lone 6 m x 6 m panel 3 m in front of the probe, the rest of the sphere sky, with discs shrunk to 0.8x
+// so there are gaps between them: the fill closes the gaps inside the panel's image but never grows its
+// silhouette into the sky (a plain dilation, any covered neighbour, grows it by one texel per pass: 61 /
+// 82 texels beyond the margin filled here with 2 passes, LOD off / on).
+TEST(VirPass, HoleFillClosesGapsButNeverGrowsASilhouette) {
+  auto ctx = createContext();
+  VirPass pass(*ctx);
+  const float spacing = 0.25f, half = 3.0f, z = 3.0f;
+  const float radius = spacing / std::sqrt(std::numbers::pi_v<float>);
+  std::vector<shared::Surfel> surfels;
+  uint32_t k = 0;
+  for (float y = -half + 0.5f * spacing; y < half; y += spacing)
+    for (float x = -half + 0.5f * spacing; x < half; x += spacing, ++k)
+      surfels.push_back({glm::vec4(x + 0.3f * spacing * (test::hash01(2 * k) - 0.5f),
+                                   y + 0.3f * spacing * (test::hash01(2 * k + 1) - 0.5f), z, radius),
+                         glm::vec4(0.0f, 0.0f, -1.0f, 0.0f), glm::vec4(0.5f, 0.5f, 0.5f, 1.0f), glm::vec4(0.0f)});
+  const uint32_t n = 32;
+  for (const bool lod : {false, true}) {
+    VirOptions options;
+    options.resolution = int(n);
+    options.footprintScale = 0.8f;
+    options.fillPasses = 2;
+    options.lod = lod;
+    const ProbeAtlas atlas = pass.run(surfels, std::vector<glm::vec3>{glm::vec3(0.0f)}, options);
+    // Texels by where their centre ray meets the panel's plane: well inside (margin: a disc radius plus
+    // a texel's footprint at the plane), or well outside (sky).
+    const float margin = radius + 2.0f * z * std::numbers::pi_v<float> / float(n);
+    size_t inside = 0, insideHoles = 0, outside = 0, outsideGeometry = 0;
+    for (uint32_t j = 0; j < n; ++j)
+      for (uint32_t i = 0; i < n; ++i) {
+        const glm::vec3 d = shared::octTexelDirection(glm::uvec2(i, j), n);
+        const float w = atlas.normal[size_t(j) * n + i].w;
+        const glm::vec2 at = d.z > 0.0f ? glm::vec2(d) * (z / d.z) : glm::vec2(1e9f);
+        const float edge = std::max(std::abs(at.x), std::abs(at.y));
+        if (edge < half - margin) {
+          ++inside;
+          insideHoles += w == LFGI_VIR_HOLE ? 1 : 0;
+        } else if (edge > half + margin) {
+          ++outside;
+          outsideGeometry += w != LFGI_VIR_HOLE ? 1 : 0;
+        }
+      }
+    std::printf("VIR panel N=32 lod=%d: holes %.4f before fill; inside %zu texels, %zu holes left; outside %zu, %zu "
+                "with geometry\n",
+                int(lod), atlas.holeFractionBeforeFill, inside, insideHoles, outside, outsideGeometry);
+    ASSERT_GT(inside, 50u);
+    ASSERT_GT(outside, 500u);
+    EXPECT_EQ(outsideGeometry, 0u) << "lod " << lod;
+    EXPECT_LE(double(insideHoles), 0.01 * double(inside)) << "lod " << lod;
+  }
+  EXPECT_EQ(ctx->validationErrors.load(), 0u);
+}
+
 // The depth test keeps the nearest surfel: a small inward quad of surfels in front of the +x wall hides it.
 TEST(VirPass, NearerSurfelWinsAndRadianceIsEmissionPlusAlbedoIrradiance) {
   auto ctx = createContext();
