@@ -293,7 +293,22 @@ int main(int argc, char** argv) {
         lp.lodTexels = lodTexels;
         lp.depthTolerance = gpu::VirOptions{}.lodDepthTolerance;
         size_t leaves = 0, inner = 0, leavesUnderIncoherent = 0;
+        // Why each cut node's parent was refined (incoherent, wider than lodTexels, too thick), and the
+        // node's width in texels (the classify's r N / d): sub-texel nodes rarely cover a texel centre.
+        std::array<size_t, 3> parentWhy{};
+        std::array<size_t, 4> width{};  // < 0.5, < 1, < 2, >= 2 texels
         for (const uint32_t i : gpu::virLodCut(tree, glm::vec4(eye, 0.0f), lp)) {
+          const shared::Surfel& node = tree.nodes[i];
+          const float d = glm::length(glm::vec3(node.positionRadius) - eye);
+          const float w = node.positionRadius.w * lp.footprintScale * float(n) / std::max(d, 1e-6f);
+          ++width[w < 0.5f ? 0 : w < 1.0f ? 1 : w < 2.0f ? 2 : 3];
+          if (const uint32_t par = tree.up[i].x; par != ~0u) {
+            const shared::Surfel& pn = tree.nodes[par];
+            const float pd = glm::length(glm::vec3(pn.positionRadius) - eye);
+            ++parentWhy[!(tree.links[par].flags & LFGI_VIR_LOD_COHERENT) ? 0
+                        : pn.positionRadius.w * lp.footprintScale * float(n) > lodTexels * pd ? 1
+                                                                                             : 2];
+          }
           if (i >= tree.leafCount) {
             ++inner;
             continue;
@@ -303,6 +318,9 @@ int main(int argc, char** argv) {
         }
         spdlog::info("N={} cut for one probe: {} leaves ({} with an incoherent parent), {} merged nodes", n, leaves,
                      leavesUnderIncoherent, inner);
+        spdlog::info("N={} cut nodes by width: {} < 0.5 texel, {} < 1, {} < 2, {} >= 2; parent refined as incoherent "
+                     "{}, wider than lodTexels {}, too thick {}",
+                     n, width[0], width[1], width[2], width[3], parentWhy[0], parentWhy[1], parentWhy[2]);
       }
       return 0;
     }
