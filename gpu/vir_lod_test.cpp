@@ -125,6 +125,52 @@ TEST(VirLod, TreeConservesAreaAndBoundsChildren) {
   EXPECT_EQ(std::memcmp(again.nodes.data(), tree.nodes.data(), tree.nodes.size() * sizeof(shared::Surfel)), 0);
 }
 
+// VirLodTree::bounds (the far pass's occlusion culling drops whole subtrees by it): the sphere of radius
+// bounds[i] about node i's centre holds every footprint below it, leaf discs (radius x footprintScale) and
+// merged rectangles (half diagonal) alike. Two parallel floors and a tilted panel, so the top nodes mix planes.
+TEST(VirLod, BoundsHoldEveryFootprintBelow) {
+  std::vector<shared::Surfel> surfels;
+  addFloor(surfels, 8.0f, 0.25f, 0.0f, 1u);
+  addFloor(surfels, 8.0f, 0.25f, 3.0f, 2u);
+  const glm::vec3 pn = glm::normalize(glm::vec3(0.4f, 1.0f, -0.3f));
+  const glm::vec3 pu = glm::normalize(glm::cross(pn, glm::vec3(0.0f, 0.0f, 1.0f))), pv = glm::cross(pn, pu);
+  for (int j = 0; j < 24; ++j)
+    for (int i = 0; i < 24; ++i)
+      surfels.push_back({glm::vec4(glm::vec3(2.0f, 6.0f, -1.0f) + (float(i) - 11.5f) * 0.2f * pu +
+                                       (float(j) - 11.5f) * 0.2f * pv,
+                                   0.11f),
+                         glm::vec4(pn, 0.0f), glm::vec4(0.5f), glm::vec4(0.0f)});
+  const float fs = 1.3f;
+  const VirLodTree tree = buildVirLodTree(surfels, {fs, 18.0f});
+  ASSERT_EQ(tree.bounds.size(), tree.nodes.size());
+  // Per node (every inner node, every 97th leaf): the farthest reach from its centre of its own footprint and
+  // of every descendant's, by a walk of its subtree.
+  size_t checked = 0;
+  float loosest = 1.0f;
+  for (uint32_t i = 0; i < tree.nodes.size(); i = i < tree.leafCount ? std::min(i + 97u, tree.leafCount) : i + 1u) {
+    const glm::vec3 c(tree.nodes[i].positionRadius);
+    float reach = 0.0f;
+    std::vector<uint32_t> st{i};
+    while (!st.empty()) {
+      const uint32_t x = st.back();
+      st.pop_back();
+      const glm::vec4 rect = tree.rects[x];
+      const float own = rect.z >= 0.0f ? std::sqrt(rect.z * rect.z + rect.w * rect.w)
+                                       : tree.nodes[x].positionRadius.w * fs;
+      reach = std::max(reach, glm::length(glm::vec3(tree.nodes[x].positionRadius) - c) + own);
+      for (uint32_t k = 0; k < tree.links[x].childCount; ++k) st.push_back(tree.children[tree.links[x].firstChild + k]);
+    }
+    ASSERT_LE(reach, tree.bounds[i] * (1.0f + 1e-6f)) << "node " << i << " of " << tree.nodes.size();
+    loosest = std::max(loosest, tree.bounds[i] / std::max(reach, 1e-9f));
+    ++checked;
+  }
+  EXPECT_GT(checked, tree.nodes.size() - tree.leafCount);
+  // The build nests child spheres (triangle inequality), so a bound may exceed the farthest footprint, but
+  // not by much: a sphere far too big would cull nothing.
+  std::printf("VIR LOD bounds: %zu nodes checked, loosest bound %.3f x the farthest footprint\n", checked, loosest);
+  EXPECT_LT(loosest, 1.5f);
+}
+
 TEST(VirLod, RejectsBadInput) {
   EXPECT_THROW(buildVirLodTree({}), Error);
   std::vector<shared::Surfel> s(2);
