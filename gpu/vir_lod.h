@@ -56,7 +56,8 @@ struct VirLodTree {
   // The cut walk is split into independent walks of small subtrees (vir_lod_cut.comp): `frontier` holds
   // their roots (every subtree of <= kFrontierSubtree nodes whose parent's is larger, in depth-first
   // order); up[i] = (parent or ~0u, for a node above the frontier: the index in `frontier` of the first
-  // frontier node below it, which emits the node when the walk stops there; else ~0u).
+  // frontier node below it; else ~0u). The cut's top stage walks the nodes with up[i].y != ~0u and lists
+  // the frontier subtrees it reaches; frontier.size() bounds that list.
   static constexpr uint32_t kFrontierSubtree = 2048;
   std::vector<uint32_t> frontier;
   std::vector<glm::uvec2> up;

@@ -20,7 +20,7 @@
 //
 // Channels per probe, N x N texels each (octahedral, no border, shared/octahedral.h texel convention):
 //   distance: (r, r^2), r = distance along the texel-centre ray to the nearest surfel disc it hits
-//   normal:   xyz the surfel normal, w the coverage (0 hole, 1 covered, p + 2 filled by dilation pass p)
+//   normal:   xyz the surfel normal, w the coverage (0 hole, 1 covered, p + 2 filled by fill pass p)
 //   albedo, radiance: rgb (radiance = emission + albedo * E / pi, E the per-surfel irradiance input)
 #pragma once
 
@@ -42,7 +42,7 @@ struct VirOptions {
   float maxRange = 64.0f;       // m; surfels farther from a probe are not splatted into it
   float footprintScale = 1.3f;  // disc radius multiplier of the footprint test (see vir_splat.comp)
   int maxFootprintRadius = 6;   // full splat (lod off): window half-size in texels (up to 13 x 13, near surfels only)
-  int fillPasses = 2;           // dilation passes, 0..kMaxFillPasses
+  int fillPasses = 2;           // hole fill passes (enclosed gaps only), 0..kMaxFillPasses
   bool lod = true;              // splat a per-probe-block cut of the surfel LOD tree (see above)
   float lodTexels = 4.0f;       // LOD: a merged node may stand in for its surfels when <= this many texels wide
   int lodBlockProbes = 16;      // LOD: probes sharing one cut (consecutive along a Morton curve), [1, 64];

@@ -94,7 +94,7 @@ TEST(VirPass, ClosedBoxMatchesAnalyticDistanceAndNormal) {
 }
 
 // Discs shrunk to 0.8x their area-equal radius leave gaps between texel-centre rays at N = 32; the
-// dilation passes fill them from covered neighbours (across the octahedral fold too) with plausible
+// fill passes close them from covered neighbours (across the octahedral fold too) with plausible
 // distances.
 TEST(VirPass, HoleFillClosesGapsBetweenShrunkenDiscs) {
   auto ctx = createContext();

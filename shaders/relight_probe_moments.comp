@@ -3,11 +3,11 @@
 // over the 3 x 3 texel neighbourhood (octahedral fold respected), so depth edges get the variance that
 // makes the Chebyshev bound soft instead of a binary depth test. A texel no surfel covered sees the sky
 // and counts as missDistance, and so does a texel only the VIR hole fill covered when
-// LFGI_RELIGHT_FILLED_SKY is set, as in relight_probe_irradiance.comp: at N = 8 two dilation passes
-// fill most of the sky of a probe 0.5 m above a ground plane with the plane's depth (looking straight
-// up: r = 1.2 m), so Chebyshev hid the plane's surfels from the probe above them and their gathered
-// bounce light was lost (a plane under the overcast sky: surfel E median 0 instead of 0.9 of the exact
-// value; probe downward irradiance 24 % low). One invocation per texel, probes along z; no barriers.
+// LFGI_RELIGHT_FILLED_SKY is set, as in relight_probe_irradiance.comp (off by default since the fill closes
+// only enclosed gaps, 2026-12-03). Before, at N = 8 two dilation passes filled most of the sky of a probe
+// 0.5 m above a ground plane with the plane's depth (looking straight up: r = 1.2 m), so Chebyshev hid the
+// plane's surfels from the probe above them and their gathered bounce light was lost (a plane under the
+// overcast sky: surfel E median 0 instead of 0.9 of the exact value; probe downward irradiance 24 % low). One invocation per texel, probes along z; no barriers.
 #include "shared/octahedral.h"
 #include "shared/relight.h"
 

@@ -12,9 +12,8 @@
 // (`todo`, with the far bit). Subtrees: one invocation per (listed subtree, block) walks its subtree depth
 // first. This keeps every invocation's loop short (llvmpipe stops a shader invocation's loops after
 // 65535 iterations in total, which silently truncated one long walk per block) and gives a GPU
-// blocks x subtrees parallel work; unlike one invocation per frontier subtree that first replayed the walk
-// along its ancestors (~60 % of the cut's time at N = 8), each node above the frontier is classified once
-// per block. No shared memory, no barriers; entries are appended through a 32-entry private buffer and one
+// blocks x subtrees parallel work. Each node above the frontier is classified once per block (before
+// 2026-12-03 every frontier subtree's invocation replayed the walk along its ancestors). No shared memory, no barriers; entries are appended through a 32-entry private buffer and one
 // atomicAdd per flush (the cut's order does not matter: the splat's atomicMin is order independent).
 //
 // Occlusion culling (cutPass, shared/vir.h): the near pass classifies with maxRange = min(maxRange,

@@ -19,7 +19,7 @@ struct VirParams {
   uint maxFootprintRadius;  // splat window half-size in texels: at most (2k+1)^2 candidate texels per pair
   float maxRange;           // surfels farther than this from a probe (m) are not splatted into it
   float footprintScale;     // disc radius multiplier for the footprint test (>= 1 closes gaps between discs)
-  uint fillPass;            // hole fill: index of this dilation pass (0, 1, ...)
+  uint fillPass;            // hole fill: index of this fill pass (0, 1, ...)
   uint pad;
 };
 LFGI_CHECK_SIZE(VirParams, 32)
@@ -132,7 +132,7 @@ LFGI_INLINE int virLodClassify(Surfel node, VirLodLink link, vec4 block, VirLodP
 
 // Coverage generation stored in the w of the normal channel of a resolved map texel.
 #define LFGI_VIR_HOLE 0.0f     // no surfel and no filled value
-#define LFGI_VIR_COVERED 1.0f  // nearest surfel; a texel filled by dilation pass p holds p + 2
+#define LFGI_VIR_COVERED 1.0f  // nearest surfel; a texel filled by fill pass p holds p + 2
 
 LFGI_SHARED_END
 
