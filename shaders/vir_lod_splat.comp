@@ -106,12 +106,11 @@ void splatPair(uint p) {
   vec2 tc = texelCoord(toS);  // continuous texel coordinates of the centre
   ivec2 c = ivec2(floor(tc));
   // The square window: texel centres within the angular radius (x the map's largest stretch) of the
-  // centre; none there (most sub-texel nodes): nothing to splat. Its half-size is capped at one map width
+  // centre; none there (most sub-texel nodes): nothing to splat. Its half-size is capped at one map width n
   // (a period of the wrapped map: a huge near node still tests each texel a bounded number of times).
-  int kmax = n;
   float rho = asin(min(radius / d, 1.0)) * halfN * LFGI_VIR_OCT_STRETCH;
-  ivec2 lo = max(ivec2(ceil(tc - vec2(0.5 + rho))), c - ivec2(kmax));
-  ivec2 hi = min(ivec2(floor(tc + vec2(rho - 0.5))), c + ivec2(kmax));
+  ivec2 lo = max(ivec2(ceil(tc - vec2(0.5 + rho))), c - ivec2(n));
+  ivec2 hi = min(ivec2(floor(tc + vec2(rho - 0.5))), c + ivec2(n));
   if (any(greaterThan(lo, hi))) return;
   // Far pass of occlusion culling: the cut kept this node for the block; drop it for this probe when
   // the near pass already covered every texel it could reach with something nearer.
@@ -170,10 +169,8 @@ void main() {
     e1 = t1 * ext.x;
     e2 = t2 * ext.y;
     low = uint64_t(s);
-    for (uint p = p0; p < p1; ++p) {
-      ++visited;
-      splatPair(p);
-    }
+    visited += p1 - p0;
+    for (uint p = p0; p < p1; ++p) splatPair(p);
   }
   if (visited > 0u) atomicAdd(stats[0], uint64_t(visited));
   if (atomics > 0u) atomicAdd(stats[1], uint64_t(atomics));
