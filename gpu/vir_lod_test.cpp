@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "shared/octahedral.h"
+#include "test_util.h"
 
 namespace lfgi::gpu {
 namespace {
@@ -132,14 +133,9 @@ TEST(VirLod, BoundsHoldEveryFootprintBelow) {
   std::vector<shared::Surfel> surfels;
   addFloor(surfels, 8.0f, 0.25f, 0.0f, 1u);
   addFloor(surfels, 8.0f, 0.25f, 3.0f, 2u);
-  const glm::vec3 pn = glm::normalize(glm::vec3(0.4f, 1.0f, -0.3f));
-  const glm::vec3 pu = glm::normalize(glm::cross(pn, glm::vec3(0.0f, 0.0f, 1.0f))), pv = glm::cross(pn, pu);
-  for (int j = 0; j < 24; ++j)
-    for (int i = 0; i < 24; ++i)
-      surfels.push_back({glm::vec4(glm::vec3(2.0f, 6.0f, -1.0f) + (float(i) - 11.5f) * 0.2f * pu +
-                                       (float(j) - 11.5f) * 0.2f * pv,
-                                   0.11f),
-                         glm::vec4(pn, 0.0f), glm::vec4(0.5f), glm::vec4(0.0f)});
+  const std::vector<shared::Surfel> panel =
+      test::panelSurfels(glm::vec3(2.0f, 6.0f, -1.0f), glm::normalize(glm::vec3(0.4f, 1.0f, -0.3f)), 24, 0.2f, 0.11f);
+  surfels.insert(surfels.end(), panel.begin(), panel.end());
   const float fs = 1.3f;
   const VirLodTree tree = buildVirLodTree(surfels, {fs, 18.0f});
   ASSERT_EQ(tree.bounds.size(), tree.nodes.size());

@@ -441,14 +441,10 @@ TEST(VirPass, ReusedSplatIsBitIdenticalToAFreshSplat) {
 // probes); a span that dropped the texels along a footprint's edges would leave covered texels uncovered.
 TEST(VirPass, LodSplatCoversExactlyTheFootprintsOfItsCut) {
   std::vector<shared::Surfel> surfels = test::inwardBoxSurfels(8.0f, 0.25f);
-  const glm::vec3 pn = glm::normalize(glm::vec3(0.35f, 1.0f, 0.2f));
-  const glm::vec3 pu = glm::normalize(glm::cross(pn, glm::vec3(0.0f, 0.0f, 1.0f))), pv = glm::cross(pn, pu);
-  for (int j = 0; j < 20; ++j)
-    for (int i = 0; i < 20; ++i) {
-      const glm::vec3 p = glm::vec3(1.0f, -3.0f, 0.5f) + (float(i) - 9.5f) * 0.2f * pu + (float(j) - 9.5f) * 0.2f * pv;
-      surfels.push_back({glm::vec4(p, 0.2f / std::sqrt(std::numbers::pi_v<float>)), glm::vec4(pn, 0.0f),
-                         glm::vec4(0.5f), glm::vec4(0.0f)});
-    }
+  const std::vector<shared::Surfel> panel =
+      test::panelSurfels(glm::vec3(1.0f, -3.0f, 0.5f), glm::normalize(glm::vec3(0.35f, 1.0f, 0.2f)), 20, 0.2f,
+                         0.2f / std::sqrt(std::numbers::pi_v<float>));
+  surfels.insert(surfels.end(), panel.begin(), panel.end());
   const std::vector<glm::vec3> probes = {
       {0.0f, 0.0f, 0.0f}, {2.5f, -1.0f, 1.5f}, {-5.0f, 4.0f, -3.0f}, {1.0f, -1.5f, 0.5f}, {0.5f, -4.5f, 2.5f}};
   VirOptions o;
