@@ -73,9 +73,8 @@ class SolidIndex {
 // a city's ground slab; a wall's bottom face on a floor slab), under the terrain (slab undersides 0.1 m
 // below ground) or under a road strip (the terrain beneath it): no probe, camera or shadow ray reaches
 // it, so it is dropped before surfels are sampled (whole triangles) and after (surfels of triangles only
-// partly inside). The offset is 1 cm along the
-// normal; a point counts as under the terrain only when 2 cm or more below it, so the terrain's own
-// surfels in concave creases are never taken for buried.
+// partly inside). The offset is 1 cm along the normal; a point counts as under the terrain only when 2 cm
+// or more below it, so the terrain's own surfels in concave creases are never taken for buried.
 constexpr float kBuriedProbeM = 0.01f;
 constexpr float kBuriedTerrainM = 0.02f;
 
