@@ -141,7 +141,17 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   grow(radianceBuf_, texels * sizeof(glm::vec4));
   grow(counters_, (1 + VirOptions::kMaxFillPasses) * sizeof(uint32_t));
   upload<glm::vec4>(ctx_, probeBuf_, probe4);
-  if (!surfelIrradiance.empty()) upload<glm::vec4>(ctx_, irrBuf_, surfelIrradiance);
+  // Without irradiance every radiance is the emission: the LOD path then reads the nodes' area-weighted
+  // emission (built with the tree, the radiance pass's answer for E = 0) and runs no radiance pass. With
+  // it, the LOD leaf pass reads E in leaf order (uploaded so: a streaming read, not a gather per leaf).
+  const bool lit = !surfelIrradiance.empty();
+  if (lit && o.lod) {
+    std::vector<glm::vec4> leafIrradiance(tree_.leafCount);
+    for (uint32_t i = 0; i < tree_.leafCount; ++i) leafIrradiance[i] = surfelIrradiance[tree_.links[i].surfel];
+    upload<glm::vec4>(ctx_, irrBuf_, leafIrradiance);
+  } else if (lit) {
+    upload<glm::vec4>(ctx_, irrBuf_, surfelIrradiance);
+  }
 
   shared::VirParams params{};
   params.probeCount = uint32_t(probes.size());
@@ -150,6 +160,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   params.maxFootprintRadius = uint32_t(o.maxFootprintRadius);
   params.maxRange = o.maxRange;
   params.footprintScale = o.footprintScale;
+  params.emissionOnly = lit ? 0u : 1u;
   const uint32_t res = params.res, probeCount = params.probeCount;
 
   // LOD: probe blocks (consecutive probes in block order, bounding spheres) and the cut buffer.
@@ -218,10 +229,10 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
       timer.stamp(cmd, 0);
       if (!reuse) vkCmdFillBuffer(cmd, slots_.handle(), 0, texels * sizeof(uint64_t), 0xFFFFFFFFu);
       vkCmdFillBuffer(cmd, counters_.handle(), 0, VK_WHOLE_SIZE, 0u);
-      if (surfelIrradiance.empty()) vkCmdFillBuffer(cmd, irrBuf_.handle(), 0, VK_WHOLE_SIZE, 0u);
+      if (!lit && !o.lod) vkCmdFillBuffer(cmd, irrBuf_.handle(), 0, VK_WHOLE_SIZE, 0u);
       if (o.lod) vkCmdFillBuffer(cmd, statsBuf_.handle(), 0, VK_WHOLE_SIZE, 0u);
       memoryBarrier(cmd);
-      if (o.lod) {
+      if (o.lod && lit) {
         // Node radiance, level by level from the leaves (children always sit in lower levels).
         for (size_t l = 0; l + 1 < tree_.levelStart.size(); ++l) {
           lp.nodeFirst = tree_.levelStart[l];
@@ -330,7 +341,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
 
   atlas.resolution = o.resolution;
   atlas.probeCount = int(probes.size());
-  atlas.lodRadianceMs = o.lod ? timer.elapsedMs(0, 1) : 0.0;
+  atlas.lodRadianceMs = o.lod && lit ? timer.elapsedMs(0, 1) : 0.0;
   atlas.splatMs = timer.elapsedMs(1, 2);
   atlas.resolveMs = timer.elapsedMs(2, 3);
   atlas.fillMs = timer.elapsedMs(3, 4);

@@ -212,6 +212,62 @@ TEST(VirPass, NearerSurfelWinsAndRadianceIsEmissionPlusAlbedoIrradiance) {
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
 }
 
+// The LOD radiance of a leaf is its own surfel's emission + albedo E / pi (VirPass uploads E in the tree's
+// leaf order, so a wrong permutation shows up as another surfel's E), and without irradiance every node's
+// radiance is its emission (no radiance pass: the tree's area-weighted emission).
+TEST(VirPass, LodRadianceUsesEachLeafsIrradianceAndEmissionWithoutIt) {
+  auto ctx = createContext();
+  VirPass pass(*ctx);
+  std::vector<shared::Surfel> surfels = test::inwardBoxSurfels(5.0f, 0.5f);
+  std::vector<glm::vec4> irradiance(surfels.size());
+  for (size_t i = 0; i < surfels.size(); ++i) {
+    // Each disc a little off its wall's plane: coplanar overlapping discs tie in depth, and the two splats
+    // break ties by different indices (surfel vs leaf).
+    surfels[i].positionRadius += glm::vec4(0.01f * test::hash01(uint32_t(7 * i)) * glm::vec3(surfels[i].normal), 0.0f);
+    surfels[i].emission = glm::vec4(test::hash01(uint32_t(3 * i)), 0.0f, 0.5f * test::hash01(uint32_t(3 * i + 1)), 0.0f);
+    irradiance[i] = glm::vec4(10.0f * test::hash01(uint32_t(3 * i + 2)), 1.0f + float(i % 5), 2.0f, 0.0f);
+  }
+  const std::vector<glm::vec3> probes = {{0.0f, 0.0f, 0.0f}, {1.0f, -2.0f, 0.5f}, {-3.0f, 2.5f, 1.0f}};
+  VirOptions full;
+  full.resolution = 16;
+  full.lod = false;
+  VirOptions leaves = full;  // a cut of leaves only: no merged node is ever narrow enough
+  leaves.lod = true;
+  leaves.lodTexels = 1e-3f;
+  leaves.lodBlockProbes = 2;
+  VirOptions merged = leaves;
+  merged.lodTexels = 4.0f;
+  const auto sameRadiance = [](const ProbeAtlas& a, const ProbeAtlas& b, float tol) {
+    size_t same = 0, both = 0;
+    for (size_t t = 0; t < a.radiance.size(); ++t) {
+      if (a.normal[t].w != 1.0f || b.normal[t].w != 1.0f || a.distance[t].x != b.distance[t].x) continue;
+      ++both;
+      const glm::vec3 d = glm::abs(glm::vec3(a.radiance[t]) - glm::vec3(b.radiance[t]));
+      if (std::max({d.x, d.y, d.z}) <= tol * (1.0f + std::abs(a.radiance[t].x) + std::abs(a.radiance[t].y)))
+        ++same;
+    }
+    return std::pair(same, both);
+  };
+  {
+    const ProbeAtlas a = pass.run(surfels, probes, full, irradiance);
+    const ProbeAtlas b = pass.run(surfels, probes, leaves, irradiance);
+    const auto [same, both] = sameRadiance(a, b, 1e-6f);
+    std::printf("LOD leaves vs full splat: %zu of %zu texels with the same depth have the same radiance\n", same,
+                both);
+    EXPECT_GT(both, a.radiance.size() / 2);  // the same winner (depth) in most texels
+    EXPECT_EQ(same, both);
+  }
+  for (const VirOptions& o : {leaves, merged}) {
+    const ProbeAtlas unlit = pass.run(surfels, probes, o);
+    const ProbeAtlas zero = pass.run(surfels, probes, o, std::vector<glm::vec4>(surfels.size(), glm::vec4(0.0f)));
+    EXPECT_EQ(unlit.lodRadianceMs, 0.0);  // no radiance pass ran
+    const auto [same, both] = sameRadiance(unlit, zero, 1e-5f);
+    EXPECT_GT(both, unlit.radiance.size() * 9 / 10);  // the same splat: the same winners
+    EXPECT_EQ(same, both);
+  }
+  EXPECT_EQ(ctx->validationErrors.load(), 0u);
+}
+
 // LOD on vs off (VirOptions::lod) on a closed 40 m box at the default surfel density (at N <= 16 many
 // surfels per texel, where the cut replaces them with merged discs): same distances, normals and coverage,
 // radiance within a few % (merged discs carry the area-weighted mean), and far fewer (disc, probe) pairs. A

@@ -12,7 +12,7 @@ layout(local_size_x = 64, local_size_y = 1, local_size_z = 1) in;
 layout(std430, set = 0, binding = 0) readonly buffer Nodes { Surfel nodes[]; };
 layout(std430, set = 0, binding = 1) readonly buffer Links { VirLodLink links[]; };
 layout(std430, set = 0, binding = 2) readonly buffer Children { uint children[]; };
-layout(std430, set = 0, binding = 3) readonly buffer Irradiance { vec4 irradiance[]; };
+layout(std430, set = 0, binding = 3) readonly buffer Irradiance { vec4 irradiance[]; };  // leaf order
 layout(std430, set = 0, binding = 4) buffer NodeRadiance { vec4 nodeRadiance[]; };
 
 layout(push_constant) uniform Push { VirLodParams params; };
@@ -22,7 +22,7 @@ void main() {
   uint i = params.nodeFirst + gl_GlobalInvocationID.x;
   if (params.leafPass != 0u) {
     vec3 a = nodes[i].albedo.rgb;
-    nodeRadiance[i] = vec4(nodes[i].emission.rgb + a * irradiance[links[i].surfel].rgb * 0.31830988618, 1.0);
+    nodeRadiance[i] = vec4(nodes[i].emission.rgb + a * irradiance[i].rgb * 0.31830988618, 1.0);
     return;
   }
   uint first = links[i].firstChild, count = links[i].childCount;

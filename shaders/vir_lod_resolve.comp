@@ -1,6 +1,7 @@
 #version 450
 // VIR LOD resolve: as vir_resolve.comp, but the slot names a node of the surfel LOD tree and its radiance
-// comes from vir_lod_radiance.comp (a leaf's equals vir_resolve.comp's emission + albedo E / pi).
+// comes from vir_lod_radiance.comp (a leaf's equals vir_resolve.comp's emission + albedo E / pi), or,
+// when the run has no irradiance (VirParams::emissionOnly), is the node's area-weighted emission.
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #include "shared/surfel.h"
 #include "shared/vir.h"
@@ -37,5 +38,5 @@ void main() {
   distanceMoments[i] = vec2(r, r * r);
   normals[i] = vec4(nodes[s].normal.xyz, LFGI_VIR_COVERED);
   albedos[i] = vec4(nodes[s].albedo.rgb, 1.0);
-  radiances[i] = vec4(nodeRadiance[s].rgb, 1.0);
+  radiances[i] = vec4(params.emissionOnly != 0u ? nodes[s].emission.rgb : nodeRadiance[s].rgb, 1.0);
 }

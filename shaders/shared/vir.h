@@ -20,7 +20,7 @@ struct VirParams {
   float maxRange;           // surfels farther than this from a probe (m) are not splatted into it
   float footprintScale;     // disc radius multiplier for the footprint test (>= 1 closes gaps between discs)
   uint fillPass;            // hole fill: index of this fill pass (0, 1, ...)
-  uint pad;
+  uint emissionOnly;        // LOD resolve: 1 when no irradiance was given (radiance = the node's emission)
 };
 LFGI_CHECK_SIZE(VirParams, 32)
 LFGI_CHECK_OFFSET(VirParams, maxRange, 16)
