@@ -106,7 +106,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     fail("VIR: lodTexels {} outside (0, 16]", o.lodTexels);
   if (!(std::isfinite(o.lodDepthTolerance) && o.lodDepthTolerance >= 0.0f && o.lodDepthTolerance <= 1.0f))
     fail("VIR: lodDepthTolerance {} outside [0, 1]", o.lodDepthTolerance);
-  if (o.lodBlockProbes < 1 || o.lodBlockProbes > 64) fail("VIR: lodBlockProbes {} outside [1, 64]", o.lodBlockProbes);
+  if (o.lodBlockProbes < 1 || o.lodBlockProbes > LFGI_VIR_LOD_MAX_BLOCK_PROBES)
+    fail("VIR: lodBlockProbes {} outside [1, {}]", o.lodBlockProbes, LFGI_VIR_LOD_MAX_BLOCK_PROBES);
   if (!(std::isfinite(o.lodOcclusionRange) && o.lodOcclusionRange >= 0.0f))
     fail("VIR: lodOcclusionRange {} must be finite and >= 0", o.lodOcclusionRange);
   if (!surfelIrradiance.empty() && surfelIrradiance.size() != surfels.size())

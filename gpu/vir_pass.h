@@ -45,7 +45,7 @@ struct VirOptions {
   int fillPasses = 2;           // hole fill passes (enclosed gaps only), 0..kMaxFillPasses
   bool lod = true;              // splat a per-probe-block cut of the surfel LOD tree (see above)
   float lodTexels = 4.0f;       // LOD: a merged node may stand in for its surfels when <= this many texels wide
-  int lodBlockProbes = 16;      // LOD: probes sharing one cut (consecutive along a Morton curve), [1, 64];
+  int lodBlockProbes = 16;      // LOD: probes sharing one cut (consecutive along a Morton curve), [1, 32];
                                 // 16 (2 x 2 x 4 of a grid) since the node-major splat: as fast as 8 and a
                                 // finer cut (city cell, N = 8: texels > 5 % off 6.7 -> 3.4 %)
   float lodDepthTolerance = 0.01f;  // LOD: merged node thickness <= this x distance (relative depth error)

@@ -47,6 +47,7 @@ LFGI_INLINE vec3 virRectAxis(vec3 n) {
 }
 
 #define LFGI_VIR_LOD_STACK 128  // traversal stack entries of one frontier-subtree walk (vir_lod_cut.comp)
+#define LFGI_VIR_LOD_MAX_BLOCK_PROBES 32  // VirOptions::lodBlockProbes limit (vir_lod_splat.comp's probe array)
 
 // Push constants of the LOD passes (vir_lod_radiance/vir_lod_cut/vir_lod_splat/vir_lod_resolve.comp).
 struct VirLodParams {
