@@ -140,7 +140,6 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   grow(normalBuf_, texels * sizeof(glm::vec4));
   grow(albedoBuf_, texels * sizeof(glm::vec4));
   grow(radianceBuf_, texels * sizeof(glm::vec4));
-  grow(counters_, (1 + VirOptions::kMaxFillPasses) * sizeof(uint32_t));
   upload<glm::vec4>(ctx_, probeBuf_, probe4);
   // Without irradiance every radiance is the emission: the LOD path then reads the nodes' area-weighted
   // emission (built with the tree, the radiance pass's answer for E = 0) and runs no radiance pass. With
@@ -229,7 +228,10 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
       timer.reset(cmd);
       timer.stamp(cmd, 0);
       if (!reuse) vkCmdFillBuffer(cmd, slots_.handle(), 0, texels * sizeof(uint64_t), 0xFFFFFFFFu);
-      vkCmdFillBuffer(cmd, counters_.handle(), 0, VK_WHOLE_SIZE, 0u);
+      // Holes stay all 0 (LFGI_VIR_HOLE): the resolve writes only covered texels.
+      vkCmdFillBuffer(cmd, distBuf_.handle(), 0, texels * sizeof(glm::vec2), 0u);
+      for (Buffer* b : {&normalBuf_, &albedoBuf_, &radianceBuf_})
+        vkCmdFillBuffer(cmd, b->handle(), 0, texels * sizeof(glm::vec4), 0u);
       if (!lit && !o.lod) vkCmdFillBuffer(cmd, irrBuf_.handle(), 0, VK_WHOLE_SIZE, 0u);
       if (o.lod) vkCmdFillBuffer(cmd, statsBuf_.handle(), 0, VK_WHOLE_SIZE, 0u);
       memoryBarrier(cmd);
@@ -291,17 +293,17 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
       timer.stamp(cmd, 2);
       if (o.lod)
         dispatch(ctx_, cmd, lodResolve_,
-                 {&slots_, &nodeBuf_, &nodeRadianceBuf_, &distBuf_, &normalBuf_, &albedoBuf_, &radianceBuf_, &counters_},
+                 {&slots_, &nodeBuf_, &nodeRadianceBuf_, &distBuf_, &normalBuf_, &albedoBuf_, &radianceBuf_},
                  params, {res, res, probeCount});
       else
         dispatch(ctx_, cmd, resolve_,
-                 {&slots_, &surfelBuf_, &irrBuf_, &distBuf_, &normalBuf_, &albedoBuf_, &radianceBuf_, &counters_},
+                 {&slots_, &surfelBuf_, &irrBuf_, &distBuf_, &normalBuf_, &albedoBuf_, &radianceBuf_},
                  params, {res, res, probeCount});
       memoryBarrier(cmd);
       timer.stamp(cmd, 3);
       for (int pass = 0; pass < o.fillPasses; ++pass) {
         params.fillPass = uint32_t(pass);
-        dispatch(ctx_, cmd, holefill_, {&distBuf_, &normalBuf_, &albedoBuf_, &radianceBuf_, &counters_}, params,
+        dispatch(ctx_, cmd, holefill_, {&distBuf_, &normalBuf_, &albedoBuf_, &radianceBuf_}, params,
                  {res, res, probeCount});
         memoryBarrier(cmd);
       }
@@ -355,10 +357,14 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   readback<glm::vec4>(ctx_, normalBuf_, atlas.normal);
   readback<glm::vec4>(ctx_, albedoBuf_, atlas.albedo);
   readback<glm::vec4>(ctx_, radianceBuf_, atlas.radiance);
-  std::vector<uint32_t> count(1 + VirOptions::kMaxFillPasses);
-  readback<uint32_t>(ctx_, counters_, count);
-  atlas.holeFractionBeforeFill = double(count[0]) / double(texels);
-  atlas.holeFractionAfterFill = double(count[size_t(o.fillPasses)]) / double(texels);
+  // Coverage w: 0 a hole after the fill, 1 covered by the splat, >= 2 filled (a hole before the fill).
+  size_t holesAfter = 0, filled = 0;
+  for (const glm::vec4& nw : atlas.normal) {
+    holesAfter += nw.w == LFGI_VIR_HOLE ? 1 : 0;
+    filled += nw.w > LFGI_VIR_COVERED ? 1 : 0;
+  }
+  atlas.holeFractionBeforeFill = double(holesAfter + filled) / double(texels);
+  atlas.holeFractionAfterFill = double(holesAfter) / double(texels);
   return atlas;
 }
 

@@ -2,8 +2,8 @@
 // VIR hole fill: one pass in octahedral space. A hole texel (normal.w == 0) enclosed by valid neighbours
 // (wrapped across the fold with octBorderSource; valid: covered, or filled by an earlier pass,
 // 0 < w <= pass + 1) on two opposite sides (left and right, above and below, or the two ends of a
-// diagonal) takes the average of its valid neighbours and is marked w = pass + 2; other holes are counted
-// in counters[1 + pass]. The enclosure test fills the gaps between surfel discs (cracks, pinholes) but
+// diagonal) takes the average of its valid neighbours and is marked w = pass + 2 (VirPass counts the
+// holes left from the read-back coverage). The enclosure test fills the gaps between surfel discs (cracks, pinholes) but
 // never grows a silhouette into the sky: a plain dilation (any valid neighbour) put geometry into 75 % of
 // the sky texels of the city cell's probes at N = 8 and 48 % at N = 16 with 2 passes (lfgi_bench_vir
 // sky_filled_fraction, 2026-12-03). Only holes are written and only texels not written by this pass are
@@ -18,7 +18,6 @@ layout(std430, set = 0, binding = 0) buffer Distance { vec2 distanceMoments[]; }
 layout(std430, set = 0, binding = 1) buffer Normal { vec4 normals[]; };
 layout(std430, set = 0, binding = 2) buffer Albedo { vec4 albedos[]; };
 layout(std430, set = 0, binding = 3) buffer Radiance { vec4 radiances[]; };
-layout(std430, set = 0, binding = 4) buffer Counters { uint counters[]; };
 
 layout(push_constant) uniform Push { VirParams params; };
 
@@ -60,10 +59,7 @@ void main() {
       count += 1.0;
     }
   }
-  if (count == 0.0) {
-    atomicAdd(counters[1 + params.fillPass], 1u);
-    return;
-  }
+  if (count == 0.0) return;
   float w = 1.0 / count;
   distanceMoments[i] = dist * w;
   float len = length(nrm);

@@ -15,7 +15,6 @@ layout(std430, set = 0, binding = 3) writeonly buffer Distance { vec2 distanceMo
 layout(std430, set = 0, binding = 4) writeonly buffer Normal { vec4 normals[]; };
 layout(std430, set = 0, binding = 5) writeonly buffer Albedo { vec4 albedos[]; };
 layout(std430, set = 0, binding = 6) writeonly buffer Radiance { vec4 radiances[]; };
-layout(std430, set = 0, binding = 7) buffer Counters { uint counters[]; };
 
 layout(push_constant) uniform Push { VirParams params; };
 
@@ -25,14 +24,7 @@ void main() {
   if (id.x >= n || id.y >= n || id.z >= params.probeCount) return;
   uint i = id.z * n * n + id.y * n + id.x;
   uint64_t v = slots[i];
-  if (v == 0xFFFFFFFFFFFFFFFFUL) {
-    distanceMoments[i] = vec2(0.0);
-    normals[i] = vec4(0.0, 0.0, 0.0, LFGI_VIR_HOLE);
-    albedos[i] = vec4(0.0);
-    radiances[i] = vec4(0.0);
-    atomicAdd(counters[0], 1u);
-    return;
-  }
+  if (v == 0xFFFFFFFFFFFFFFFFUL) return;  // a hole: VirPass cleared the channels to 0 (LFGI_VIR_HOLE)
   uint s = uint(v & 0xFFFFFFFFUL);
   float r = uintBitsToFloat(uint(v >> 32));
   distanceMoments[i] = vec2(r, r * r);
