@@ -29,37 +29,46 @@ void main() {
   uint i = base + id.y * n + id.x;
   if (normals[i].w != LFGI_VIR_HOLE) return;
   float limit = float(params.fillPass) + 1.0;
-  // Coverage of the 8 neighbours first (one word each): most holes of an outdoor probe are sky, not
-  // enclosed, and skip the channel reads.
+  // Coverage of the neighbours first (one word each): most holes of an outdoor probe are sky, not enclosed,
+  // and skip the channel reads. Neighbour k's opposite is 7 - k: one end of each pair is read, the other
+  // only when that end is valid, so a hole among holes reads 4 words, not 8.
   uint src[8];
   uint valid = 0u;
   for (int k = 0; k < 8; ++k) {
     int d = k < 4 ? k : k + 1;  // the 3 x 3 neighbourhood without its centre
     uvec2 t = octBorderSource(uvec2(ivec2(id.xy) + ivec2(d % 3, d / 3)), n);
     src[k] = base + t.y * n + t.x;
+  }
+  for (int k = 0; k < 4; ++k) {
     float w = normals[src[k]].w;
     if (w > 0.0 && w <= limit) valid |= 1u << k;
+  }
+  for (int k = 0; k < 4; ++k) {
+    if ((valid & (1u << k)) == 0u) continue;
+    float w = normals[src[7 - k]].w;
+    if (w > 0.0 && w <= limit) valid |= 1u << (7 - k);
+  }
+  // Enclosed when some pair is valid at both ends; then the far ends of the other pairs count too.
+  if ((valid & (bitfieldReverse(valid) >> 24u) & 0x0Fu) == 0u) return;
+  for (int k = 0; k < 4; ++k) {
+    if ((valid & (1u << k)) != 0u) continue;
+    float w = normals[src[7 - k]].w;
+    if (w > 0.0 && w <= limit) valid |= 1u << (7 - k);
   }
   vec2 dist = vec2(0.0);
   vec3 nrm = vec3(0.0);
   vec4 alb = vec4(0.0);
   vec4 rad = vec4(0.0);
   float count = 0.0;
-  // Neighbour k's opposite is 7 - k; enclosed when some pair is valid at both ends.
-  uint reversed = bitfieldReverse(valid) >> 24u;  // bit k: neighbour 7 - k valid
-  if ((valid & reversed & 0x0Fu) == 0u) valid = 0u;
-  if (valid != 0u) {
-    for (int k = 0; k < 8; ++k) {
-      if ((valid & (1u << k)) == 0u) continue;
-      uint j = src[k];
-      dist += distanceMoments[j];
-      nrm += normals[j].xyz;
-      alb += albedos[j];
-      rad += radiances[j];
-      count += 1.0;
-    }
+  for (int k = 0; k < 8; ++k) {
+    if ((valid & (1u << k)) == 0u) continue;
+    uint j = src[k];
+    dist += distanceMoments[j];
+    nrm += normals[j].xyz;
+    alb += albedos[j];
+    rad += radiances[j];
+    count += 1.0;
   }
-  if (count == 0.0) return;
   float w = 1.0 / count;
   distanceMoments[i] = dist * w;
   float len = length(nrm);
