@@ -7,12 +7,12 @@
 //   off: every surfel into every probe (vir_splat.comp; one invocation per (surfel, probe) pair).
 //   on (default): a surfel LOD tree (gpu/vir_lod.h, built once per surfel set and kept resident) is cut
 //     per block of nearby probes at the coarsest nodes whose disc stays below lodTexels texels
-//     (vir_lod_cut.comp), and only the cut is splatted (vir_lod_splat.comp, probe-major). Far surfels
-//     cover a tiny fraction of a texel, so most (surfel, probe) pairs of the full splat only lose the
-//     depth test; the cut keeps ~ texels x depth complexity discs per probe. Merged discs carry the
-//     area-weighted mean radiance of their surfels (vir_lod_radiance.comp, per call, so relighting stays
-//     exact in the mean). Blocks are runs of lodBlockProbes probes along a Morton curve of their
-//     positions (virProbeBlockOrder: 2 x 2 x 2 probes of a grid, not a row of 8), whatever the order given.
+//     (vir_lod_cut.comp), and only the cut is splatted (vir_lod_splat.comp, node-major within a block).
+//     Far surfels cover a tiny fraction of a texel, so most (surfel, probe) pairs of the full splat only
+//     lose the depth test; the cut keeps ~ texels x depth complexity discs per probe. Merged discs carry
+//     the area-weighted mean radiance of their surfels (vir_lod_radiance.comp, per call, so relighting
+//     stays exact in the mean; without irradiance it is the tree's area-weighted emission, no pass).
+//     Blocks are runs of lodBlockProbes probes along a Morton curve of their positions (virProbeBlockOrder: 2 x 2 x 2 probes of a grid, not a row of 8), whatever the order given.
 //
 // Buffers are resident in the VirPass and grow only (no per-call allocation once the largest run has
 // been seen); the LOD tree and the surfel upload are reused while the surfel array's bytes and the
@@ -74,7 +74,7 @@ struct ProbeAtlas {
   double holeFractionAfterFill = 0.0;   // texels still holes after the fill passes / all texels
   double gpuMs = 0.0;                   // device time of clear + splat + resolve + fill
   double splatMs = 0.0, resolveMs = 0.0, fillMs = 0.0;  // LOD: splatMs includes the cut
-  double lodRadianceMs = 0.0;  // LOD: per-node radiance (leaves + merged discs), inside gpuMs
+  double lodRadianceMs = 0.0;  // LOD: per-node radiance (leaves + merged discs), inside gpuMs; 0 without irradiance
   double lodBuildMs = 0.0;     // LOD: CPU build + upload of the tree in this call (0 when reused), not in gpuMs
   uint64_t lodNodes = 0;       // LOD: nodes in the tree (leaves + merged)
   uint64_t splatPairs = 0;     // (disc, probe) pairs the splat visited: surfels x probes without LOD
