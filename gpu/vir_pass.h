@@ -12,7 +12,8 @@
 //     lose the depth test; the cut keeps ~ texels x depth complexity discs per probe. Merged discs carry
 //     the area-weighted mean radiance of their surfels (vir_lod_radiance.comp, per call, so relighting
 //     stays exact in the mean; without irradiance it is the tree's area-weighted emission, no pass).
-//     Blocks are runs of lodBlockProbes probes along a Morton curve of their positions (virProbeBlockOrder: 2 x 2 x 2 probes of a grid, not a row of 8), whatever the order given.
+//     Blocks are runs of lodBlockProbes probes along a Morton curve of their positions
+//     (virProbeBlockOrder: 2 x 2 x 2 probes of a grid, not a row of 8), whatever the order given.
 //
 // Buffers are resident in the VirPass and grow only (no per-call allocation once the largest run has
 // been seen); the LOD tree and the surfel upload are reused while the surfel array's bytes and the
