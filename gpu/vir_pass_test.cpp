@@ -223,8 +223,10 @@ TEST(VirPass, LodRadianceUsesEachLeafsIrradianceAndEmissionWithoutIt) {
   for (size_t i = 0; i < surfels.size(); ++i) {
     // Each disc a little off its wall's plane: coplanar overlapping discs tie in depth, and the two splats
     // break ties by different indices (surfel vs leaf).
-    surfels[i].positionRadius += glm::vec4(0.01f * test::hash01(uint32_t(7 * i)) * glm::vec3(surfels[i].normal), 0.0f);
-    surfels[i].emission = glm::vec4(test::hash01(uint32_t(3 * i)), 0.0f, 0.5f * test::hash01(uint32_t(3 * i + 1)), 0.0f);
+    const float offset = 0.01f * test::hash01(uint32_t(7 * i));
+    surfels[i].positionRadius += glm::vec4(offset * glm::vec3(surfels[i].normal), 0.0f);
+    surfels[i].emission =
+        glm::vec4(test::hash01(uint32_t(3 * i)), 0.0f, 0.5f * test::hash01(uint32_t(3 * i + 1)), 0.0f);
     irradiance[i] = glm::vec4(10.0f * test::hash01(uint32_t(3 * i + 2)), 1.0f + float(i % 5), 2.0f, 0.0f);
   }
   const std::vector<glm::vec3> probes = {{0.0f, 0.0f, 0.0f}, {1.0f, -2.0f, 0.5f}, {-3.0f, 2.5f, 1.0f}};

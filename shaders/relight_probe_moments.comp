@@ -7,7 +7,8 @@
 // only enclosed gaps, 2026-12-03). Before, at N = 8 two dilation passes filled most of the sky of a probe
 // 0.5 m above a ground plane with the plane's depth (looking straight up: r = 1.2 m), so Chebyshev hid the
 // plane's surfels from the probe above them and their gathered bounce light was lost (a plane under the
-// overcast sky: surfel E median 0 instead of 0.9 of the exact value; probe downward irradiance 24 % low). One invocation per texel, probes along z; no barriers.
+// overcast sky: surfel E median 0 instead of 0.9 of the exact value; probe downward irradiance 24 % low).
+// One invocation per texel, probes along z; no barriers.
 #include "shared/octahedral.h"
 #include "shared/relight.h"
 

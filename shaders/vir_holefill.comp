@@ -3,12 +3,12 @@
 // (wrapped across the fold with octBorderSource; valid: covered, or filled by an earlier pass,
 // 0 < w <= pass + 1) on two opposite sides (left and right, above and below, or the two ends of a
 // diagonal) takes the average of its valid neighbours and is marked w = pass + 2 (VirPass counts the
-// holes left from the read-back coverage). The enclosure test fills the gaps between surfel discs (cracks, pinholes) but
-// never grows a silhouette into the sky: a plain dilation (any valid neighbour) put geometry into 75 % of
-// the sky texels of the city cell's probes at N = 8 and 48 % at N = 16 with 2 passes (lfgi_bench_vir
-// sky_filled_fraction, 2026-12-03). Only holes are written and only texels not written by this pass are
-// averaged, so one buffer serves as input and output (a neighbour filled concurrently reads as invalid
-// either way).
+// holes left from the read-back coverage). The enclosure test fills the gaps between surfel discs
+// (cracks, pinholes) but never grows a silhouette into the sky: a plain dilation (any valid neighbour) put
+// geometry into 75 % of the sky texels of the city cell's probes at N = 8 and 48 % at N = 16 with 2 passes
+// (lfgi_bench_vir sky_filled_fraction, 2026-12-03). Only holes are written and only texels not written by
+// this pass are averaged, so one buffer serves as input and output (a neighbour filled concurrently reads
+// as invalid either way).
 #include "shared/octahedral.h"
 #include "shared/vir.h"
 
@@ -20,6 +20,12 @@ layout(std430, set = 0, binding = 2) buffer Albedo { vec4 albedos[]; };
 layout(std430, set = 0, binding = 3) buffer Radiance { vec4 radiances[]; };
 
 layout(push_constant) uniform Push { VirParams params; };
+
+// Texel j holds a value this pass may average: covered, or filled by an earlier pass (0 < w <= limit).
+bool valid(uint j, float limit) {
+  float w = normals[j].w;
+  return w > 0.0 && w <= limit;
+}
 
 void main() {
   uvec3 id = gl_GlobalInvocationID;
@@ -33,35 +39,27 @@ void main() {
   // and skip the channel reads. Neighbour k's opposite is 7 - k: one end of each pair is read, the other
   // only when that end is valid, so a hole among holes reads 4 words, not 8.
   uint src[8];
-  uint valid = 0u;
+  uint ok = 0u;  // bit k: neighbour k valid
   for (int k = 0; k < 8; ++k) {
     int d = k < 4 ? k : k + 1;  // the 3 x 3 neighbourhood without its centre
     uvec2 t = octBorderSource(uvec2(ivec2(id.xy) + ivec2(d % 3, d / 3)), n);
     src[k] = base + t.y * n + t.x;
   }
-  for (int k = 0; k < 4; ++k) {
-    float w = normals[src[k]].w;
-    if (w > 0.0 && w <= limit) valid |= 1u << k;
-  }
-  for (int k = 0; k < 4; ++k) {
-    if ((valid & (1u << k)) == 0u) continue;
-    float w = normals[src[7 - k]].w;
-    if (w > 0.0 && w <= limit) valid |= 1u << (7 - k);
-  }
+  for (int k = 0; k < 4; ++k)
+    if (valid(src[k], limit)) ok |= 1u << k;
+  for (int k = 0; k < 4; ++k)
+    if ((ok & (1u << k)) != 0u && valid(src[7 - k], limit)) ok |= 1u << (7 - k);
   // Enclosed when some pair is valid at both ends; then the far ends of the other pairs count too.
-  if ((valid & (bitfieldReverse(valid) >> 24u) & 0x0Fu) == 0u) return;
-  for (int k = 0; k < 4; ++k) {
-    if ((valid & (1u << k)) != 0u) continue;
-    float w = normals[src[7 - k]].w;
-    if (w > 0.0 && w <= limit) valid |= 1u << (7 - k);
-  }
+  if ((ok & (bitfieldReverse(ok) >> 24u) & 0x0Fu) == 0u) return;
+  for (int k = 0; k < 4; ++k)
+    if ((ok & (1u << k)) == 0u && valid(src[7 - k], limit)) ok |= 1u << (7 - k);
   vec2 dist = vec2(0.0);
   vec3 nrm = vec3(0.0);
   vec4 alb = vec4(0.0);
   vec4 rad = vec4(0.0);
   float count = 0.0;
   for (int k = 0; k < 8; ++k) {
-    if ((valid & (1u << k)) == 0u) continue;
+    if ((ok & (1u << k)) == 0u) continue;
     uint j = src[k];
     dist += distanceMoments[j];
     nrm += normals[j].xyz;

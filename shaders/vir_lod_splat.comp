@@ -155,10 +155,10 @@ void main() {
   uint block = params.blockFirst + gl_GlobalInvocationID.z;
   if (lane >= params.lanes) return;
   uint p0 = block * params.blockProbes;
-  uint p1 = min(p0 + params.blockProbes, params.probeCount);
   uint count = min(cutCount[gl_GlobalInvocationID.z], params.cutCapacity);
   uint cutBase = gl_GlobalInvocationID.z * params.cutCapacity;
-  for (uint k = 0u; k < p1 - p0; ++k) blockProbes[k] = probes[p0 + k];
+  uint inBlock = min(p0 + params.blockProbes, params.probeCount) - p0;  // probes of this block
+  for (uint k = 0u; k < inBlock; ++k) blockProbes[k] = probes[p0 + k];
   uint visited = 0u;
   for (uint i = lane; i < count; i += params.lanes) {
     uint s = cut[cutBase + i];
@@ -175,8 +175,8 @@ void main() {
     e1 = t1 * ext.x;
     e2 = t2 * ext.y;
     low = uint64_t(s);
-    visited += p1 - p0;
-    for (uint k = 0u; k < p1 - p0; ++k) splatPair(k);
+    visited += inBlock;
+    for (uint k = 0u; k < inBlock; ++k) splatPair(k);
   }
   if (visited > 0u) atomicAdd(stats[0], uint64_t(visited));
   if (atomics > 0u) atomicAdd(stats[1], uint64_t(atomics));
