@@ -51,6 +51,7 @@
 #include <optional>
 
 #include "bake/embree_scene.h"
+#include "bake/path_trace.h"
 #include "bake/probe_capture.h"
 #include "bench/bench_output.h"
 #include "core/error.h"
@@ -140,14 +141,20 @@ struct Accuracy {
   // border, and look out past its last surfels) or the hole fill growing a silhouette (filled).
   double skyCoveredFraction = 0.0, skyFilledFraction = 0.0;
   double captureDistMedianRel = 0.0, captureNormalMedianDeg = 0.0;  // vs bake/probe_capture.h texel means
+  // Albedo of the stored texel vs the hit triangle's (bake::detail::hitAlbedo): the mean of the largest
+  // channel's absolute difference, and the texels off by > 0.05 in any channel. Merged LOD nodes store
+  // the area mean of their surfels, so a coarse cut blurs albedo (and emission) where its depths are exact.
+  double albedoMeanAbs = 0.0, albedoFracOff = 0.0;
   size_t compared = 0;
 };
 
 // Per texel of the first `probes` maps vs the Embree closest hit along the texel-centre ray.
 Accuracy accuracy(const gpu::ProbeAtlas& atlas, const std::vector<std::vector<std::optional<bake::RayHit>>>& ref,
-                  size_t probes) {
+                  size_t probes, const worlds::TriangleMesh& mesh) {
   const size_t n2 = size_t(atlas.resolution) * size_t(atlas.resolution);
   std::vector<double> rel, angle;
+  double albedoSum = 0.0;
+  size_t albedoOff = 0;
   size_t hits = 0, holes = 0, sky = 0, skyCovered = 0, skyFilled = 0;
   for (size_t p = 0; p < probes; ++p)
     for (size_t t = 0; t < n2; ++t) {
@@ -165,6 +172,11 @@ Accuracy accuracy(const gpu::ProbeAtlas& atlas, const std::vector<std::vector<st
         continue;
       }
       rel.push_back(std::abs(double(atlas.distance[i].x) - hit->t) / double(hit->t));
+      const glm::vec3 da = glm::abs(glm::vec3(atlas.albedo[i]) -
+                                    bake::detail::hitAlbedo(mesh, mesh.materials[mesh.triangleMaterial[hit->triangle]], *hit));
+      const float worst = std::max({da.x, da.y, da.z});
+      albedoSum += double(worst);
+      albedoOff += worst > 0.05f ? 1 : 0;
       if (!hit->backface) {
         const float c = std::clamp(glm::dot(glm::vec3(atlas.normal[i]), hit->normal), -1.0f, 1.0f);
         angle.push_back(double(std::acos(c)) * 180.0 / std::numbers::pi);
@@ -181,6 +193,8 @@ Accuracy accuracy(const gpu::ProbeAtlas& atlas, const std::vector<std::vector<st
   a.skyCoveredFraction = sky ? double(skyCovered) / double(sky) : 0.0;
   a.skyFilledFraction = sky ? double(skyFilled) / double(sky) : 0.0;
   a.compared = rel.size();
+  a.albedoMeanAbs = rel.empty() ? 0.0 : albedoSum / double(rel.size());
+  a.albedoFracOff = rel.empty() ? 0.0 : double(albedoOff) / double(rel.size());
   return a;
 }
 
@@ -223,6 +237,8 @@ int main(int argc, char** argv) {
   app.add_option("--budget-s", budgetS, "Skip a configuration projected to take longer (default 12 quick, 90 full)");
   app.add_option("--accuracy-probes", accuracyProbes, "Probes compared with Embree (default 8 quick, 16 full)");
   float lodTexels = gpu::VirOptions{}.lodTexels;
+  float lodElongation = gpu::VirOptions{}.lodElongation;
+  app.add_option("--lod-elongation", lodElongation, "vir_lod: VirOptions::lodElongation (1: width test only)");
   int lodBlockProbes = gpu::VirOptions{}.lodBlockProbes;
   app.add_option("--lod-texels", lodTexels, "vir_lod: VirOptions::lodTexels");
   app.add_option("--lod-block-probes", lodBlockProbes, "vir_lod: VirOptions::lodBlockProbes");
@@ -295,18 +311,18 @@ int main(int argc, char** argv) {
       // One probe's cut at N = 8 and 16 (CPU replay of vir_lod_cut.comp, block = the probe).
       const glm::vec3 eye = active[active.size() / 2];
       for (int n : {8, 16}) {
-        shared::VirLodParams lp{};
-        lp.res = uint32_t(n);
-        lp.maxRange = 1000.0f;
-        lp.footprintScale = gpu::VirOptions{}.footprintScale;
-        lp.lodTexels = lodTexels;
-        lp.depthTolerance = gpu::VirOptions{}.lodDepthTolerance;
+        gpu::VirOptions so;
+        so.resolution = n;
+        so.maxRange = 1000.0f;
+        so.lodTexels = lodTexels;
+        so.lodElongation = lodElongation;
+        const shared::VirLodParams lp = gpu::virLodClassifyParams(so);
         size_t leaves = 0, inner = 0, leavesUnderIncoherent = 0;
-        // Why each cut node's parent was refined (incoherent, wider than lodTexels, too thick), and the
-        // node's width in texels (the classify's r N / d): sub-texel nodes rarely cover a texel centre.
+        // Why each cut node's parent was refined (incoherent, too thick, else too wide: the footprint test),
+        // and the node's width in texels (the classify's r N / d): sub-texel nodes rarely cover a texel centre.
         std::array<size_t, 3> parentWhy{};
         std::array<size_t, 4> width{};  // < 0.5, < 1, < 2, >= 2 texels
-        for (const uint32_t i : gpu::virLodCut(tree, glm::vec4(eye, 0.0f), lp)) {
+        for (const uint32_t i : gpu::virLodCut(tree, gpu::virLodBlock(std::span(&eye, 1)), lp)) {
           const shared::Surfel& node = tree.nodes[i];
           const float d = glm::length(glm::vec3(node.positionRadius) - eye);
           const float w = node.positionRadius.w * lp.footprintScale * float(n) / std::max(d, 1e-6f);
@@ -314,9 +330,9 @@ int main(int argc, char** argv) {
           if (const uint32_t par = tree.up[i].x; par != ~0u) {
             const shared::Surfel& pn = tree.nodes[par];
             const float pd = glm::length(glm::vec3(pn.positionRadius) - eye);
-            ++parentWhy[!(tree.links[par].flags & LFGI_VIR_LOD_COHERENT) ? 0
-                        : pn.positionRadius.w * lp.footprintScale * float(n) > lodTexels * pd ? 1
-                                                                                             : 2];
+            ++parentWhy[!(tree.links[par].flags & LFGI_VIR_LOD_COHERENT)    ? 0
+                        : pn.emission.w > lp.depthTolerance * pd ? 2
+                                                                 : 1];
           }
           if (i >= tree.leafCount) {
             ++inner;
@@ -328,7 +344,7 @@ int main(int argc, char** argv) {
         spdlog::info("N={} cut for one probe: {} leaves ({} with an incoherent parent), {} merged nodes", n, leaves,
                      leavesUnderIncoherent, inner);
         spdlog::info("N={} cut nodes by width: {} < 0.5 texel, {} < 1, {} < 2, {} >= 2; parent refined as incoherent "
-                     "{}, wider than lodTexels {}, too thick {}",
+                     "{}, too wide {}, too thick {}",
                      n, width[0], width[1], width[2], width[3], parentWhy[0], parentWhy[1], parentWhy[2]);
       }
       return 0;
@@ -347,6 +363,7 @@ int main(int argc, char** argv) {
     gpu::VirOptions vlod = vo;
     vlod.lod = true;
     vlod.lodTexels = lodTexels;
+    vlod.lodElongation = lodElongation;
     vlod.lodBlockProbes = lodBlockProbes;
     vlod.lodOcclusionRange = lodOcclusionRange;
     vlod.reuseSplat = false;  // vir_lod measures the splat; vir_lod_relight reuses it
@@ -376,7 +393,7 @@ int main(int argc, char** argv) {
                   "normal_p90_deg", "hole_fraction", "dist_median_rel_error_vs_capture",
                   "normal_median_deg_vs_capture", "splat_pairs_per_s", "lod_nodes", "lod_build_ms", "splat_pairs_per_probe",
                   "texel_tests_per_probe", "atomics_per_probe", "window_pair_fraction", "sky_covered_fraction",
-                  "sky_filled_fraction"});
+                  "sky_filled_fraction", "albedo_mean_abs_error", "albedo_frac_off_0_05"});
     nlohmann::ordered_json skipped = nlohmann::ordered_json::array();
     struct Measured {
       double probesPerS = 0.0, msPerProbe = 0.0;
@@ -469,7 +486,7 @@ int main(int argc, char** argv) {
           const gpu::ProbeAtlas& atlas = fastest.atlas;
           const double splat = fastest.splat, resolve = fastest.resolve, wallMs = fastest.wallMs;
           if (!acc) {
-            acc = bench::accuracy(atlas, ref, accuracyProbes);
+            acc = bench::accuracy(atlas, ref, accuracyProbes, built.mesh);
             bench::accuracyVsCapture(atlas, capture, copt.maxDistance, *acc);
           }
           Measured m;
@@ -498,11 +515,11 @@ int main(int argc, char** argv) {
                          atlas.lodRadianceMs, atlas.splatMs, atlas.resolveMs, atlas.fillMs);
           spdlog::info("{} N={} probes={}: {:.1f} ms device, {:.1f} ms wall ({:.3f} ms/probe, {:.0f} probes/s); dist "
                        "median {:.2e} p90 {:.4f} off>5% {:.4f}, normal median {:.2f} p90 {:.2f} deg, holes {:.4f}, sky texels "
-                       "covered {:.4f} filled {:.4f}{}",
+                       "covered {:.4f} filled {:.4f}, albedo mean abs {:.4f} off>0.05 {:.4f}{}",
                        method, n, count, atlas.gpuMs, wallMs, m.msPerProbe, m.probesPerS, acc->distMedianRel,
                        acc->distP90Rel, acc->fracOff5pct, acc->normalMedianDeg, acc->normalP90Deg,
-                       acc->holeFractionOfHits, acc->skyCoveredFraction, acc->skyFilledFraction,
-                       m.atomicsPerS > 0 ? fmt::format(", {:.1f} M atomics/s", m.atomicsPerS * 1e-6) : "");
+                       acc->holeFractionOfHits, acc->skyCoveredFraction, acc->skyFilledFraction, acc->albedoMeanAbs,
+                       acc->albedoFracOff, m.atomicsPerS > 0 ? fmt::format(", {:.1f} M atomics/s", m.atomicsPerS * 1e-6) : "");
           o.addRow({method, std::to_string(n), std::to_string(count), std::to_string(built.surfels.size()),
                     std::to_string(scene.triangleCount()), bench::num(atlas.gpuMs), bench::num(m.msPerProbe),
                     bench::num(m.probesPerS), bench::num(m.probesPerS * double(built.surfels.size())),
@@ -516,7 +533,8 @@ int main(int argc, char** argv) {
                     method.starts_with("vir_lod") ? bench::num(lodBuildMs) : "0", bench::num(perProbe(atlas.splatPairs)),
                     bench::num(perProbe(atlas.splatTexelTests)), bench::num(perProbe(atlas.splatAtomics)),
                     bench::num(atlas.splatPairs ? double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0),
-                    bench::num(acc->skyCoveredFraction), bench::num(acc->skyFilledFraction)});
+                    bench::num(acc->skyCoveredFraction), bench::num(acc->skyFilledFraction),
+                    bench::num(acc->albedoMeanAbs), bench::num(acc->albedoFracOff)});
           perCount[{method, n, count}] = m.probesPerS;
         }
       }
@@ -556,10 +574,13 @@ int main(int argc, char** argv) {
     s["normal_median_deg_vs_capture"] = v16->second.acc.captureNormalMedianDeg;
     s["cubemap_normal_median_deg_vs_capture"] = c16->second.acc.captureNormalMedianDeg;
     s["cubemap_distance_frac_off_5pct"] = c16->second.acc.fracOff5pct;
+    s["albedo_frac_off_0_05"] = v16->second.acc.albedoFracOff;
+    s["cubemap_albedo_frac_off_0_05"] = c16->second.acc.albedoFracOff;
     s["vir_atomics_per_s"] = v16->second.atomicsPerS;
     s["vir_splat_pairs_per_s"] = v16->second.splatPairsPerS;
     s["vir_surfel_probes_per_s"] = v16->second.probesPerS * double(built.surfels.size());
     s["lod_texels"] = lodTexels;
+    s["lod_elongation"] = lodElongation;
     s["lod_occlusion_range_m"] = lodOcclusionRange;
     s["lod_block_probes"] = lodBlockProbes;
     s["repeat"] = repeat;

@@ -236,7 +236,22 @@ std::vector<uint32_t> virProbeBlockOrder(std::span<const glm::vec3> probes) {
   return order;
 }
 
-std::vector<uint32_t> virLodCut(const VirLodTree& tree, glm::vec4 block, const shared::VirLodParams& params) {
+shared::VirLodBlock virLodBlock(std::span<const glm::vec3> probes) {
+  if (probes.empty()) fail("VIR LOD: a probe block without probes");
+  glm::vec3 c(0.0f);
+  for (const glm::vec3& p : probes) c += p;
+  c /= float(probes.size());
+  float r = 0.0f;
+  glm::vec3 e(0.0f);
+  for (const glm::vec3& p : probes) {
+    r = std::max(r, glm::length(p - c));
+    e = glm::max(e, glm::abs(p - c));
+  }
+  return {glm::vec4(c, r * 1.0001f + 1e-6f), glm::vec4(e * 1.0001f + 1e-6f, 0.0f)};
+}
+
+std::vector<uint32_t> virLodCut(const VirLodTree& tree, const shared::VirLodBlock& block,
+                                const shared::VirLodParams& params) {
   std::vector<uint32_t> cut, stack{tree.root()};
   while (!stack.empty()) {
     const uint32_t i = stack.back();

@@ -71,10 +71,15 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
 // (VirPass's probe blocks). A permutation of [0, probes.size()); deterministic.
 std::vector<uint32_t> virProbeBlockOrder(std::span<const glm::vec3> probes);
 
-// CPU replay of vir_lod_cut.comp for one probe block (xyz centre, w radius): the nodes the walk emits
+// The cut's bounds of a probe block (VirPass's blocks, the CPU replay's): centroid, radius and per-axis
+// extents about the centroid, padded by 1e-4 relative + 1e-6 m against rounding. Empty span: throws.
+shared::VirLodBlock virLodBlock(std::span<const glm::vec3> probes);
+
+// CPU replay of vir_lod_cut.comp for one probe block (virLodBlock): the nodes the walk emits
 // (shared/vir.h virLodClassify; depth first, the device's order differs and the splat ignores it). params:
 // the fields virLodClassify reads (res, maxRange, footprintScale, lodTexels, depthTolerance). Unlike the
 // device walk it never accepts a node early for lack of stack (LFGI_VIR_LOD_STACK).
-std::vector<uint32_t> virLodCut(const VirLodTree& tree, glm::vec4 block, const shared::VirLodParams& params);
+std::vector<uint32_t> virLodCut(const VirLodTree& tree, const shared::VirLodBlock& block,
+                                const shared::VirLodParams& params);
 
 }  // namespace lfgi::gpu

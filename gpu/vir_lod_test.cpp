@@ -8,6 +8,7 @@
 #include <numbers>
 
 #include "core/error.h"
+#include "gpu/vir_pass.h"
 #include "shared/octahedral.h"
 #include "test_util.h"
 
@@ -202,6 +203,62 @@ TEST(VirLod, ProbeBlockOrderGroupsGridCubes) {
     EXPECT_NEAR(r, std::sqrt(3.0f), 1e-4f) << "block " << b / 8;
   }
   EXPECT_EQ(virProbeBlockOrder(probes), order);
+}
+
+// The cut's foreshortening rule (VirOptions::lodElongation, shared/vir.h virLodClassify): seen at a grazing
+// angle, a floor is cut into far fewer nodes, each up to lodElongation x lodTexels wide but with the
+// projected area of a lodTexels-wide one (checked against the |cos| at its rectangle's corners, not the
+// classify's bound); seen from above, the rule changes little; with lodElongation 1 it is the width test.
+TEST(VirLod, ForeshortenedNodesAreCutCoarserWithTheSameProjectedArea) {
+  std::vector<shared::Surfel> surfels;
+  addFloor(surfels, 64.0f, 0.5f, 0.0f, 7u);
+  const VirLodTree tree = buildVirLodTree(surfels);
+  VirOptions o;
+  o.resolution = 16;
+  o.maxRange = 1000.0f;
+  struct Stats {
+    size_t nodes = 0;
+    float widest = 0.0f, largestArea = 0.0f;  // max w, max w^2 |cos| over accepted merged nodes
+  };
+  const auto cutStats = [&](glm::vec3 probe, float elongation) {
+    o.lodElongation = elongation;
+    const shared::VirLodParams lp = virLodClassifyParams(o);
+    Stats st;
+    for (const uint32_t i : virLodCut(tree, virLodBlock(std::span(&probe, 1)), lp)) {
+      ++st.nodes;
+      if (i < tree.leafCount) continue;
+      const shared::Surfel& node = tree.nodes[i];
+      const glm::vec3 pos(node.positionRadius), nrm(node.normal);
+      const float w = node.positionRadius.w * lp.footprintScale * float(lp.res) / glm::length(pos - probe);
+      const glm::vec4 rect = tree.rects[i];
+      const glm::vec3 t1 = shared::octDecode(glm::vec2(rect.x, rect.y)), t2 = glm::cross(nrm, t1);
+      float c = 0.0f;
+      for (const float a : {-1.0f, 1.0f})
+        for (const float b : {-1.0f, 1.0f})
+          c = std::max(c, std::abs(glm::dot(nrm, glm::normalize(pos + a * rect.z * t1 + b * rect.w * t2 - probe))));
+      st.widest = std::max(st.widest, w);
+      st.largestArea = std::max(st.largestArea, w * w * c);
+    }
+    return st;
+  };
+  const float lt = o.lodTexels, lt2 = lt * lt;
+  const glm::vec3 grazing(32.0f, 0.5f, -8.0f), above(32.0f, 40.0f, 32.0f);
+  const Stats g1 = cutStats(grazing, 1.0f), g2 = cutStats(grazing, 2.0f), g4 = cutStats(grazing, 4.0f);
+  const Stats a1 = cutStats(above, 1.0f), a2 = cutStats(above, 2.0f);
+  std::printf("floor cut nodes, lodElongation 1 / 2 / 4: grazing %zu / %zu / %zu (widest %.2f / %.2f / %.2f "
+              "texels, largest w^2 cos %.2f / %.2f / %.2f), from above %zu / %zu\n",
+              g1.nodes, g2.nodes, g4.nodes, g1.widest, g2.widest, g4.widest, g1.largestArea, g2.largestArea,
+              g4.largestArea, a1.nodes, a2.nodes);
+  EXPECT_LE(g1.widest, lt);
+  EXPECT_LE(a1.widest, lt);
+  EXPECT_GT(g2.widest, lt);  // the rule took effect
+  EXPECT_LE(g2.widest, 2.0f * lt);
+  EXPECT_LE(g4.widest, 4.0f * lt);
+  for (const Stats& st : {g1, g2, g4, a1, a2}) EXPECT_LE(st.largestArea, lt2 * 1.0001f);
+  EXPECT_LT(g2.nodes * 3, g1.nodes * 2);  // grazing: at least a third fewer nodes
+  EXPECT_LE(g4.nodes, g2.nodes);
+  EXPECT_GT(a2.nodes * 10, a1.nodes * 7);  // from above: hardly any node is foreshortened enough
+  EXPECT_LE(a2.nodes, a1.nodes);
 }
 
 }  // namespace

@@ -42,10 +42,21 @@ void VirPass::grow(Buffer& buffer, size_t bytes) {
   if (buffer.handle() == VK_NULL_HANDLE || buffer.size() < bytes) buffer = createStorageBuffer(ctx_, bytes);
 }
 
+shared::VirLodParams virLodClassifyParams(const VirOptions& o) {
+  shared::VirLodParams lp{};
+  lp.res = uint32_t(o.resolution);
+  lp.maxRange = o.maxRange;
+  lp.footprintScale = o.footprintScale;
+  lp.lodTexels = o.lodTexels;
+  lp.lodElongation = o.lodElongation;
+  lp.depthTolerance = o.lodDepthTolerance;
+  return lp;
+}
+
 bool VirPass::sameSplat(const VirOptions& a, const VirOptions& b) {
   return a.resolution == b.resolution && a.maxRange == b.maxRange && a.footprintScale == b.footprintScale &&
          a.maxFootprintRadius == b.maxFootprintRadius && a.lod == b.lod && a.lodTexels == b.lodTexels &&
-         a.lodBlockProbes == b.lodBlockProbes && a.lodDepthTolerance == b.lodDepthTolerance &&
+         a.lodElongation == b.lodElongation && a.lodBlockProbes == b.lodBlockProbes && a.lodDepthTolerance == b.lodDepthTolerance &&
          a.lodOcclusionRange == b.lodOcclusionRange;
 }
 
@@ -104,6 +115,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     fail("VIR: fillPasses {} outside [0, {}]", o.fillPasses, VirOptions::kMaxFillPasses);
   if (!(std::isfinite(o.lodTexels) && o.lodTexels > 0.0f && o.lodTexels <= 16.0f))
     fail("VIR: lodTexels {} outside (0, 16]", o.lodTexels);
+  if (!(std::isfinite(o.lodElongation) && o.lodElongation >= 1.0f && o.lodElongation <= 8.0f))
+    fail("VIR: lodElongation {} outside [1, 8]", o.lodElongation);
   if (!(std::isfinite(o.lodDepthTolerance) && o.lodDepthTolerance >= 0.0f && o.lodDepthTolerance <= 1.0f))
     fail("VIR: lodDepthTolerance {} outside [0, 1]", o.lodDepthTolerance);
   if (o.lodBlockProbes < 1 || o.lodBlockProbes > LFGI_VIR_LOD_MAX_BLOCK_PROBES)
@@ -164,36 +177,28 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   const uint32_t res = params.res, probeCount = params.probeCount;
 
   // LOD: probe blocks (consecutive probes in block order, bounding spheres) and the cut buffer.
-  shared::VirLodParams lp{};
+  shared::VirLodParams lp = virLodClassifyParams(o);
   size_t blockCount = 0, batchBlocks = 0;
   if (o.lod) {
     const size_t bp = size_t(o.lodBlockProbes);
     blockCount = (probes.size() + bp - 1) / bp;
-    std::vector<glm::vec4> blocks(blockCount);
+    std::vector<shared::VirLodBlock> blocks(blockCount);
+    std::vector<glm::vec3> inBlock;
     for (size_t b = 0; b < blockCount; ++b) {
-      const size_t first = b * bp, last = std::min(probes.size(), first + bp);
-      glm::vec3 c(0.0f);
-      for (size_t i = first; i < last; ++i) c += glm::vec3(probe4[i]);
-      c /= float(last - first);
-      float r = 0.0f;
-      for (size_t i = first; i < last; ++i) r = std::max(r, glm::length(glm::vec3(probe4[i]) - c));
-      blocks[b] = glm::vec4(c, r * 1.0001f + 1e-6f);
+      inBlock.clear();
+      for (size_t i = b * bp; i < std::min(probes.size(), (b + 1) * bp); ++i) inBlock.push_back(glm::vec3(probe4[i]));
+      blocks[b] = virLodBlock(inBlock);
     }
-    grow(blockBuf_, blocks.size() * sizeof(glm::vec4));
-    upload<glm::vec4>(ctx_, blockBuf_, blocks);
+    grow(blockBuf_, blocks.size() * sizeof(shared::VirLodBlock));
+    upload<shared::VirLodBlock>(ctx_, blockBuf_, blocks);
     // First guess 128 N^2 entries per block: a block of a city cell at N = 16 cuts ~30 k nodes, and an
     // overflow redoes the whole run (16 N^2 cost one extra run per new VirPass on a 15 k-probe cell).
     if (cutCapacity_ == 0) cutCapacity_ = uint32_t(std::clamp<size_t>(128 * n2, 4096, kMaxCutEntries));
     grow(cutCountBuf_, 2 * blockCount * sizeof(uint32_t));  // cut and todo entries per block of a batch
     grow(statsBuf_, kLodStats * sizeof(uint64_t));
     lp.probeCount = probeCount;
-    lp.res = res;
     lp.blockProbes = uint32_t(bp);
     lp.rootNode = tree_.root();
-    lp.maxRange = o.maxRange;
-    lp.footprintScale = o.footprintScale;
-    lp.lodTexels = o.lodTexels;
-    lp.depthTolerance = o.lodDepthTolerance;
     lp.nearRange = o.lodOcclusionRange;
     atlas.lodNodes = tree_.nodes.size();
   }

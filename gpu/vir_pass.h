@@ -6,8 +6,9 @@
 // Two splat paths (VirOptions::lod):
 //   off: every surfel into every probe (vir_splat.comp; one invocation per (surfel, probe) pair).
 //   on (default): a surfel LOD tree (gpu/vir_lod.h, built once per surfel set and kept resident) is cut
-//     per block of nearby probes at the coarsest nodes whose disc stays below lodTexels texels
-//     (vir_lod_cut.comp), and only the cut is splatted (vir_lod_splat.comp, node-major within a block).
+//     per block of nearby probes at the coarsest nodes whose disc stays below lodTexels texels, or whose
+//     projected area stays that small when the whole block sees them obliquely (lodElongation), in
+//     vir_lod_cut.comp, and only the cut is splatted (vir_lod_splat.comp, node-major within a block).
 //     Far surfels cover a tiny fraction of a texel, so most (surfel, probe) pairs of the full splat only
 //     lose the depth test; the cut keeps ~ texels x depth complexity discs per probe. Merged discs carry
 //     the area-weighted mean radiance of their surfels (vir_lod_radiance.comp, per call, so relighting
@@ -46,6 +47,10 @@ struct VirOptions {
   int fillPasses = 2;           // hole fill passes (enclosed gaps only), 0..kMaxFillPasses
   bool lod = true;              // splat a per-probe-block cut of the surfel LOD tree (see above)
   float lodTexels = 4.0f;       // LOD: a merged node may stand in for its surfels when <= this many texels wide
+  // LOD: a foreshortened merged node (seen obliquely from every probe of the block) may be up to this x
+  // lodTexels wide while its projected area stays within a lodTexels-wide node's; [1, 8], 1: the width
+  // test alone (shared/vir.h virLodClassify)
+  float lodElongation = 2.0f;
   int lodBlockProbes = 16;      // LOD: probes sharing one cut (consecutive along a Morton curve), [1, 32];
                                 // 16 (2 x 2 x 4 of a grid) since the node-major splat: as fast as 8 and a
                                 // finer cut (city cell, N = 8: texels > 5 % off 6.7 -> 3.4 %)
@@ -87,6 +92,10 @@ struct ProbeAtlas {
   bool splatReused = false;       // VirOptions::reuseSplat hit: the previous run's winners; the splat
                                   // counters above are that run's, splatMs ~0
 };
+
+// The fields of shared::VirLodParams that shared/vir.h virLodClassify reads (res, maxRange, footprintScale,
+// lodTexels, lodElongation, depthTolerance) from the options: what the CPU cut replay gpu::virLodCut takes.
+shared::VirLodParams virLodClassifyParams(const VirOptions& o);
 
 class VirPass {
  public:

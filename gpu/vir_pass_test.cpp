@@ -519,12 +519,7 @@ TEST(VirPass, LodSplatCoversExactlyTheFootprintsOfItsCut) {
   VirLodBuildOptions bo;
   bo.footprintScale = o.footprintScale;
   const VirLodTree tree = buildVirLodTree(surfels, bo);
-  shared::VirLodParams lp{};
-  lp.res = uint32_t(o.resolution);
-  lp.maxRange = o.maxRange;
-  lp.footprintScale = o.footprintScale;
-  lp.lodTexels = o.lodTexels;
-  lp.depthTolerance = o.lodDepthTolerance;
+  const shared::VirLodParams lp = virLodClassifyParams(o);
   const uint32_t n = uint32_t(o.resolution);
   // Depth along unit ray td from the probe to node i's footprint scaled by `grow`; +inf: no hit.
   const auto hitDepth = [&](uint32_t i, glm::vec3 probe, glm::vec3 td, float grow) {
@@ -549,20 +544,17 @@ TEST(VirPass, LodSplatCoversExactlyTheFootprintsOfItsCut) {
   for (const int blockProbes : {1, 2, LFGI_VIR_LOD_MAX_BLOCK_PROBES}) {
     o.lodBlockProbes = blockProbes;
     const ProbeAtlas atlas = pass.run(surfels, probes, o);
-    std::vector<glm::vec4> sphere(probes.size());
+    std::vector<shared::VirLodBlock> block(probes.size());  // of each probe's block
     const std::vector<uint32_t> order = virProbeBlockOrder(probes);
     for (size_t b0 = 0; b0 < order.size(); b0 += size_t(blockProbes)) {
       const size_t b1 = std::min(order.size(), b0 + size_t(blockProbes));
-      glm::vec3 c(0.0f);
-      for (size_t k = b0; k < b1; ++k) c += probes[order[k]];
-      c /= float(b1 - b0);
-      float r = 0.0f;
-      for (size_t k = b0; k < b1; ++k) r = std::max(r, glm::length(probes[order[k]] - c));
-      for (size_t k = b0; k < b1; ++k) sphere[order[k]] = glm::vec4(c, r * 1.0001f + 1e-6f);
+      std::vector<glm::vec3> members;
+      for (size_t k = b0; k < b1; ++k) members.push_back(probes[order[k]]);
+      for (size_t k = b0; k < b1; ++k) block[order[k]] = virLodBlock(members);
     }
     size_t covered = 0, missed = 0, extra = 0, badDepth = 0, cutNodes = 0, rectNodes = 0;
     for (size_t p = 0; p < probes.size(); ++p) {
-      const std::vector<uint32_t> cut = virLodCut(tree, sphere[p], lp);
+      const std::vector<uint32_t> cut = virLodCut(tree, block[p], lp);
       cutNodes += cut.size();
       for (uint32_t i : cut) rectNodes += tree.rects[i].z >= 0.0f ? 1 : 0;
       for (uint32_t j = 0; j < n; ++j)

@@ -1,10 +1,11 @@
 #version 450
-// VIR LOD cut: per probe block (consecutive probes, bounding sphere in `blocks`), the cut through the
-// surfel LOD tree (gpu/vir_lod.h): walking down from the root, stop at the first node that
-// shared/vir.h virLodClassify accepts (a leaf, or a coherent node at most lodTexels texels wide and thin
-// enough seen from the block's nearest point) or drops (beyond maxRange, or facing away from every probe
-// of the block: the splat would cull all of it); incoherent nodes (normal cone too wide) are always
-// refined. vir_lod_splat.comp splats the cut into each probe of the block.
+// VIR LOD cut: per probe block (consecutive probes; bounding sphere and per-axis extents in `blocks`), the
+// cut through the surfel LOD tree (gpu/vir_lod.h): walking down from the root, stop at the first node that
+// shared/vir.h virLodClassify accepts (a leaf, or a coherent node at most lodTexels texels wide, or up to
+// lodElongation x that when seen obliquely from the whole block, and thin enough seen from the block's
+// nearest point) or drops (beyond maxRange, or facing away from every probe of the block: the splat would
+// cull all of it); incoherent nodes (normal cone too wide) are always refined. vir_lod_splat.comp splats
+// the cut into each probe of the block.
 //
 // The walk runs in two stages (VirLodParams::cutStage). Top: one invocation per block walks the nodes
 // above the frontier (VirLodTree::frontier cuts the tree into subtrees of <= 2048 nodes; up[i].y != ~0u
@@ -35,7 +36,7 @@ layout(std430, set = 0, binding = 2) readonly buffer Children { uint children[];
 // (parent, designated frontier node: ~0u for frontier nodes and below)
 layout(std430, set = 0, binding = 3) readonly buffer Up { uvec2 up[]; };
 layout(std430, set = 0, binding = 4) buffer Todo { uint todo[]; };  // blockCount x nodeCount: node | kFarBit
-layout(std430, set = 0, binding = 5) readonly buffer Blocks { vec4 blocks[]; };  // xyz centre, w radius
+layout(std430, set = 0, binding = 5) readonly buffer Blocks { VirLodBlock blocks[]; };  // gpu::virLodBlock
 layout(std430, set = 0, binding = 6) writeonly buffer Cut { uint cut[]; };      // blockCount x cutCapacity
 // [b]: cut entries of block b; [blockCount + b]: its todo entries (zeroed before each batch)
 layout(std430, set = 0, binding = 7) buffer CutCount { uint cutCount[]; };
@@ -56,14 +57,14 @@ layout(push_constant) uniform Push { VirLodParams params; };
 const uint kFarBit = 0x80000000u;  // stack entries: node | kFarBit when the node or an ancestor is far
 
 VirLodParams cp;  // params, with the near pass's range
-vec4 blk;
+VirLodBlock blk;
 uint globalBlock;
 uint buf[32];
 uint nbuf = 0u;
 
 int classify(uint s) { return virLodClassify(nodes[s], links[s], blk, cp); }
 
-bool beyondNear(uint s) { return virLodBeyond(nodes[s], blk, params.nearRange, params.footprintScale); }
+bool beyondNear(uint s) { return virLodBeyond(nodes[s], blk.sphere, params.nearRange, params.footprintScale); }
 
 // The sphere (node centre, radius) is occluded in every probe of the block.
 bool blockOccluded(uint s, float radius) {

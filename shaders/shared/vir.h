@@ -71,8 +71,9 @@ struct VirLodParams {
   uint hizProbeTexels;      // occlusion culling: uints per probe in the HiZ buffer (levels 1, 2, ...)
   uint hizLevel;            // HiZ pass: the level written (>= 1); level 0 is the slots' depth words
   uint cutStage;            // cut pass: LFGI_VIR_LOD_STAGE_TOP or _SUBTREES (vir_lod_cut.comp)
+  float lodElongation;      // cut: a foreshortened node may be up to this x lodTexels long (1: isotropic)
 };
-LFGI_CHECK_SIZE(VirLodParams, 80)
+LFGI_CHECK_SIZE(VirLodParams, 84)
 LFGI_CHECK_OFFSET(VirLodParams, maxRange, 48)
 
 // VirLodParams::cutPass. Occlusion culling (VirOptions::lodOcclusionRange > 0) runs the cut and splat
@@ -88,6 +89,15 @@ LFGI_CHECK_OFFSET(VirLodParams, maxRange, 48)
 // frontier subtrees to walk), then the walks of the listed subtrees.
 #define LFGI_VIR_LOD_STAGE_TOP 0u
 #define LFGI_VIR_LOD_STAGE_SUBTREES 1u
+
+// A probe block as the cut sees it (gpu::virLodBlock): a sphere about the probes' centroid holding them
+// all, and the largest |offset| of a probe from that centroid per axis (bounds a probe's height over a
+// node's plane far more tightly than the radius where the normal is axis-aligned: the city's walls).
+struct VirLodBlock {
+  vec4 sphere;  // xyz centre, w radius
+  vec4 extent;  // xyz: per-axis extent about the centre (<= radius); w unused
+};
+LFGI_CHECK_SIZE(VirLodBlock, 32)
 
 // True when the node's footprint lies entirely beyond `range` of the whole block (the cut's range drop).
 LFGI_INLINE bool virLodBeyond(Surfel node, vec4 block, float range, float footprintScale) {
@@ -107,27 +117,44 @@ LFGI_INLINE bool virLodBeyond(Surfel node, vec4 block, float range, float footpr
 //          r (1 + 1 / cos) + 2 thickness of the node centre (its rectangle bounds the projections of the
 //          rectangles below, which tilt by at most the cone), tested only for cones below 60 degrees;
 //   accept a leaf, or a coherent node whose footprint (radius r) is at most lodTexels texels wide seen from
-//          the block's nearest point (2 r / d <= lodTexels x 2 / N, the angle of a texel where the map is
-//          least stretched) and whose thickness is <= depthTolerance x that distance;
+//          the block's nearest point (w = r N / d <= lodTexels, i.e. 2 r / d <= lodTexels x 2 / N, the angle
+//          of a texel where the map is least stretched) and whose thickness is <= depthTolerance x that
+//          distance; a foreshortened node may be up to lodElongation x wider (w <= lodElongation x
+//          lodTexels) while w^2 c <= lodTexels^2, c a bound on |cos| between its normal and any direction
+//          from a probe of the block to its footprint (its projected area stays a lodTexels-wide node's):
+//          walls seen obliquely from a street, whose cut nodes cover few texel centres each;
 //   refine otherwise (children next).
-LFGI_INLINE int virLodClassify(Surfel node, VirLodLink link, vec4 block, VirLodParams params) {
+LFGI_INLINE int virLodClassify(Surfel node, VirLodLink link, VirLodBlock blk, VirLodParams params) {
+  vec4 block = blk.sphere;
   if (virLodBeyond(node, block, params.maxRange, params.footprintScale)) return LFGI_VIR_LOD_DROP;
   float r = node.positionRadius.w * params.footprintScale;
   vec3 v = vec3(block) - vec3(node.positionRadius);
   float lv = length(v);
-  float dmin = lv - block.w;
+  // nearest probe distance >= the distance to the block's sphere and to its box (per-axis extents)
+  float dmin = max(lv - block.w, length(max(abs(v) - vec3(blk.extent), vec3(0.0f))));
   float cosA = node.albedo.w;
   if (cosA > 0.5f && lv > 0.0f) {
     float cosT = dot(vec3(node.normal), v) / lv;  // angle between the normal and the block centre
     float sinT = sqrt(max(1.0f - cosT * cosT, 0.0f)), sinA = sqrt(max(1.0f - cosA * cosA, 0.0f));
     float spread = link.childCount == 0u ? 0.0f : r * (1.0f + 1.0f / cosA) + 2.0f * node.emission.w;
-    // max over the cone's normals m of dot(m, v) = |v| cos(angle - cone half-angle)
-    if (lv * (cosT * cosA + sinT * sinA) + block.w + spread < 0.0f) return LFGI_VIR_LOD_DROP;
+    // max over the cone's normals m of dot(m, v) = |v| cos(angle - cone half-angle); a probe's offset o
+    // from the centre adds dot(m, o) <= |dot(n, o)| + |m - n| |o| <= dot(|n|, extent) + 2 sin(A / 2) radius
+    float offsetN = min(block.w, dot(abs(vec3(node.normal)), vec3(blk.extent)) +
+                                     2.0f * sqrt(max(0.5f - 0.5f * cosA, 0.0f)) * block.w);
+    if (lv * (cosT * cosA + sinT * sinA) + offsetN + spread < 0.0f) return LFGI_VIR_LOD_DROP;
   }
   if (link.childCount == 0u) return LFGI_VIR_LOD_ACCEPT;
-  if ((link.flags & LFGI_VIR_LOD_COHERENT) != 0u && r * float(params.res) <= params.lodTexels * dmin &&
-      node.emission.w <= params.depthTolerance * dmin)
-    return LFGI_VIR_LOD_ACCEPT;
+  if ((link.flags & LFGI_VIR_LOD_COHERENT) != 0u && dmin > 0.0f && node.emission.w <= params.depthTolerance * dmin) {
+    float w = r * float(params.res) / dmin;  // the footprint's width in the classify's texel units
+    // foreshortening bound: |cos| between the normal and the direction from any probe of the block to any
+    // point of the footprint (in the node's plane) = the probe's height over the plane / its distance to
+    // the point <= (centre height + largest probe offset along the normal) / (dmin - r)
+    float closest = dmin - r;
+    float spreadN = min(block.w, dot(abs(vec3(node.normal)), vec3(blk.extent)));
+    float c = closest > 0.0f ? min((abs(dot(vec3(node.normal), v)) + spreadN) / closest, 1.0f) : 1.0f;
+    if (w <= params.lodTexels * params.lodElongation && w * w * c <= params.lodTexels * params.lodTexels)
+      return LFGI_VIR_LOD_ACCEPT;
+  }
   return LFGI_VIR_LOD_REFINE;
 }
 
