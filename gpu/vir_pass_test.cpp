@@ -424,6 +424,11 @@ TEST(VirPass, LodOcclusionCullingIsExactAndDropsHiddenSurfels) {
   bad = VirOptions{};
   bad.lodBlockProbes = LFGI_VIR_LOD_MAX_BLOCK_PROBES + 1;
   EXPECT_THROW(pass.run(surfels, probes, bad), Error);
+  for (const float elongation : {0.5f, 8.5f, std::nanf("")}) {
+    bad = VirOptions{};
+    bad.lodElongation = elongation;
+    EXPECT_THROW(pass.run(surfels, probes, bad), Error) << elongation;
+  }
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
 }
 
