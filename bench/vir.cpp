@@ -172,8 +172,9 @@ Accuracy accuracy(const gpu::ProbeAtlas& atlas, const std::vector<std::vector<st
         continue;
       }
       rel.push_back(std::abs(double(atlas.distance[i].x) - hit->t) / double(hit->t));
-      const glm::vec3 da = glm::abs(glm::vec3(atlas.albedo[i]) -
-                                    bake::detail::hitAlbedo(mesh, mesh.materials[mesh.triangleMaterial[hit->triangle]], *hit));
+      const worlds::Material& material = mesh.materials[mesh.triangleMaterial[hit->triangle]];
+      const glm::vec3 da =
+          glm::abs(glm::vec3(atlas.albedo[i]) - bake::detail::hitAlbedo(mesh, material, *hit));
       const float worst = std::max({da.x, da.y, da.z});
       albedoSum += double(worst);
       albedoOff += worst > 0.05f ? 1 : 0;
@@ -238,7 +239,8 @@ int main(int argc, char** argv) {
   app.add_option("--accuracy-probes", accuracyProbes, "Probes compared with Embree (default 8 quick, 16 full)");
   float lodTexels = gpu::VirOptions{}.lodTexels;
   float lodElongation = gpu::VirOptions{}.lodElongation;
-  app.add_option("--lod-elongation", lodElongation, "vir_lod: VirOptions::lodElongation (1: width test only)");
+  app.add_option("--lod-elongation", lodElongation,
+                 "vir_lod: VirOptions::lodElongation (1: width test only)");
   int lodBlockProbes = gpu::VirOptions{}.lodBlockProbes;
   app.add_option("--lod-texels", lodTexels, "vir_lod: VirOptions::lodTexels");
   app.add_option("--lod-block-probes", lodBlockProbes, "vir_lod: VirOptions::lodBlockProbes");
@@ -318,8 +320,9 @@ int main(int argc, char** argv) {
         so.lodElongation = lodElongation;
         const shared::VirLodParams lp = gpu::virLodClassifyParams(so);
         size_t leaves = 0, inner = 0, leavesUnderIncoherent = 0;
-        // Why each cut node's parent was refined (incoherent, too thick, else too wide: the footprint test),
-        // and the node's width in texels (the classify's r N / d): sub-texel nodes rarely cover a texel centre.
+        // Why each cut node's parent was refined (incoherent, too thick, else too wide: the footprint
+        // test), and the node's width in texels (the classify's r N / d): sub-texel nodes rarely cover a
+        // texel centre.
         std::array<size_t, 3> parentWhy{};
         std::array<size_t, 4> width{};  // < 0.5, < 1, < 2, >= 2 texels
         for (const uint32_t i : gpu::virLodCut(tree, gpu::virLodBlock(std::span(&eye, 1)), lp)) {
@@ -518,8 +521,9 @@ int main(int argc, char** argv) {
                        "covered {:.4f} filled {:.4f}, albedo mean abs {:.4f} off>0.05 {:.4f}{}",
                        method, n, count, atlas.gpuMs, wallMs, m.msPerProbe, m.probesPerS, acc->distMedianRel,
                        acc->distP90Rel, acc->fracOff5pct, acc->normalMedianDeg, acc->normalP90Deg,
-                       acc->holeFractionOfHits, acc->skyCoveredFraction, acc->skyFilledFraction, acc->albedoMeanAbs,
-                       acc->albedoFracOff, m.atomicsPerS > 0 ? fmt::format(", {:.1f} M atomics/s", m.atomicsPerS * 1e-6) : "");
+                       acc->holeFractionOfHits, acc->skyCoveredFraction, acc->skyFilledFraction,
+                       acc->albedoMeanAbs, acc->albedoFracOff,
+                       m.atomicsPerS > 0 ? fmt::format(", {:.1f} M atomics/s", m.atomicsPerS * 1e-6) : "");
           o.addRow({method, std::to_string(n), std::to_string(count), std::to_string(built.surfels.size()),
                     std::to_string(scene.triangleCount()), bench::num(atlas.gpuMs), bench::num(m.msPerProbe),
                     bench::num(m.probesPerS), bench::num(m.probesPerS * double(built.surfels.size())),

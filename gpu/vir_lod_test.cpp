@@ -235,7 +235,8 @@ TEST(VirLod, ForeshortenedNodesAreCutCoarserWithTheSameProjectedArea) {
       float c = 0.0f;
       for (const float a : {-1.0f, 1.0f})
         for (const float b : {-1.0f, 1.0f})
-          c = std::max(c, std::abs(glm::dot(nrm, glm::normalize(pos + a * rect.z * t1 + b * rect.w * t2 - probe))));
+          c = std::max(
+              c, std::abs(glm::dot(nrm, glm::normalize(pos + a * rect.z * t1 + b * rect.w * t2 - probe))));
       st.widest = std::max(st.widest, w);
       st.largestArea = std::max(st.largestArea, w * w * c);
     }
@@ -245,10 +246,11 @@ TEST(VirLod, ForeshortenedNodesAreCutCoarserWithTheSameProjectedArea) {
   const glm::vec3 grazing(32.0f, 0.5f, -8.0f), above(32.0f, 40.0f, 32.0f);
   const Stats g1 = cutStats(grazing, 1.0f), g2 = cutStats(grazing, 2.0f), g4 = cutStats(grazing, 4.0f);
   const Stats a1 = cutStats(above, 1.0f), a2 = cutStats(above, 2.0f);
-  std::printf("floor cut nodes, lodElongation 1 / 2 / 4: grazing %zu / %zu / %zu (widest %.2f / %.2f / %.2f "
-              "texels, largest w^2 cos %.2f / %.2f / %.2f), from above %zu / %zu\n",
-              g1.nodes, g2.nodes, g4.nodes, g1.widest, g2.widest, g4.widest, g1.largestArea, g2.largestArea,
-              g4.largestArea, a1.nodes, a2.nodes);
+  std::printf(
+      "floor cut nodes, lodElongation 1 / 2 / 4: grazing %zu / %zu / %zu (widest %.2f / %.2f / %.2f "
+      "texels, largest w^2 cos %.2f / %.2f / %.2f), from above %zu / %zu\n",
+      g1.nodes, g2.nodes, g4.nodes, g1.widest, g2.widest, g4.widest, g1.largestArea, g2.largestArea,
+      g4.largestArea, a1.nodes, a2.nodes);
   EXPECT_LE(g1.widest, lt);
   EXPECT_LE(a1.widest, lt);
   EXPECT_GT(g2.widest, lt);  // the rule took effect

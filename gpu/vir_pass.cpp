@@ -56,8 +56,8 @@ shared::VirLodParams virLodClassifyParams(const VirOptions& o) {
 bool VirPass::sameSplat(const VirOptions& a, const VirOptions& b) {
   return a.resolution == b.resolution && a.maxRange == b.maxRange && a.footprintScale == b.footprintScale &&
          a.maxFootprintRadius == b.maxFootprintRadius && a.lod == b.lod && a.lodTexels == b.lodTexels &&
-         a.lodElongation == b.lodElongation && a.lodBlockProbes == b.lodBlockProbes && a.lodDepthTolerance == b.lodDepthTolerance &&
-         a.lodOcclusionRange == b.lodOcclusionRange;
+         a.lodElongation == b.lodElongation && a.lodBlockProbes == b.lodBlockProbes &&
+         a.lodDepthTolerance == b.lodDepthTolerance && a.lodOcclusionRange == b.lodOcclusionRange;
 }
 
 double VirPass::prepareSurfels(std::span<const shared::Surfel> surfels, const VirOptions& o) {
@@ -186,7 +186,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     std::vector<glm::vec3> inBlock;
     for (size_t b = 0; b < blockCount; ++b) {
       inBlock.clear();
-      for (size_t i = b * bp; i < std::min(probes.size(), (b + 1) * bp); ++i) inBlock.push_back(glm::vec3(probe4[i]));
+      for (size_t i = b * bp; i < std::min(probes.size(), (b + 1) * bp); ++i)
+        inBlock.push_back(glm::vec3(probe4[i]));
       blocks[b] = virLodBlock(inBlock);
     }
     grow(blockBuf_, blocks.size() * sizeof(shared::VirLodBlock));

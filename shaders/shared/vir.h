@@ -144,7 +144,8 @@ LFGI_INLINE int virLodClassify(Surfel node, VirLodLink link, VirLodBlock blk, Vi
     if (lv * (cosT * cosA + sinT * sinA) + offsetN + spread < 0.0f) return LFGI_VIR_LOD_DROP;
   }
   if (link.childCount == 0u) return LFGI_VIR_LOD_ACCEPT;
-  if ((link.flags & LFGI_VIR_LOD_COHERENT) != 0u && dmin > 0.0f && node.emission.w <= params.depthTolerance * dmin) {
+  if ((link.flags & LFGI_VIR_LOD_COHERENT) != 0u && dmin > 0.0f &&
+      node.emission.w <= params.depthTolerance * dmin) {
     float w = r * float(params.res) / dmin;  // the footprint's width in the classify's texel units
     // foreshortening bound: |cos| between the normal and the direction from any probe of the block to any
     // point of the footprint (in the node's plane) = the probe's height over the plane / its distance to
