@@ -77,8 +77,8 @@ shared::VirLodBlock virLodBlock(std::span<const glm::vec3> probes);
 
 // CPU replay of vir_lod_cut.comp for one probe block (virLodBlock): the nodes the walk emits
 // (shared/vir.h virLodClassify; depth first, the device's order differs and the splat ignores it). params:
-// the fields virLodClassify reads (res, maxRange, footprintScale, lodTexels, depthTolerance). Unlike the
-// device walk it never accepts a node early for lack of stack (LFGI_VIR_LOD_STACK).
+// the fields virLodClassify reads (gpu::virLodClassifyParams). Unlike the device walk it never accepts a
+// node early for lack of stack (LFGI_VIR_LOD_STACK).
 std::vector<uint32_t> virLodCut(const VirLodTree& tree, const shared::VirLodBlock& block,
                                 const shared::VirLodParams& params);
 

@@ -176,7 +176,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   params.emissionOnly = lit ? 0u : 1u;
   const uint32_t res = params.res, probeCount = params.probeCount;
 
-  // LOD: probe blocks (consecutive probes in block order, bounding spheres) and the cut buffer.
+  // LOD: probe blocks (consecutive probes in block order, virLodBlock bounds) and the cut buffer.
   shared::VirLodParams lp = virLodClassifyParams(o);
   size_t blockCount = 0, batchBlocks = 0;
   if (o.lod) {

@@ -544,7 +544,7 @@ TEST(VirPass, LodSplatCoversExactlyTheFootprintsOfItsCut) {
     }
     return hit ? depth : INFINITY;
   };
-  // One probe per block, blocks of 2 (runs of the Morton order, VirPass's bounding spheres), then one block
+  // One probe per block, blocks of 2 (runs of the Morton order, VirPass's virLodBlock bounds), then one block
   // of all: every probe of a block splats the block's cut (vir_lod_splat.comp is node-major within a block).
   for (const int blockProbes : {1, 2, LFGI_VIR_LOD_MAX_BLOCK_PROBES}) {
     o.lodBlockProbes = blockProbes;
@@ -555,7 +555,8 @@ TEST(VirPass, LodSplatCoversExactlyTheFootprintsOfItsCut) {
       const size_t b1 = std::min(order.size(), b0 + size_t(blockProbes));
       std::vector<glm::vec3> members;
       for (size_t k = b0; k < b1; ++k) members.push_back(probes[order[k]]);
-      for (size_t k = b0; k < b1; ++k) block[order[k]] = virLodBlock(members);
+      const shared::VirLodBlock bounds = virLodBlock(members);
+      for (size_t k = b0; k < b1; ++k) block[order[k]] = bounds;
     }
     size_t covered = 0, missed = 0, extra = 0, badDepth = 0, cutNodes = 0, rectNodes = 0;
     for (size_t p = 0; p < probes.size(); ++p) {

@@ -15,7 +15,8 @@
 // 65535 iterations in total, which silently truncated one long walk per block) and gives a GPU
 // blocks x subtrees parallel work. Each node above the frontier is classified once per block (before
 // 2026-12-03 every frontier subtree's invocation replayed the walk along its ancestors). No shared memory,
-// no barriers; entries are appended through a 32-entry private buffer and one atomicAdd per flush (the cut's order does not matter: the splat's atomicMin is order independent).
+// no barriers; entries are appended through a 32-entry private buffer and one atomicAdd per flush (the
+// cut's order does not matter: the splat's atomicMin is order independent).
 //
 // Occlusion culling (cutPass, shared/vir.h): the near pass classifies with maxRange = min(maxRange,
 // nearRange); the far pass walks with the full range, carries a "far" bit down the walk (this node or an

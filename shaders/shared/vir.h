@@ -132,15 +132,16 @@ LFGI_INLINE int virLodClassify(Surfel node, VirLodLink link, VirLodBlock blk, Vi
   float lv = length(v);
   // nearest probe distance >= the distance to the block's sphere and to its box (per-axis extents)
   float dmin = max(lv - block.w, length(max(abs(v) - vec3(blk.extent), vec3(0.0f))));
+  // largest offset of a probe from the block centre along the node normal (<= the radius)
+  float spreadN = min(block.w, dot(abs(vec3(node.normal)), vec3(blk.extent)));
   float cosA = node.albedo.w;
   if (cosA > 0.5f && lv > 0.0f) {
     float cosT = dot(vec3(node.normal), v) / lv;  // angle between the normal and the block centre
     float sinT = sqrt(max(1.0f - cosT * cosT, 0.0f)), sinA = sqrt(max(1.0f - cosA * cosA, 0.0f));
     float spread = link.childCount == 0u ? 0.0f : r * (1.0f + 1.0f / cosA) + 2.0f * node.emission.w;
     // max over the cone's normals m of dot(m, v) = |v| cos(angle - cone half-angle); a probe's offset o
-    // from the centre adds dot(m, o) <= |dot(n, o)| + |m - n| |o| <= dot(|n|, extent) + 2 sin(A / 2) radius
-    float offsetN = min(block.w, dot(abs(vec3(node.normal)), vec3(blk.extent)) +
-                                     2.0f * sqrt(max(0.5f - 0.5f * cosA, 0.0f)) * block.w);
+    // from the centre adds dot(m, o) <= |dot(n, o)| + |m - n| |o| <= spreadN + 2 sin(A / 2) radius
+    float offsetN = min(block.w, spreadN + 2.0f * sqrt(max(0.5f - 0.5f * cosA, 0.0f)) * block.w);
     if (lv * (cosT * cosA + sinT * sinA) + offsetN + spread < 0.0f) return LFGI_VIR_LOD_DROP;
   }
   if (link.childCount == 0u) return LFGI_VIR_LOD_ACCEPT;
@@ -151,7 +152,6 @@ LFGI_INLINE int virLodClassify(Surfel node, VirLodLink link, VirLodBlock blk, Vi
     // point of the footprint (in the node's plane) = the probe's height over the plane / its distance to
     // the point <= (centre height + largest probe offset along the normal) / (dmin - r)
     float closest = dmin - r;
-    float spreadN = min(block.w, dot(abs(vec3(node.normal)), vec3(blk.extent)));
     float c = closest > 0.0f ? min((abs(dot(vec3(node.normal), v)) + spreadN) / closest, 1.0f) : 1.0f;
     if (w <= params.lodTexels * params.lodElongation && w * w * c <= params.lodTexels * params.lodTexels)
       return LFGI_VIR_LOD_ACCEPT;
