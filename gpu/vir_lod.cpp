@@ -218,6 +218,24 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     }
     for (uint32_t c = tree.links[i].childCount; c > 0; --c) stack.push_back(tree.children[tree.links[i].firstChild + c - 1]);
   }
+  // The cut's compact nodes; skip links top-down (a parent's index exceeds its children's).
+  tree.cutNodes.resize(tree.nodes.size());
+  for (uint32_t i = 0; i < tree.nodes.size(); ++i) {
+    const shared::Surfel& n = tree.nodes[i];
+    const shared::VirLodLink& link = tree.links[i];
+    shared::VirLodCutNode& c = tree.cutNodes[i];
+    c.sphere = n.positionRadius;
+    c.normalCone = glm::vec4(glm::vec3(n.normal), n.albedo.w);
+    c.firstChild = link.childCount > 0 ? tree.children[link.firstChild] : LFGI_VIR_LOD_NONE;
+    c.skip = LFGI_VIR_LOD_NONE;
+    c.flags = link.flags | (tree.up[i].y != ~0u ? LFGI_VIR_LOD_ABOVE_FRONTIER : 0u);
+    c.thickness = n.emission.w;
+  }
+  for (uint32_t i = tree.root() + 1; i-- > 0;)
+    for (uint32_t c = 0; c < tree.links[i].childCount; ++c) {
+      const uint32_t* ch = &tree.children[tree.links[i].firstChild];
+      tree.cutNodes[ch[c]].skip = c + 1 < tree.links[i].childCount ? ch[c + 1] : tree.cutNodes[i].skip;
+    }
   return tree;
 }
 
@@ -252,17 +270,12 @@ shared::VirLodBlock virLodBlock(std::span<const glm::vec3> probes) {
 
 std::vector<uint32_t> virLodCut(const VirLodTree& tree, const shared::VirLodBlock& block,
                                 const shared::VirLodParams& params) {
-  std::vector<uint32_t> cut, stack{tree.root()};
-  while (!stack.empty()) {
-    const uint32_t i = stack.back();
-    stack.pop_back();
-    const shared::VirLodLink& link = tree.links[i];
-    const int c = shared::virLodClassify(tree.nodes[i], link, block, params);
-    if (c == LFGI_VIR_LOD_ACCEPT) {
-      cut.push_back(i);
-    } else if (c == LFGI_VIR_LOD_REFINE) {
-      for (uint32_t k = link.childCount; k > 0; --k) stack.push_back(tree.children[link.firstChild + k - 1]);
-    }
+  std::vector<uint32_t> cut;
+  for (uint32_t i = tree.root(); i != LFGI_VIR_LOD_NONE;) {
+    const shared::VirLodCutNode& node = tree.cutNodes[i];
+    const int c = shared::virLodClassify(node, block, params);
+    if (c == LFGI_VIR_LOD_ACCEPT) cut.push_back(i);
+    i = c == LFGI_VIR_LOD_REFINE ? node.firstChild : node.skip;
   }
   return cut;
 }

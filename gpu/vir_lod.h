@@ -56,11 +56,15 @@ struct VirLodTree {
   // The cut walk is split into independent walks of small subtrees (vir_lod_cut.comp): `frontier` holds
   // their roots (every subtree of <= kFrontierSubtree nodes whose parent's is larger, in depth-first
   // order); up[i] = (parent or ~0u, for a node above the frontier: the index in `frontier` of the first
-  // frontier node below it; else ~0u). The cut's top stage walks the nodes with up[i].y != ~0u and lists
-  // the frontier subtrees it reaches; frontier.size() bounds that list.
+  // frontier node below it; else ~0u). The cut's top stage walks the nodes with up[i].y != ~0u
+  // (cutNodes' LFGI_VIR_LOD_ABOVE_FRONTIER) and lists the frontier subtrees it reaches; frontier.size()
+  // bounds that list.
   static constexpr uint32_t kFrontierSubtree = 2048;
   std::vector<uint32_t> frontier;
   std::vector<glm::uvec2> up;
+  // One per node: what the cut reads (shared/vir.h VirLodCutNode: centre, radius, normal cone, thickness,
+  // flags with LFGI_VIR_LOD_ABOVE_FRONTIER) and the first-child / skip links of its stackless walk.
+  std::vector<shared::VirLodCutNode> cutNodes;
 };
 
 // Throws lfgi::Error on an empty cloud, non-finite positions or radii, or more than 2^31 surfels.
@@ -77,8 +81,8 @@ shared::VirLodBlock virLodBlock(std::span<const glm::vec3> probes);
 
 // CPU replay of vir_lod_cut.comp for one probe block (virLodBlock): the nodes the walk emits
 // (shared/vir.h virLodClassify; depth first, the device's order differs and the splat ignores it). params:
-// the fields virLodClassify reads (gpu::virLodClassifyParams). Unlike the device walk it never accepts a
-// node early for lack of stack (LFGI_VIR_LOD_STACK).
+// the fields virLodClassify reads (gpu::virLodClassifyParams). The same stackless walk over
+// VirLodTree::cutNodes as the device's, in one stage.
 std::vector<uint32_t> virLodCut(const VirLodTree& tree, const shared::VirLodBlock& block,
                                 const shared::VirLodParams& params);
 

@@ -89,7 +89,30 @@ TEST(VirLod, TreeConservesAreaAndBoundsChildren) {
   // only from > 150 m (lodDepthTolerance 0.01). Every inner node has one normal (coherent).
   EXPECT_NEAR(tree.nodes[tree.root()].emission.w, 1.5f, 0.05f);
   EXPECT_EQ(coherentInner, tree.nodes.size() - tree.leafCount);
-  EXPECT_LE(tree.maxDepth * 7 + 1, LFGI_VIR_LOD_STACK);
+  // The cut's stackless walk (VirLodCutNode firstChild / skip), refining everything, visits every node
+  // once, in the order of a stack walk that pushes children in reverse; its compact fields are the node's.
+  {
+    std::vector<uint32_t> stackOrder, stack{tree.root()}, skipOrder;
+    while (!stack.empty()) {
+      const uint32_t i = stack.back();
+      stack.pop_back();
+      stackOrder.push_back(i);
+      for (uint32_t c = tree.links[i].childCount; c > 0; --c)
+        stack.push_back(tree.children[tree.links[i].firstChild + c - 1]);
+    }
+    ASSERT_EQ(tree.cutNodes.size(), tree.nodes.size());
+    for (uint32_t i = tree.root(); i != LFGI_VIR_LOD_NONE && skipOrder.size() <= tree.nodes.size();) {
+      skipOrder.push_back(i);
+      const shared::VirLodCutNode& c = tree.cutNodes[i];
+      EXPECT_EQ(c.sphere, tree.nodes[i].positionRadius);
+      EXPECT_EQ(c.normalCone.w, tree.nodes[i].albedo.w);
+      EXPECT_EQ(c.thickness, tree.nodes[i].emission.w);
+      EXPECT_EQ(c.firstChild == LFGI_VIR_LOD_NONE, tree.links[i].childCount == 0);
+      EXPECT_EQ((c.flags & LFGI_VIR_LOD_ABOVE_FRONTIER) != 0, tree.up[i].y != ~0u);
+      i = c.firstChild != LFGI_VIR_LOD_NONE ? c.firstChild : c.skip;
+    }
+    EXPECT_EQ(skipOrder, stackOrder);
+  }
   std::printf("VIR LOD tree: %zu surfels -> %zu nodes, depth %d, %zu coherent inner nodes\n", surfels.size(),
               tree.nodes.size(), tree.maxDepth, coherentInner);
 

@@ -86,14 +86,14 @@ double VirPass::prepareSurfels(std::span<const shared::Surfel> surfels, const Vi
   grow(linkBuf_, tree_.links.size() * sizeof(shared::VirLodLink));
   grow(childBuf_, tree_.children.size() * sizeof(uint32_t));
   grow(nodeRadianceBuf_, tree_.nodes.size() * sizeof(glm::vec4));
-  grow(upBuf_, tree_.up.size() * sizeof(glm::uvec2));
   grow(rectBuf_, tree_.rects.size() * sizeof(glm::vec4));
   upload<glm::vec4>(ctx_, rectBuf_, tree_.rects);
   grow(boundsBuf_, tree_.bounds.size() * sizeof(float));
   upload<float>(ctx_, boundsBuf_, tree_.bounds);
-  upload<glm::uvec2>(ctx_, upBuf_, tree_.up);
   upload<shared::Surfel>(ctx_, nodeBuf_, tree_.nodes);
   upload<shared::VirLodLink>(ctx_, linkBuf_, tree_.links);
+  grow(cutNodeBuf_, tree_.cutNodes.size() * sizeof(shared::VirLodCutNode));
+  upload<shared::VirLodCutNode>(ctx_, cutNodeBuf_, tree_.cutNodes);
   if (!tree_.children.empty()) upload<uint32_t>(ctx_, childBuf_, tree_.children);
   cachedLodScale_ = o.footprintScale;
   splatValid_ = false;
@@ -269,8 +269,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
             for (const uint32_t stage : {LFGI_VIR_LOD_STAGE_TOP, LFGI_VIR_LOD_STAGE_SUBTREES}) {
               lp.cutStage = stage;
               dispatch(ctx_, cmd, lodCut_,
-                       {&nodeBuf_, &linkBuf_, &childBuf_, &upBuf_, &todoBuf_, &blockBuf_, &cutBuf_, &cutCountBuf_,
-                        &statsBuf_, &probeBuf_, &slots_, &hizBuf_, &boundsBuf_},
+                       {&cutNodeBuf_, &todoBuf_, &blockBuf_, &cutBuf_, &cutCountBuf_, &statsBuf_, &probeBuf_,
+                        &slots_, &hizBuf_, &boundsBuf_},
                        lp, {lp.blockCount, stage == LFGI_VIR_LOD_STAGE_TOP ? 1u : lp.nodeCount, 1});
               memoryBarrier(cmd);
             }
@@ -318,8 +318,6 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     if (!o.lod || reuse) break;
     std::array<uint64_t, kLodStats> stats{};
     readback<uint64_t>(ctx_, statsBuf_, stats);
-    if (stats[2] > 0)
-      spdlog::warn("VIR LOD: {} nodes splatted coarser than lodTexels (cut walk stack full)", stats[2]);
     if (stats[3] == 0) {
       splatStats_.assign(stats.begin(), stats.end());
       break;

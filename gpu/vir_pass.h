@@ -136,8 +136,8 @@ class VirPass {
   std::vector<glm::vec4> splatProbes_;
   std::vector<uint64_t> splatStats_;  // its LOD device counters (statsBuf_)
   Buffer surfelBuf_, probeBuf_, irrBuf_, slots_, distBuf_, normalBuf_, albedoBuf_, radianceBuf_;
-  Buffer nodeBuf_, linkBuf_, childBuf_, upBuf_, rectBuf_, todoBuf_, nodeRadianceBuf_, blockBuf_, cutBuf_, cutCountBuf_,
-      statsBuf_, boundsBuf_, hizBuf_;
+  Buffer nodeBuf_, linkBuf_, cutNodeBuf_, childBuf_, rectBuf_, todoBuf_, nodeRadianceBuf_, blockBuf_, cutBuf_,
+      cutCountBuf_, statsBuf_, boundsBuf_, hizBuf_;
 };
 
 }  // namespace lfgi::gpu

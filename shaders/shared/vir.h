@@ -46,7 +46,6 @@ LFGI_INLINE vec3 virRectAxis(vec3 n) {
   return normalize(axis - dot(axis, n) * n);
 }
 
-#define LFGI_VIR_LOD_STACK 128  // traversal stack entries of one frontier-subtree walk (vir_lod_cut.comp)
 #define LFGI_VIR_LOD_MAX_BLOCK_PROBES 32  // VirOptions::lodBlockProbes limit (vir_lod_splat.comp's probe array)
 
 // Push constants of the LOD passes (vir_lod_radiance/vir_lod_cut/vir_lod_splat/vir_lod_resolve.comp).
@@ -99,10 +98,30 @@ struct VirLodBlock {
 };
 LFGI_CHECK_SIZE(VirLodBlock, 32)
 
-// True when the node's footprint lies entirely beyond `range` of the whole block (the cut's range drop).
-LFGI_INLINE bool virLodBeyond(Surfel node, vec4 block, float range, float footprintScale) {
-  float dmin = length(vec3(block) - vec3(node.positionRadius)) - block.w;
-  return dmin - node.positionRadius.w * footprintScale > range;
+// One LOD tree node as the cut reads it (VirLodTree::cutNodes; vir_lod_cut.comp, gpu::virLodCut): the
+// fields of its Surfel that virLodClassify needs and its links for a stackless depth-first walk, in 12
+// words. The walk goes to firstChild when it refines a node and to skip otherwise, so it needs no stack: on
+// llvmpipe a private array indexed by a data-dependent stack pointer is spilled and accessed lane by lane.
+struct VirLodCutNode {
+  vec4 sphere;      // xyz: node centre, w: node radius (before footprintScale), as Surfel::positionRadius
+  vec4 normalCone;  // xyz: unit normal; w: cosine of the normal cone's half-angle (the node's albedo.w)
+  uint firstChild;  // node index of the first child (the others follow through skip); leaves:
+                    // LFGI_VIR_LOD_NONE
+  uint skip;        // the node visited after this node's subtree: the next sibling, else the parent's skip
+                    // (the root: LFGI_VIR_LOD_NONE)
+  uint flags;       // LFGI_VIR_LOD_COHERENT | LFGI_VIR_LOD_ABOVE_FRONTIER
+  float thickness;  // largest distance of a leaf centre below from the node plane (the node's emission.w)
+};
+LFGI_CHECK_SIZE(VirLodCutNode, 48)
+
+#define LFGI_VIR_LOD_NONE 0xFFFFFFFFu
+#define LFGI_VIR_LOD_ABOVE_FRONTIER 2u  // VirLodCutNode::flags: above VirLodTree::frontier (up[i].y != ~0u)
+
+// True when the node's footprint (sphere: centre, radius before footprintScale) lies entirely beyond
+// `range` of the whole block (the cut's range drop).
+LFGI_INLINE bool virLodBeyond(vec4 sphere, vec4 block, float range, float footprintScale) {
+  float dmin = length(vec3(block) - vec3(sphere)) - block.w;
+  return dmin - sphere.w * footprintScale > range;
 }
 
 #define LFGI_VIR_LOD_REFINE 0
@@ -113,7 +132,7 @@ LFGI_INLINE bool virLodBeyond(Surfel node, vec4 block, float range, float footpr
 // centre, w radius), shared by vir_lod_cut.comp and the CPU replay gpu::virLodCut:
 //   drop   when the node's footprint lies beyond maxRange of the whole block, or when every node below it
 //          faces away from every probe of the block (the splat would cull them all): normals within the
-//          cone node.albedo.w = cos(half-angle) of the node normal, centres within
+//          cone node.normalCone.w = cos(half-angle) of the node normal, centres within
 //          r (1 + 1 / cos) + 2 thickness of the node centre (its rectangle bounds the projections of the
 //          rectangles below, which tilt by at most the cone), tested only for cones below 60 degrees;
 //   accept a leaf, or a coherent node whose footprint (radius r) is at most lodTexels texels wide seen from
@@ -124,35 +143,36 @@ LFGI_INLINE bool virLodBeyond(Surfel node, vec4 block, float range, float footpr
 //          from a probe of the block to its footprint (its projected area stays a lodTexels-wide node's):
 //          walls seen obliquely from a street, whose cut nodes cover few texel centres each;
 //   refine otherwise (children next).
-LFGI_INLINE int virLodClassify(Surfel node, VirLodLink link, VirLodBlock blk, VirLodParams params) {
+LFGI_INLINE int virLodClassify(VirLodCutNode node, VirLodBlock blk, VirLodParams params) {
   vec4 block = blk.sphere;
-  if (virLodBeyond(node, block, params.maxRange, params.footprintScale)) return LFGI_VIR_LOD_DROP;
-  float r = node.positionRadius.w * params.footprintScale;
-  vec3 v = vec3(block) - vec3(node.positionRadius);
+  if (virLodBeyond(node.sphere, block, params.maxRange, params.footprintScale)) return LFGI_VIR_LOD_DROP;
+  float r = node.sphere.w * params.footprintScale;
+  vec3 v = vec3(block) - vec3(node.sphere);
   float lv = length(v);
   // nearest probe distance >= the distance to the block's sphere and to its box (per-axis extents)
   float dmin = max(lv - block.w, length(max(abs(v) - vec3(blk.extent), vec3(0.0f))));
   // largest offset of a probe from the block centre along the node normal (<= the radius)
-  float spreadN = min(block.w, dot(abs(vec3(node.normal)), vec3(blk.extent)));
-  float cosA = node.albedo.w;
+  float spreadN = min(block.w, dot(abs(vec3(node.normalCone)), vec3(blk.extent)));
+  float cosA = node.normalCone.w;
   if (cosA > 0.5f && lv > 0.0f) {
-    float cosT = dot(vec3(node.normal), v) / lv;  // angle between the normal and the block centre
+    float cosT = dot(vec3(node.normalCone), v) / lv;  // angle between the normal and the block centre
     float sinT = sqrt(max(1.0f - cosT * cosT, 0.0f)), sinA = sqrt(max(1.0f - cosA * cosA, 0.0f));
-    float spread = link.childCount == 0u ? 0.0f : r * (1.0f + 1.0f / cosA) + 2.0f * node.emission.w;
+    float spread =
+        node.firstChild == LFGI_VIR_LOD_NONE ? 0.0f : r * (1.0f + 1.0f / cosA) + 2.0f * node.thickness;
     // max over the cone's normals m of dot(m, v) = |v| cos(angle - cone half-angle); a probe's offset o
     // from the centre adds dot(m, o) <= |dot(n, o)| + |m - n| |o| <= spreadN + 2 sin(A / 2) radius
     float offsetN = min(block.w, spreadN + 2.0f * sqrt(max(0.5f - 0.5f * cosA, 0.0f)) * block.w);
     if (lv * (cosT * cosA + sinT * sinA) + offsetN + spread < 0.0f) return LFGI_VIR_LOD_DROP;
   }
-  if (link.childCount == 0u) return LFGI_VIR_LOD_ACCEPT;
-  if ((link.flags & LFGI_VIR_LOD_COHERENT) != 0u && dmin > 0.0f &&
-      node.emission.w <= params.depthTolerance * dmin) {
+  if (node.firstChild == LFGI_VIR_LOD_NONE) return LFGI_VIR_LOD_ACCEPT;
+  if ((node.flags & LFGI_VIR_LOD_COHERENT) != 0u && dmin > 0.0f &&
+      node.thickness <= params.depthTolerance * dmin) {
     float w = r * float(params.res) / dmin;  // the footprint's width in the classify's texel units
     // foreshortening bound: |cos| between the normal and the direction from any probe of the block to any
     // point of the footprint (in the node's plane) = the probe's height over the plane / its distance to
     // the point <= (centre height + largest probe offset along the normal) / (dmin - r)
     float closest = dmin - r;
-    float c = closest > 0.0f ? min((abs(dot(vec3(node.normal), v)) + spreadN) / closest, 1.0f) : 1.0f;
+    float c = closest > 0.0f ? min((abs(dot(vec3(node.normalCone), v)) + spreadN) / closest, 1.0f) : 1.0f;
     if (w <= params.lodTexels * params.lodElongation && w * w * c <= params.lodTexels * params.lodTexels)
       return LFGI_VIR_LOD_ACCEPT;
   }
