@@ -13,12 +13,12 @@
 // subtrees its walk reaches (`todo`, with the far bit). Subtrees: one invocation per (listed subtree,
 // block) walks its subtree depth first. This keeps every invocation's loop short (llvmpipe stops a shader
 // invocation's loops after 65535 iterations in total, which silently truncated one long walk per block)
-// and gives a GPU blocks x subtrees parallel work. Each node above the frontier is classified once per block (before
-// 2026-12-03 every frontier subtree's invocation replayed the walk along its ancestors). The walks are
-// stackless (VirLodCutNode firstChild / skip links) and each entry is appended with one atomicAdd: no
-// private arrays, which llvmpipe spills and indexes lane by lane (a 128-entry stack and a 32-entry emit
-// buffer before 2026-12-03: the cut alone took ~1.2-1.6x longer at N <= 32). No shared memory, no
-// barriers; the cut's order does not matter (the splat's atomicMin is order independent).
+// and gives a GPU blocks x subtrees parallel work. Each node above the frontier is classified once per
+// block (before 2026-12-03 every frontier subtree's invocation replayed the walk along its ancestors). The
+// walks are stackless (VirLodCutNode firstChild / skip links) and each entry is appended with one
+// atomicAdd: no private arrays, which llvmpipe spills and indexes lane by lane (a 128-entry stack and a
+// 32-entry emit buffer before 2026-12-03: the cut alone took ~1.2-1.6x longer at N <= 32). No shared
+// memory, no barriers; the cut's order does not matter (the splat's atomicMin is order independent).
 //
 // Occlusion culling (cutPass, shared/vir.h): the near pass classifies with maxRange = min(maxRange,
 // nearRange); the far pass walks with the full range, carries a "far" bit down the walk (this node or an
@@ -33,7 +33,8 @@
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
-layout(std430, set = 0, binding = 0) readonly buffer Nodes { VirLodCutNode nodes[]; };  // shared::virLodCutNode
+// VirLodTree::cutNodes
+layout(std430, set = 0, binding = 0) readonly buffer Nodes { VirLodCutNode nodes[]; };
 layout(std430, set = 0, binding = 1) buffer Todo { uint todo[]; };  // blockCount x nodeCount: node | kFarBit
 layout(std430, set = 0, binding = 2) readonly buffer Blocks { VirLodBlock blocks[]; };  // gpu::virLodBlock
 layout(std430, set = 0, binding = 3) writeonly buffer Cut { uint cut[]; };      // blockCount x cutCapacity
@@ -61,7 +62,9 @@ uint globalBlock;
 
 int classify(uint s) { return virLodClassify(nodes[s], blk, cp); }
 
-bool beyondNear(uint s) { return virLodBeyond(nodes[s].sphere, blk.sphere, params.nearRange, params.footprintScale); }
+bool beyondNear(uint s) {
+  return virLodBeyond(nodes[s].sphere, blk.sphere, params.nearRange, params.footprintScale);
+}
 
 // The sphere (node centre, radius) is occluded in every probe of the block.
 bool blockOccluded(uint s, float radius) {
