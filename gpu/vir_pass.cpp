@@ -34,6 +34,7 @@ VirPass::VirPass(Context& ctx)
       lodRadiance_(ctx, "vir_lod_radiance"),
       lodCut_(ctx, "vir_lod_cut"),
       lodSplat_(ctx, "vir_lod_splat"),
+      lodSplatFar_(ctx, "vir_lod_splat_far"),
       lodResolve_(ctx, "vir_lod_resolve"),
       lodHiz_(ctx, "vir_lod_hiz") {}
 
@@ -274,9 +275,15 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
                        lp, {lp.blockCount, stage == LFGI_VIR_LOD_STAGE_TOP ? 1u : lp.nodeCount, 1});
               memoryBarrier(cmd);
             }
-            dispatch(ctx_, cmd, lodSplat_,
-                     {&nodeBuf_, &probeBuf_, &cutBuf_, &cutCountBuf_, &slots_, &statsBuf_, &rectBuf_, &hizBuf_}, lp,
-                     {lp.lanes, 1, lp.blockCount});
+            if (pass == LFGI_VIR_LOD_PASS_FAR)
+              dispatch(
+                  ctx_, cmd, lodSplatFar_,
+                  {&nodeBuf_, &probeBuf_, &cutBuf_, &cutCountBuf_, &slots_, &statsBuf_, &rectBuf_, &hizBuf_},
+                  lp, {lp.lanes, 1, lp.blockCount});
+            else
+              dispatch(ctx_, cmd, lodSplat_,
+                       {&nodeBuf_, &probeBuf_, &cutBuf_, &cutCountBuf_, &slots_, &statsBuf_, &rectBuf_}, lp,
+                       {lp.lanes, 1, lp.blockCount});
             memoryBarrier(cmd);
           }
         };

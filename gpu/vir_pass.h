@@ -122,6 +122,7 @@ class VirPass {
   Program lodRadiance_;
   Program lodCut_;
   Program lodSplat_;
+  Program lodSplatFar_;  // the far pass of occlusion culling (vir_lod_splat_far.comp)
   Program lodResolve_;
   Program lodHiz_;
   // Resident state, reused across calls.
