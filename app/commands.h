@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "bake/world_bake.h"
+#include "worlds/gltf_io.h"
 
 namespace lfgi::app {
 
@@ -67,7 +68,7 @@ struct CaptureCommandOptions {
   std::string world;               // world directory, or
   std::vector<std::string> cells;  // "X,Z" (with --world)
   std::string scene;               // preset name or .gltf/.glb file
-  std::string scenesDir = "../shared/scenes";
+  std::string scenesDir = worlds::defaultScenesDir().string();
   float scale = 1.0f;              // for a scene file
   std::string probes;              // "NX,NY,NZ" probe grid override for scenes
   float timeOfDay = 17.5f;
@@ -85,7 +86,7 @@ int runCapture(const CaptureCommandOptions& options);
 struct ReferenceCommandOptions {
   std::string world;
   std::string scene;
-  std::string scenesDir = "../shared/scenes";
+  std::string scenesDir = worlds::defaultScenesDir().string();
   float scale = 1.0f;
   std::string camera;  // px,py,pz,tx,ty,tz
   float fov = 60.0f;
@@ -119,7 +120,7 @@ struct RenderCommandOptions {
   std::string world;
   std::string cell;  // "X,Z" (with --world)
   std::string scene;
-  std::string scenesDir = "../shared/scenes";
+  std::string scenesDir = worlds::defaultScenesDir().string();
   float scale = 1.0f;
   std::string grid;  // "NX,NY,NZ" probe grid override for scenes
   std::string camera;

@@ -89,7 +89,7 @@ Scene cornell(const std::string& scenesDir, const CaptureOptions& co) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string scenesDir = "../shared/scenes";
+  std::string scenesDir = worlds::defaultScenesDir().string();
   bool quick = false;
   int threads = 1, steps = 0, probes = 0, spp = 0, sizingSteps = 0;
   for (int i = 1; i < argc; ++i) {

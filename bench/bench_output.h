@@ -1,4 +1,4 @@
-// The one output contract of every benchmark (../shared/BENCHMARKS.md): out/bench/NAME/results.csv (one
+// The one output contract of every benchmark (docs/BENCHMARKS.md): out/bench/NAME/results.csv (one
 // row per measured configuration, units in column names), summary.json (headline keys + "device",
 // "commit", "quick"), and charts drawn by scripts/bench.sh from bench/NAME.gp. Files are written
 // atomically so an interrupted run never leaves a half-written summary.

@@ -722,7 +722,7 @@ std::string cpuName() {
 
 int main(int argc, char** argv) {
   CLI::App app{"lfgi benchmark: probe codecs, rate-distortion-speed"};
-  std::string out = "out/bench/codec", cacheDir = "out/cache/codec", scenesDir = "../shared/scenes";
+  std::string out = "out/bench/codec", cacheDir = "out/cache/codec", scenesDir = worlds::defaultScenesDir().string();
   bool quick = false;
   int spp = 0, threads = 0;
   app.add_option("--out", out, "Output directory");

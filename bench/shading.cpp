@@ -93,9 +93,9 @@ int main(int argc, char** argv) {
   bool quick = false;
   bool sourcesOnly = false;
   bool neighboursOnly = false;
-  std::string scenesDir = "../shared/scenes";
+  std::string scenesDir = worlds::defaultScenesDir().string();
   app.add_option("--out", out, "Output directory");
-  app.add_option("--scenes-dir", scenesDir, "Folder of the scene presets");
+  app.add_option("--scenes-dir", scenesDir, "Folder of the scene presets")->capture_default_str();
   app.add_flag("--quick", quick, "Smaller images and sweeps");
   app.add_flag("--sources", sourcesOnly, "Only the probe-source comparison (capture / vir / codec)");
   app.add_flag("--neighbours", neighboursOnly, "Only the world-cell comparison of neighbours full vs on their SH L1 fallback");

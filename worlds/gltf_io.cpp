@@ -5,6 +5,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <map>
@@ -956,6 +957,12 @@ const ScenePreset& findScenePreset(std::string_view name) {
     known += (known.empty() ? "" : ", ") + p.name;
   }
   fail("unknown scene preset '{}' (known: {})", name, known);
+}
+
+std::filesystem::path defaultScenesDir() {
+  const char* env = std::getenv("LFGI_SCENES_DIR");
+  if (env != nullptr && env[0] != '\0') return env;
+  return LFGI_SOURCE_SCENES_DIR;
 }
 
 TriangleMesh loadScenePreset(const ScenePreset& preset, const std::filesystem::path& scenesDir,

@@ -92,8 +92,8 @@ TriangleMesh importGltf(const std::filesystem::path& file, const GltfImportOptio
 void exportGlb(const std::filesystem::path& file, const TriangleMesh& mesh);
 
 // ---------------------------------------------------------------------------------------------------
-// Scene presets: the test scenes in the shared scenes folder (../shared/scenes beside the repository,
-// LFGI_SCENES_DIR in tests; see its README) with the light-field probe grid sizes used for them:
+// Scene presets: the test scenes shipped in the repository's assets/scenes (each folder has its SOURCE.md
+// and licence; see assets/scenes/README.md) with the light-field probe grid sizes used for them:
 //   cornell        cornell_box/CornellBox.glb     scale 0.001 (file in mm)  probes 2 x 2 x 2
 //   sponza         sponza/Sponza.gltf             scale 1                   probes 18 x 7 x 11 (paper)
 //   breakfast_room breakfast_room/BreakfastRoom.gltf scale 1                probes 8 x 6 x 9: the room is
@@ -108,6 +108,10 @@ struct ScenePreset {
 
 // All presets, in a fixed order.
 std::span<const ScenePreset> scenePresets();
+// The folder the presets are read from by default: $LFGI_SCENES_DIR when set and not empty, else the
+// source tree's assets/scenes (compiled in), so the CLI, benches and tests find the scenes from any
+// working directory.
+std::filesystem::path defaultScenesDir();
 // The preset called name. Throws lfgi::Error listing the known names if there is none.
 const ScenePreset& findScenePreset(std::string_view name);
 // importGltf(scenesDir / preset.relativePath, {scale = preset.scale}).
