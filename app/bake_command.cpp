@@ -13,9 +13,9 @@
 // mesh plus its 8 neighbours'; scene mode captures presetProbeGrid (or --probes) over the scene bounds.
 // reference: the camera's cell and its 8 neighbours (world) or the scene; aborted runs write nothing.
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cctype>
@@ -41,7 +41,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-
 worlds::SkyModel skyFor(float timeOfDay, float overcast) {
   worlds::SkyState s;
   s.timeOfDayHours = timeOfDay;
@@ -56,7 +55,8 @@ struct SceneInput {
 
 // --scene NAME_OR_FILE: a path ending in .gltf / .glb (or an existing file) is imported with --scale,
 // anything else is a preset name looked up in --scenes-dir.
-SceneInput loadScene(const std::string& scene, const std::string& scenesDir, float scale, const std::string& probes) {
+SceneInput loadScene(const std::string& scene, const std::string& scenesDir, float scale,
+                     const std::string& probes) {
   SceneInput in;
   const fs::path p(scene);
   std::string ext = p.extension().string();
@@ -184,7 +184,8 @@ void writeCapture(const fs::path& out, const std::string& name, const std::strin
 
 std::optional<tbb::global_control> threadLimit(int threads) {
   if (threads <= 0) return std::nullopt;
-  return std::make_optional<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(threads));
+  return std::make_optional<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                 size_t(threads));
 }
 
 void requireOneSource(const std::string& world, const std::string& scene) {
@@ -222,7 +223,8 @@ float medianLuminance(const Image& img) {
 int runCapture(const CaptureCommandOptions& opt) {
   requireOneSource(opt.world, opt.scene);
   if (opt.world.empty() && !opt.cells.empty()) fail("--cells needs --world");
-  if (!opt.world.empty() && opt.cells.empty()) fail("--world {}: give the cells to capture with --cells X,Z ...", opt.world);
+  if (!opt.world.empty() && opt.cells.empty())
+    fail("--world {}: give the cells to capture with --cells X,Z ...", opt.world);
   bake::CaptureOptions co;
   co.resolution = opt.resolution;
   co.samplesPerTexel = opt.spp;
@@ -242,7 +244,8 @@ int runCapture(const CaptureCommandOptions& opt) {
     SceneInput in = loadScene(opt.scene, opt.scenesDir, opt.scale, opt.probes);
     const std::string name = in.preset.name;
     if (fs::exists(out / (name + ".json"))) {
-      spdlog::info("{}: already captured ({}); delete it to capture again", name, (out / (name + ".json")).string());
+      spdlog::info("{}: already captured ({}); delete it to capture again", name,
+                   (out / (name + ".json")).string());
       return 0;
     }
     const ProbeGrid grid = worlds::presetProbeGrid(in.preset, in.mesh.bounds());
@@ -279,7 +282,8 @@ int runCapture(const CaptureCommandOptions& opt) {
     worlds::TriangleMesh mesh = std::move(cell.mesh);
     for (int dz = -1; dz <= 1; ++dz)
       for (int dx = -1; dx <= 1; ++dx)
-        if ((dx || dz) && world.contains({c.x + dx, c.z + dz})) mesh.append(world.generateCell({c.x + dx, c.z + dz}));
+        if ((dx || dz) && world.contains({c.x + dx, c.z + dz}))
+          mesh.append(world.generateCell({c.x + dx, c.z + dz}));
     std::vector<glm::vec3> positions;
     std::vector<int64_t> index;
     for (size_t i = 0; i < cell.probes.flags.size(); ++i) {
@@ -287,8 +291,9 @@ int runCapture(const CaptureCommandOptions& opt) {
       positions.push_back(cell.probes.position(int64_t(i)));
       index.push_back(int64_t(i));
     }
-    const int code = captureOne(out, name, fmt::format("world {} cell {},{}", opt.world, c.x, c.z), std::move(mesh),
-                                positions, index, cell.probes.flags.size(), cell.probes.grid, sky, co);
+    const int code =
+        captureOne(out, name, fmt::format("world {} cell {},{}", opt.world, c.x, c.z), std::move(mesh),
+                   positions, index, cell.probes.flags.size(), cell.probes.grid, sky, co);
     if (code == 130) return interrupted();
   }
   if (skipped > 0) spdlog::info("resumed: {} of {} cells were already captured", skipped, cells.size());
@@ -336,15 +341,16 @@ int runReference(const ReferenceCommandOptions& opt) {
     const worlds::CellCoord c{int(std::floor(double(camera.position.x) / cellM)),
                               int(std::floor(double(camera.position.z) / cellM))};
     if (!world.contains(c))
-      fail("--camera {}: position is outside the world (0..{} m in x and z)", opt.camera, world.params().sizeM);
+      fail("--camera {}: position is outside the world (0..{} m in x and z)", opt.camera,
+           world.params().sizeM);
     for (int dz = -1; dz <= 1; ++dz)
       for (int dx = -1; dx <= 1; ++dx)
         if (world.contains({c.x + dx, c.z + dz})) mesh.append(world.generateCell({c.x + dx, c.z + dz}));
     what = fmt::format("world {} cells around {},{}", opt.world, c.x, c.z);
   }
   const worlds::Aabb b = mesh.bounds();
-  spdlog::info("{}: {} triangles, bounds ({:.3g}, {:.3g}, {:.3g}) .. ({:.3g}, {:.3g}, {:.3g})", what, mesh.triangleCount(),
-               b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z);
+  spdlog::info("{}: {} triangles, bounds ({:.3g}, {:.3g}, {:.3g}) .. ({:.3g}, {:.3g}, {:.3g})", what,
+               mesh.triangleCount(), b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z);
   const bake::EmbreeScene scene(std::move(mesh), what);
   const auto limit = threadLimit(opt.threads);
   InterruptGuard guard;
@@ -359,8 +365,9 @@ int runReference(const ReferenceCommandOptions& opt) {
   writeExr(exr, r.image);
   const float median = medianLuminance(r.image);
   writePng(png, r.image, std::log2(0.18f / median));
-  spdlog::info("reference {}x{}, {} spp: {:.3f} s, {:.2f} M rays/s, median luminance {:.4g} -> {}, {}", ro.width,
-               ro.height, ro.samplesPerPixel, r.seconds, r.raysPerSecond() * 1e-6, median, exr.string(), png.string());
+  spdlog::info("reference {}x{}, {} spp: {:.3f} s, {:.2f} M rays/s, median luminance {:.4g} -> {}, {}",
+               ro.width, ro.height, ro.samplesPerPixel, r.seconds, r.raysPerSecond() * 1e-6, median,
+               exr.string(), png.string());
   return 0;
 }
 

@@ -22,7 +22,8 @@ worlds::CellCoord parseCellArg(const std::string& text, std::string_view flag) {
   return {x, z};
 }
 
-std::vector<float> parseNumbers(const std::string& flag, const std::string& text, size_t count, const char* what) {
+std::vector<float> parseNumbers(const std::string& flag, const std::string& text, size_t count,
+                                const char* what) {
   std::vector<float> v;
   size_t start = 0;
   while (start <= text.size()) {
@@ -31,8 +32,8 @@ std::vector<float> parseNumbers(const std::string& flag, const std::string& text
     char* stop = nullptr;
     const float x = std::strtof(item.c_str(), &stop);
     if (item.empty() || stop != item.c_str() + item.size() || !std::isfinite(x))
-      fail("{} '{}': expected {} ({} comma-separated numbers); '{}' is not a finite number", flag, text, what, count,
-           item);
+      fail("{} '{}': expected {} ({} comma-separated numbers); '{}' is not a finite number", flag, text, what,
+           count, item);
     v.push_back(x);
     start = end + 1;
   }

@@ -25,6 +25,7 @@ worlds::CellCoord parseCellArg(const std::string& text, std::string_view flag);
 
 // Comma-separated numbers; throws lfgi::Error naming flag unless there are exactly `count` finite ones
 // (`what` describes them, e.g. "px,py,pz,tx,ty,tz").
-std::vector<float> parseNumbers(const std::string& flag, const std::string& text, size_t count, const char* what);
+std::vector<float> parseNumbers(const std::string& flag, const std::string& text, size_t count,
+                                const char* what);
 
 }  // namespace lfgi::app

@@ -20,9 +20,9 @@ int runDevice(const DeviceOptions& options);
 
 struct DemoOptions {
   std::string outDir = "out/demo";
-  int resolution = 64;        // octahedral radiance map of the sky probe
-  float timeOfDay = 15.5f;    // local solar time, hours
-  float overcast = 0.0f;      // 0 clear .. 1 overcast
+  int resolution = 64;      // octahedral radiance map of the sky probe
+  float timeOfDay = 15.5f;  // local solar time, hours
+  float overcast = 0.0f;    // 0 clear .. 1 overcast
   uint64_t seed = 1;
   double worldSizeM = 256.0;  // the small embedded default world
 };
@@ -69,8 +69,8 @@ struct CaptureCommandOptions {
   std::vector<std::string> cells;  // "X,Z" (with --world)
   std::string scene;               // preset name or .gltf/.glb file
   std::string scenesDir = worlds::defaultScenesDir().string();
-  float scale = 1.0f;              // for a scene file
-  std::string probes;              // "NX,NY,NZ" probe grid override for scenes
+  float scale = 1.0f;  // for a scene file
+  std::string probes;  // "NX,NY,NZ" probe grid override for scenes
   float timeOfDay = 17.5f;
   float overcast = 0.0f;
   int resolution = 16;
@@ -140,11 +140,11 @@ struct RenderCommandOptions {
   uint64_t seed = 1;
   std::string out;
   int threads = 0;
-  std::string cellFile;        // --probes codec: the centre cell's file (default WORLD/baked/cells/cell_X_Z.vdb)
-  int virFrames = 4;           // --probes vir: relight frames (1 = direct light only, each more one bounce)
+  std::string cellFile;  // --probes codec: the centre cell's file (default WORLD/baked/cells/cell_X_Z.vdb)
+  int virFrames = 4;     // --probes vir: relight frames (1 = direct light only, each more one bounce)
   float surfelSpacing = 0.0f;  // --probes vir on a scene: surfel spacing (m); 0: bounding-box diagonal / 64
   float exposure = std::numeric_limits<float>::quiet_NaN();  // EV of the PNG; NaN: auto (median -> 0.18)
-  float aoRadius = 0.0f;       // m; > 0: ray-traced AO from the G-buffer on indirect diffuse + "ao" layer
+  float aoRadius = 0.0f;  // m; > 0: ray-traced AO from the G-buffer on indirect diffuse + "ao" layer
   bool neighboursFallback = false;  // world: the 8 neighbours on their SH L1 fallback (not resident)
   float cellFade = 1.0f;            // world: the centre cell's cross-fade weight against its fallback, [0, 1]
 };
@@ -153,7 +153,7 @@ int runRender(const RenderCommandOptions& options);
 // `lfgi fly` / `lfgi profile` (app/fly_command.cpp): the streaming manager along a camera path over the
 // world; frames.csv + summary.json; profile adds trace.json (Perfetto), profile.png, summary.html.
 struct FlyOptions {
-  std::string world;          // world directory for the cell layout (default: 4096 m, 64 m cells)
+  std::string world;  // world directory for the cell layout (default: 4096 m, 64 m cells)
   std::string path = "loop";
   float speed = 50.0f;
   float seconds = 60.0f;
@@ -161,12 +161,13 @@ struct FlyOptions {
   float todStart = 6.0f, todEnd = 20.0f;
   double budgetMb = 256.0;
   float decodeRadius = 160.0f;
-  int ioThreads = 0;          // 0: inline loads, loadsPerFrame per frame (deterministic)
-  bool realtime = false;      // pace frames to 1/fps of wall time (FlythroughOptions::realtime)
+  int ioThreads = 0;      // 0: inline loads, loadsPerFrame per frame (deterministic)
+  bool realtime = false;  // pace frames to 1/fps of wall time (FlythroughOptions::realtime)
   int loadsPerFrame = 2;
   int loadDelayUs = 0;
   int resolution = 8;
-  std::string decoder = "auto";  // baked cells' generator decode: cpu | gpu | auto (streaming/generator_backend.h)
+  std::string decoder =
+      "auto";  // baked cells' generator decode: cpu | gpu | auto (streaming/generator_backend.h)
   std::string relight = "codec";  // codec: CellSource::relightInto as is; vir: VIR relight of the surfels
   float weatherStart = 0.0f, weatherEnd = 0.0f;  // overcast sweep
   std::string outDir;
@@ -181,7 +182,8 @@ struct InspectOptions {
   bool json = false;
 };
 int runInspect(const InspectOptions& options);
-// Hidden `lfgi debug-write-cell`: writes a small synthetic cell file (CLI tests; trying inspect without a bake).
+// Hidden `lfgi debug-write-cell`: writes a small synthetic cell file (CLI tests; trying inspect without a
+// bake).
 struct DebugWriteCellOptions {
   std::string out;
   bool noNetwork = false;

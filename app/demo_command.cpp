@@ -7,8 +7,8 @@
 //  3. Pictures: a top-down sunlit preview of the world, the sky map and its irradiance maps.
 // Writes report.md / report.json, EXR + PNG images and a Chrome trace under --out.
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -103,7 +103,8 @@ ProbeDemo skyProbe(gpu::Context& ctx, const worlds::SkyModel& sky, int n, const 
   const float scale = float(0.35 / meanIrr);
   std::vector<glm::vec3> skyOnly(radiance.size());  // the sun texels would saturate the picture
   for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) skyOnly[size_t(j) * size_t(n) + size_t(i)] = worlds::skyRadiance(sky, octTexelDirection(i, j, n));
+    for (int i = 0; i < n; ++i)
+      skyOnly[size_t(j) * size_t(n) + size_t(i)] = worlds::skyRadiance(sky, octTexelDirection(i, j, n));
   blitPanel(panel, skyOnly, n, 0, size, scale * std::numbers::pi_v<float> * 2.0f);
   blitPanel(panel, irrGpu, m, size + gap, size, scale);
   blitPanel(panel, irrL2, m, 2 * (size + gap), size, scale);
@@ -136,10 +137,12 @@ int runDemo(const DemoOptions& opt) {
 
   // 1. Sky probe.
   ProbeDemo probe = skyProbe(*ctx, sky, opt.resolution, out, trace);
-  spdlog::info("sky probe: GPU irradiance {:.3f} ms; GPU vs CPU rel RMS {:.2e}; SH L1 {:.1f} %, L2 {:.1f} % rel RMS",
-               probe.gpuMs, probe.gpuVsCpu, 100.0 * probe.l1Err, 100.0 * probe.l2Err);
+  spdlog::info(
+      "sky probe: GPU irradiance {:.3f} ms; GPU vs CPU rel RMS {:.2e}; SH L1 {:.1f} %, L2 {:.1f} % rel RMS",
+      probe.gpuMs, probe.gpuVsCpu, 100.0 * probe.l1Err, 100.0 * probe.l2Err);
   if (probe.gpuVsCpu > 1e-4)
-    fail("GPU and CPU irradiance disagree (relative RMS {:.2e} > 1e-4) on '{}'", probe.gpuVsCpu, ctx->info.name);
+    fail("GPU and CPU irradiance disagree (relative RMS {:.2e} > 1e-4) on '{}'", probe.gpuVsCpu,
+         ctx->info.name);
 
   // 2. World.
   worlds::WorldParams wp = worlds::WorldParams::smallDefault(opt.seed);
@@ -148,9 +151,10 @@ int runDemo(const DemoOptions& opt) {
   const std::filesystem::path worldDir = out / "world";
   worlds::writeWorldManifest(worldDir, wp);
   const size_t cellCount = size_t(world.cellsX()) * size_t(world.cellsZ());
-  nlohmann::ordered_json totals = {{"cells", cellCount}, {"triangles", 0}, {"surfels", 0}, {"surfel_raw_bytes", 0},
-                                   {"surfel_draco_bytes", 0}, {"probes", 0}, {"probes_active", 0},
-                                   {"probes_relocated", 0}, {"probes_disabled", 0}, {"probes_sky_only", 0}};
+  nlohmann::ordered_json totals = {{"cells", cellCount},    {"triangles", 0},          {"surfels", 0},
+                                   {"surfel_raw_bytes", 0}, {"surfel_draco_bytes", 0}, {"probes", 0},
+                                   {"probes_active", 0},    {"probes_relocated", 0},   {"probes_disabled", 0},
+                                   {"probes_sky_only", 0}};
   {
     TraceScope s(&trace, "build world cells");
     InterruptGuard guard;
@@ -170,7 +174,8 @@ int runDemo(const DemoOptions& opt) {
         nlohmann::ordered_json j = worlds::readCellJson(worldDir, {x, z});
         totals["triangles"] = totals["triangles"].get<size_t>() + j["triangles"].get<size_t>();
         totals["surfels"] = totals["surfels"].get<size_t>() + j["surfels"]["count"].get<size_t>();
-        totals["surfel_raw_bytes"] = totals["surfel_raw_bytes"].get<size_t>() + j["surfels"]["raw_bytes"].get<size_t>();
+        totals["surfel_raw_bytes"] =
+            totals["surfel_raw_bytes"].get<size_t>() + j["surfels"]["raw_bytes"].get<size_t>();
         totals["surfel_draco_bytes"] =
             totals["surfel_draco_bytes"].get<size_t>() + j["surfels"]["draco_bytes"].get<size_t>();
         for (const char* k : {"total", "active", "relocated", "disabled", "sky_only"}) {
@@ -198,7 +203,8 @@ int runDemo(const DemoOptions& opt) {
     // Exposure: map the median pixel luminance to 0.18.
     std::vector<float> lum;
     for (int y = 0; y < img.height; ++y)
-      for (int x = 0; x < img.width; ++x) lum.push_back(0.2126f * img.at(x, y, 0) + 0.7152f * img.at(x, y, 1) + 0.0722f * img.at(x, y, 2));
+      for (int x = 0; x < img.width; ++x)
+        lum.push_back(0.2126f * img.at(x, y, 0) + 0.7152f * img.at(x, y, 1) + 0.0722f * img.at(x, y, 2));
     std::nth_element(lum.begin(), lum.begin() + long(lum.size() / 2), lum.end());
     const float median = std::max(lum[lum.size() / 2], 1e-12f);
     writeExr(out / "world_topdown.exr", img);
@@ -207,12 +213,15 @@ int runDemo(const DemoOptions& opt) {
 
   report["device"] = ctx->info.name;
   report["device_type"] = ctx->info.type;
-  report["sky"] = {{"time_of_day_h", state.timeOfDayHours}, {"latitude_deg", state.latitudeDeg},
-                   {"day_of_year", state.dayOfYear}, {"turbidity", state.turbidity}, {"overcast", state.overcast},
+  report["sky"] = {{"time_of_day_h", state.timeOfDayHours},
+                   {"latitude_deg", state.latitudeDeg},
+                   {"day_of_year", state.dayOfYear},
+                   {"turbidity", state.turbidity},
+                   {"overcast", state.overcast},
                    {"sun_elevation_deg", sky.sunPosition.elevationDeg}};
-  report["probe"] = {{"radiance_resolution", probe.n},        {"irradiance_resolution", probe.m},
-                     {"gpu_irradiance_ms", probe.gpuMs},       {"gpu_vs_cpu_irr_rel_rms", probe.gpuVsCpu},
-                     {"sh_l1_irr_rel_rms", probe.l1Err},       {"sh_l2_irr_rel_rms", probe.l2Err}};
+  report["probe"] = {{"radiance_resolution", probe.n},   {"irradiance_resolution", probe.m},
+                     {"gpu_irradiance_ms", probe.gpuMs}, {"gpu_vs_cpu_irr_rel_rms", probe.gpuVsCpu},
+                     {"sh_l1_irr_rel_rms", probe.l1Err}, {"sh_l2_irr_rel_rms", probe.l2Err}};
   report["world"] = {{"size_m", wp.sizeM}, {"cell_m", wp.cellM}, {"seed", wp.seed}};
   report["world"].update(totals);
   report["validation_errors"] = ctx->validationErrors.load();
@@ -230,7 +239,8 @@ int runDemo(const DemoOptions& opt) {
       "| measure | value |\n|---|---|\n"
       "| cells | {} |\n| triangles | {} |\n| surfels | {} (Draco {:.1f} MB, {:.2f} x smaller than raw) |\n"
       "| probes | {} placed: {} active, {} relocated, {} disabled (in solid), {} sky-only |\n\n"
-      "Cells, probes and surfels are in `world/` (`lfgi world info {}`; `lfgi world export-cell {} --cell 1,1 "
+      "Cells, probes and surfels are in `world/` (`lfgi world info {}`; `lfgi world export-cell {} --cell "
+      "1,1 "
       "--out cell.glb` writes a cell for any glTF viewer).\n\n"
       "## Sky probe\n\n"
       "![sky radiance | exact irradiance (GPU) | SH L2 irradiance | L2 relative error](probe.png)\n\n"
@@ -243,9 +253,9 @@ int runDemo(const DemoOptions& opt) {
       "| SH L1 irradiance vs exact, relative RMS | {:.1f} % |\n"
       "| SH L2 irradiance vs exact, relative RMS | {:.1f} % |\n\n"
       "Files: `*.exr` (linear float), `report.json`, `trace.json` (open in https://ui.perfetto.dev).\n",
-      ctx->info.name, ctx->info.type, state.timeOfDayHours, state.latitudeDeg, state.dayOfYear, state.turbidity,
-      state.overcast, sky.sunPosition.elevationDeg, wp.sizeM, wp.sizeM, wp.cellM, wp.seed, cellCount,
-      totals["triangles"].get<size_t>(), totals["surfels"].get<size_t>(),
+      ctx->info.name, ctx->info.type, state.timeOfDayHours, state.latitudeDeg, state.dayOfYear,
+      state.turbidity, state.overcast, sky.sunPosition.elevationDeg, wp.sizeM, wp.sizeM, wp.cellM, wp.seed,
+      cellCount, totals["triangles"].get<size_t>(), totals["surfels"].get<size_t>(),
       double(totals["surfel_draco_bytes"].get<size_t>()) * 1e-6, ratio, totals["probes"].get<size_t>(),
       totals["probes_active"].get<size_t>(), totals["probes_relocated"].get<size_t>(),
       totals["probes_disabled"].get<size_t>(), totals["probes_sky_only"].get<size_t>(), worldDir.string(),

@@ -21,15 +21,16 @@ int runDevice(const DeviceOptions& options) {
   j["device"] = ctx->info.name;
   j["type"] = ctx->info.type;
   j["driver"] = ctx->info.driver;
-  j["api_version"] = fmt::format("{}.{}.{}", VK_API_VERSION_MAJOR(ctx->info.apiVersion),
-                                 VK_API_VERSION_MINOR(ctx->info.apiVersion), VK_API_VERSION_PATCH(ctx->info.apiVersion));
+  j["api_version"] =
+      fmt::format("{}.{}.{}", VK_API_VERSION_MAJOR(ctx->info.apiVersion),
+                  VK_API_VERSION_MINOR(ctx->info.apiVersion), VK_API_VERSION_PATCH(ctx->info.apiVersion));
   j["validation"] = ctx->validationEnabled;
   j["limits"] = {
       {"maxComputeWorkGroupInvocations", lim.maxComputeWorkGroupInvocations},
-      {"maxComputeWorkGroupSize", {lim.maxComputeWorkGroupSize[0], lim.maxComputeWorkGroupSize[1],
-                                   lim.maxComputeWorkGroupSize[2]}},
-      {"maxComputeWorkGroupCount", {lim.maxComputeWorkGroupCount[0], lim.maxComputeWorkGroupCount[1],
-                                    lim.maxComputeWorkGroupCount[2]}},
+      {"maxComputeWorkGroupSize",
+       {lim.maxComputeWorkGroupSize[0], lim.maxComputeWorkGroupSize[1], lim.maxComputeWorkGroupSize[2]}},
+      {"maxComputeWorkGroupCount",
+       {lim.maxComputeWorkGroupCount[0], lim.maxComputeWorkGroupCount[1], lim.maxComputeWorkGroupCount[2]}},
       {"maxComputeSharedMemorySize", lim.maxComputeSharedMemorySize},
       {"maxStorageBufferRange", lim.maxStorageBufferRange},
       {"maxPushConstantsSize", lim.maxPushConstantsSize},
@@ -47,11 +48,12 @@ int runDevice(const DeviceOptions& options) {
     std::printf("%s\n", j.dump(2).c_str());
     return 0;
   }
-  std::printf("device   %s (%s)\ndriver   %s\nVulkan   %s%s\n", ctx->info.name.c_str(), ctx->info.type.c_str(),
-              ctx->info.driver.c_str(), j["api_version"].get<std::string>().c_str(),
+  std::printf("device   %s (%s)\ndriver   %s\nVulkan   %s%s\n", ctx->info.name.c_str(),
+              ctx->info.type.c_str(), ctx->info.driver.c_str(), j["api_version"].get<std::string>().c_str(),
               ctx->validationEnabled ? " (validation on)" : "");
   std::printf("limits\n");
-  for (const auto& [key, value] : j["limits"].items()) std::printf("  %-32s %s\n", key.c_str(), value.dump().c_str());
+  for (const auto& [key, value] : j["limits"].items())
+    std::printf("  %-32s %s\n", key.c_str(), value.dump().c_str());
   std::printf("features\n");
   for (const auto& [key, value] : j["features"].items())
     std::printf("  %-32s %s\n", key.c_str(), value.dump().c_str());

@@ -1,8 +1,8 @@
 // `lfgi fly` and `lfgi profile`: the streaming manager over a whole world along a camera path.
 // Cells come from the baked cell files when --world DIR has DIR/baked/cells (CellFileSource: OpenVDB
-// cell files decoded at load by --decoder cpu | gpu | auto), else from SyntheticCellSource (an analytic light field on the
-// world's cell layout, or the 4096 m default without --world). The summary says which. --relight vir
-// wraps the source in streaming::VirRelightSource (GPU VIR relight of the world's surfels, relit on
+// cell files decoded at load by --decoder cpu | gpu | auto), else from SyntheticCellSource (an analytic light
+// field on the world's cell layout, or the 4096 m default without --world). The summary says which. --relight
+// vir wraps the source in streaming::VirRelightSource (GPU VIR relight of the world's surfels, relit on
 // arrival and when the time of day / weather moves).
 #include <sys/resource.h>
 
@@ -13,16 +13,16 @@
 #include <memory>
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
 #include "app/commands.h"
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/progress.h"
 #include "core/trace.h"
-#include "streaming/cell_file_source.h"
 #include "gpu/context.h"
+#include "streaming/cell_file_source.h"
 #include "streaming/flythrough.h"
 #include "streaming/vir_relight_source.h"
 #include "worlds/world_cells.h"
@@ -39,15 +39,19 @@ double peakRssMb() {
 
 std::string framesCsv(const std::vector<streaming::FlythroughFrame>& frames) {
   std::string s =
-      "frame,time_s,x_m,z_m,time_of_day_h,resident_cells,loading_cells,requested,activated,evicted,relit,failed,"
-      "bytes_resident,io_ms,activate_ms,relight_ms,update_ms,shade_ms,frame_ms,visible_samples,fallback_fraction,"
+      "frame,time_s,x_m,z_m,time_of_day_h,resident_cells,loading_cells,requested,activated,evicted,relit,"
+      "failed,"
+      "bytes_resident,io_ms,activate_ms,relight_ms,update_ms,shade_ms,frame_ms,visible_samples,fallback_"
+      "fraction,"
       "missing_samples\n";
   for (const auto& f : frames)
-    s += fmt::format("{},{:.4f},{:.2f},{:.2f},{:.3f},{},{},{},{},{},{},{},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{},{:.5f},{}\n",
-                     f.index, f.timeS, f.position.x, f.position.z, f.timeOfDay, f.stats.resident, f.stats.loading,
-                     f.stats.requested, f.stats.activated, f.stats.evicted, f.stats.relit, f.stats.failed,
-                     f.stats.bytesResident, f.stats.ioMs, f.stats.activateMs, f.stats.relightMs, f.stats.updateMs,
-                     f.shadeMs, f.frameMs, f.visibleSamples, f.fallbackFraction(), f.missingSamples);
+    s += fmt::format(
+        "{},{:.4f},{:.2f},{:.2f},{:.3f},{},{},{},{},{},{},{},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{:.4f},{},"
+        "{:.5f},{}\n",
+        f.index, f.timeS, f.position.x, f.position.z, f.timeOfDay, f.stats.resident, f.stats.loading,
+        f.stats.requested, f.stats.activated, f.stats.evicted, f.stats.relit, f.stats.failed,
+        f.stats.bytesResident, f.stats.ioMs, f.stats.activateMs, f.stats.relightMs, f.stats.updateMs,
+        f.shadeMs, f.frameMs, f.visibleSamples, f.fallbackFraction(), f.missingSamples);
   return s;
 }
 
@@ -93,7 +97,9 @@ nlohmann::ordered_json decoderJson(const streaming::CellFileSource& source) {
       totalMs += d.ms;
     }
   std::sort(ms.begin(), ms.end());
-  auto pct = [&ms](double q) { return ms.empty() ? 0.0 : ms[std::min(ms.size() - 1, size_t(q * double(ms.size())))]; };
+  auto pct = [&ms](double q) {
+    return ms.empty() ? 0.0 : ms[std::min(ms.size() - 1, size_t(q * double(ms.size())))];
+  };
   nlohmann::ordered_json j;
   j["requested"] = streaming::decoderChoiceName(sel.requested);
   j["backend"] = sel.backend;
@@ -141,16 +147,19 @@ int runFly(const FlyOptions& opt) {
     ctx = gpu::createContext();
     streaming::VirRelightOptions vo;
     vo.weather = opt.weatherStart;
-    virSource = std::make_unique<streaming::VirRelightSource>(inner, *ctx, vo, streaming::worldSurfelProvider(opt.world));
+    virSource = std::make_unique<streaming::VirRelightSource>(inner, *ctx, vo,
+                                                              streaming::worldSurfelProvider(opt.world));
   } else if (opt.relight != "codec") {
     fail("--relight '{}': expected codec or vir", opt.relight);
   }
   streaming::CellSource& source = virSource ? static_cast<streaming::CellSource&>(*virSource) : inner;
   std::string sourceText =
-      fileSource ? fmt::format("cell files from {} ({} valid, {} missing, {} corrupt; {} decode at load, --decoder {})",
-                               cellsDir.string(), fileSource->validCells(), fileSource->missingCells(),
-                               fileSource->corruptCells(), fileSource->selection().backend, opt.decoder)
-                 : std::string("synthetic analytic cells (raw FP32 probe fields) on the world's cell layout");
+      fileSource
+          ? fmt::format(
+                "cell files from {} ({} valid, {} missing, {} corrupt; {} decode at load, --decoder {})",
+                cellsDir.string(), fileSource->validCells(), fileSource->missingCells(),
+                fileSource->corruptCells(), fileSource->selection().backend, opt.decoder)
+          : std::string("synthetic analytic cells (raw FP32 probe fields) on the world's cell layout");
   if (virSource) sourceText += "; relight: VIR of the world's surfels on the GPU";
   std::printf("source: %s\n", sourceText.c_str());
 
@@ -173,19 +182,22 @@ int runFly(const FlyOptions& opt) {
   // Relight = CellSource::relightInto, run by the manager (IO pool, or inline with --io-threads 0).
   fo.validate();
 
-  const std::filesystem::path out = opt.outDir.empty() ? (opt.profile ? "out/profile" : "out/fly") : opt.outDir;
+  const std::filesystem::path out =
+      opt.outDir.empty() ? (opt.profile ? "out/profile" : "out/fly") : opt.outDir;
   std::filesystem::create_directories(out);
   std::vector<streaming::FlythroughFrame> frames;
   frames.reserve(size_t(opt.seconds * opt.fps) + 1);
   TraceWriter trace;
   InterruptGuard guard;
-  spdlog::info("fly-through: {} x {} cells of {} m, {} m/s, {} s at {} fps, budget {} MB, {} IO threads", src.layout.cells.x,
-               src.layout.cells.y, src.layout.cellSize, opt.speed, opt.seconds, opt.fps, opt.budgetMb, opt.ioThreads);
-  streaming::FlythroughSummary s =
-      streaming::runFlythrough(source, fo, [&](const streaming::FlythroughFrame& f) { frames.push_back(f); },
-                               opt.profile ? &trace : nullptr);
+  spdlog::info("fly-through: {} x {} cells of {} m, {} m/s, {} s at {} fps, budget {} MB, {} IO threads",
+               src.layout.cells.x, src.layout.cells.y, src.layout.cellSize, opt.speed, opt.seconds, opt.fps,
+               opt.budgetMb, opt.ioThreads);
+  streaming::FlythroughSummary s = streaming::runFlythrough(
+      source, fo, [&](const streaming::FlythroughFrame& f) { frames.push_back(f); },
+      opt.profile ? &trace : nullptr);
 
-  const double km2 = double(src.layout.cells.x) * src.layout.cells.y * src.layout.cellSize * src.layout.cellSize / 1e6;
+  const double km2 =
+      double(src.layout.cells.x) * src.layout.cells.y * src.layout.cellSize * src.layout.cellSize / 1e6;
   nlohmann::ordered_json j;
   j["source"] = sourceText;
   j["world_km2"] = km2;
@@ -234,14 +246,17 @@ int runFly(const FlyOptions& opt) {
   }
   // Sizes the memory regression tests pin (tests/baselines/memory.json).
   const size_t cellBytes = source.maxCellBytes();
-  size_t cellProbes = size_t(src.layout.cellSize / src.probeSpacing) * size_t(src.layout.cellSize / src.probeSpacing) *
-                      size_t(src.layers);
+  size_t cellProbes = size_t(src.layout.cellSize / src.probeSpacing) *
+                      size_t(src.layout.cellSize / src.probeSpacing) * size_t(src.layers);
   if (fileSource) {  // the largest cell's (the slot size)
     for (int z = 0; z < src.layout.cells.y; ++z)
       for (int x = 0; x < src.layout.cells.x; ++x)
-        if (const auto& inf = fileSource->info({x, z}); inf.fieldBytes == cellBytes) cellProbes = size_t(inf.probes);
-    j["cell_files"] = {{"dir", cellsDir.string()}, {"valid", fileSource->validCells()},
-                       {"missing", fileSource->missingCells()}, {"corrupt", fileSource->corruptCells()}};
+        if (const auto& inf = fileSource->info({x, z}); inf.fieldBytes == cellBytes)
+          cellProbes = size_t(inf.probes);
+    j["cell_files"] = {{"dir", cellsDir.string()},
+                       {"valid", fileSource->validCells()},
+                       {"missing", fileSource->missingCells()},
+                       {"corrupt", fileSource->corruptCells()}};
     j["cell_loads"] = fileSource->loads();
     j["cell_read_ms_total"] = fileSource->readMsTotal();
     j["cell_decode_ms_total"] = fileSource->decodeMsTotal();
@@ -252,9 +267,11 @@ int runFly(const FlyOptions& opt) {
   j["pool_bytes"] = (fo.streaming.memoryBudgetBytes / cellBytes) * cellBytes;
   writeFileAtomic(out / "frames.csv", framesCsv(frames));
   writeFileAtomic(out / "summary.json", j.dump(2) + "\n");
-  std::printf("fly-through: %d frames, %d with missing GI, fallback %.2f %% of visible samples, p99 frame %.3f ms, peak resident %.1f MB, %ld cells loaded\n",
-              s.frames, s.framesMissingGi, 100.0 * s.fallbackFraction, s.p99FrameMs, double(s.peakBytesResident) / 1e6,
-              s.cellsRequested);
+  std::printf(
+      "fly-through: %d frames, %d with missing GI, fallback %.2f %% of visible samples, p99 frame %.3f ms, "
+      "peak resident %.1f MB, %ld cells loaded\n",
+      s.frames, s.framesMissingGi, 100.0 * s.fallbackFraction, s.p99FrameMs,
+      double(s.peakBytesResident) / 1e6, s.cellsRequested);
   if (opt.profile) {
     trace.save(out / "trace.json");
     // gnuplot writes the chart under a temporary name (file_util.h): a failed or killed run never leaves a
@@ -262,9 +279,10 @@ int runFly(const FlyOptions& opt) {
     bool charts = false;
     try {
       writeViaTempFile(out / "profile.png", [&](const std::filesystem::path& tmp) {
-        const std::string cmd =
-            fmt::format("gnuplot -e \"dir='{}'; png='{}'; title='{} m/s, {} s'; budget_mb={}; activate_budget_ms={}\" - 2>&1",
-                        out.string(), tmp.string(), opt.speed, opt.seconds, opt.budgetMb, fo.streaming.activateBudgetMs);
+        const std::string cmd = fmt::format(
+            "gnuplot -e \"dir='{}'; png='{}'; title='{} m/s, {} s'; budget_mb={}; activate_budget_ms={}\" - "
+            "2>&1",
+            out.string(), tmp.string(), opt.speed, opt.seconds, opt.budgetMb, fo.streaming.activateBudgetMs);
         FILE* gp = popen(cmd.c_str(), "w");
         if (!gp) fail("gnuplot: cannot start");
         std::fputs(kProfileGnuplot, gp);
@@ -277,12 +295,15 @@ int runFly(const FlyOptions& opt) {
     std::string html = fmt::format(
         "<!doctype html><meta charset=utf-8><title>lfgi streaming profile</title>\n"
         "<h1>Streaming profile: {} m/s for {} s over {:.1f} km&sup2;</h1>\n"
-        "<p>Open <code>trace.json</code> in <a href='https://ui.perfetto.dev'>Perfetto</a> for every stage of every frame.</p>\n"
+        "<p>Open <code>trace.json</code> in <a href='https://ui.perfetto.dev'>Perfetto</a> for every stage "
+        "of every frame.</p>\n"
         "<table border=1 cellpadding=4>\n"
-        "<tr><td>frames</td><td>{}</td></tr><tr><td>frames with a visible point lacking GI</td><td>{}</td></tr>\n"
+        "<tr><td>frames</td><td>{}</td></tr><tr><td>frames with a visible point lacking "
+        "GI</td><td>{}</td></tr>\n"
         "<tr><td>fallback fraction of visible samples</td><td>{:.3f} %</td></tr>\n"
         "<tr><td>frame ms p50 / p95 / p99</td><td>{:.3f} / {:.3f} / {:.3f}</td></tr>\n"
-        "<tr><td>p99 ms: IO / activate / relight / shade</td><td>{:.3f} / {:.3f} / {:.3f} / {:.3f}</td></tr>\n"
+        "<tr><td>p99 ms: IO / activate / relight / shade</td><td>{:.3f} / {:.3f} / {:.3f} / "
+        "{:.3f}</td></tr>\n"
         "<tr><td>peak resident / budget</td><td>{:.1f} MB / {:.1f} MB</td></tr>\n"
         "<tr><td>cells loaded / evicted / relit / failed</td><td>{} / {} / {} / {}</td></tr>\n"
         "<tr><td>peak RSS</td><td>{:.1f} MB</td></tr></table>\n"

@@ -28,7 +28,8 @@ std::string archText(const GeneratorArch& a) {
 std::string latentText(const CellFile& c) {
   const CellGenerator& g = *c.generator;
   if (g.weights.arch.latentSource == LatentSource::PositionFourier)
-    return fmt::format("derived from probe position ({} Fourier octaves, 0 bytes)", g.weights.arch.fourierOctaves);
+    return fmt::format("derived from probe position ({} Fourier octaves, 0 bytes)",
+                       g.weights.arch.fourierOctaves);
   return fmt::format("stored per probe, {}-bit", g.latents.bits);
 }
 
@@ -39,7 +40,8 @@ int runInspect(const InspectOptions& options) {
   CellFile c = readCellFile(options.file, &bytes);
   const int64_t probes = c.activeProbeCount();
   const double perProbe = probes ? double(bytes.total) / double(probes) : 0.0;
-  const char* fallbackKind = c.fallback.kind == CellFallback::Kind::PerCell ? "SH L1 per cell" : "SH L1 per probe";
+  const char* fallbackKind =
+      c.fallback.kind == CellFallback::Kind::PerCell ? "SH L1 per cell" : "SH L1 per probe";
 
   if (options.json) {
     nlohmann::ordered_json j;
@@ -80,8 +82,9 @@ int runInspect(const InspectOptions& options) {
     }
     j["exposure"] = c.outputScale.exposure;
     j["range_m"] = c.outputScale.range;
-    j["bytes"] = {{"weights", bytes.weights},   {"adapter", bytes.adapter}, {"latents", bytes.latents}, {"metadata", bytes.metadata()},
-                  {"fallback", bytes.fallback}, {"total", bytes.total},     {"per_probe", perProbe}};
+    j["bytes"] = {{"weights", bytes.weights},     {"adapter", bytes.adapter},   {"latents", bytes.latents},
+                  {"metadata", bytes.metadata()}, {"fallback", bytes.fallback}, {"total", bytes.total},
+                  {"per_probe", perProbe}};
     j["error_achieved"] = c.stats.errorAchieved;
     j["error_target"] = c.stats.errorTarget;
     j["training_seconds"] = c.stats.trainingSeconds;
@@ -91,15 +94,16 @@ int runInspect(const InspectOptions& options) {
   }
 
   std::printf("%s: cell (%d, %d) of world seed %016llx, cell file version %d, input hash %016llx\n",
-              options.file.c_str(), c.cellX, c.cellZ, static_cast<unsigned long long>(c.worldSeed), bytes.version,
-              static_cast<unsigned long long>(c.inputHash));
+              options.file.c_str(), c.cellX, c.cellZ, static_cast<unsigned long long>(c.worldSeed),
+              bytes.version, static_cast<unsigned long long>(c.inputHash));
   if (c.generator && c.generator->shared) {
     const CellSharedModelRef& ref = *c.generator->shared;
-    std::printf("model: world-shared %s generator %016llx (shared_model.vdb beside cells/), %s; FiLM adapter %d "
-                "stage(s), %d-bit, %zu bytes; latents %s\n",
-                weightPrecisionName(c.generator->weights.precision), static_cast<unsigned long long>(ref.modelHash),
-                archText(c.generator->weights.arch).c_str(), ref.adapter.stages, ref.adapter.bits, bytes.adapter,
-                latentText(c).c_str());
+    std::printf(
+        "model: world-shared %s generator %016llx (shared_model.vdb beside cells/), %s; FiLM adapter %d "
+        "stage(s), %d-bit, %zu bytes; latents %s\n",
+        weightPrecisionName(c.generator->weights.precision), static_cast<unsigned long long>(ref.modelHash),
+        archText(c.generator->weights.arch).c_str(), ref.adapter.stages, ref.adapter.bits, bytes.adapter,
+        latentText(c).c_str());
   } else if (c.generator) {
     const GeneratorArch& a = c.generator->weights.arch;
     std::printf("model: %s generator, %s; latents %s\n", weightPrecisionName(c.generator->weights.precision),
@@ -108,19 +112,26 @@ int runInspect(const InspectOptions& options) {
     std::printf("model: no network (%s only)\n", fallbackKind);
   }
   std::printf("probes: %lld of %lld (grid %dx%dx%d, spacing %g x %g x %g m, origin %g, %g, %g)\n",
-              static_cast<long long>(probes), static_cast<long long>(c.grid.probeCount()), c.grid.dims.x, c.grid.dims.y,
-              c.grid.dims.z, double(c.grid.spacing.x), double(c.grid.spacing.y), double(c.grid.spacing.z),
-              double(c.grid.origin.x), double(c.grid.origin.y), double(c.grid.origin.z));
-  std::printf("bytes: weights %zu, adapter %zu, latents %zu, metadata %zu, fallback %zu (%s, FP16), total %zu (%.1f per probe)\n",
-              bytes.weights, bytes.adapter, bytes.latents, bytes.metadata(), bytes.fallback, fallbackKind, bytes.total, perProbe);
+              static_cast<long long>(probes), static_cast<long long>(c.grid.probeCount()), c.grid.dims.x,
+              c.grid.dims.y, c.grid.dims.z, double(c.grid.spacing.x), double(c.grid.spacing.y),
+              double(c.grid.spacing.z), double(c.grid.origin.x), double(c.grid.origin.y),
+              double(c.grid.origin.z));
+  std::printf(
+      "bytes: weights %zu, adapter %zu, latents %zu, metadata %zu, fallback %zu (%s, FP16), total %zu (%.1f "
+      "per probe)\n",
+      bytes.weights, bytes.adapter, bytes.latents, bytes.metadata(), bytes.fallback, fallbackKind,
+      bytes.total, perProbe);
   std::string keys;
   for (size_t k = 0; k < c.fallback.keyCount(); ++k)
-    keys += fmt::format("{}{} h{}", k ? ", " : "", c.fallback.keyHours[k],
-                        c.fallback.keyOvercast[k] > 0.0f ? fmt::format(" overcast {}", c.fallback.keyOvercast[k]) : "");
+    keys += fmt::format(
+        "{}{} h{}", k ? ", " : "", c.fallback.keyHours[k],
+        c.fallback.keyOvercast[k] > 0.0f ? fmt::format(" overcast {}", c.fallback.keyOvercast[k]) : "");
   std::printf("fallback keys: %s\n", keys.c_str());
-  std::printf("error reached: %.4g (target %.4g); training time: %.2f s; chosen model: %s\n", c.stats.errorAchieved,
-              c.stats.errorTarget, c.stats.trainingSeconds, c.stats.model.empty() ? "-" : c.stats.model.c_str());
-  std::printf("exposure %g, distance range %g m\n", double(c.outputScale.exposure), double(c.outputScale.range));
+  std::printf("error reached: %.4g (target %.4g); training time: %.2f s; chosen model: %s\n",
+              c.stats.errorAchieved, c.stats.errorTarget, c.stats.trainingSeconds,
+              c.stats.model.empty() ? "-" : c.stats.model.c_str());
+  std::printf("exposure %g, distance range %g m\n", double(c.outputScale.exposure),
+              double(c.outputScale.range));
   return 0;
 }
 

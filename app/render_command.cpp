@@ -57,9 +57,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-
 float medianLuminance(const Image& img, const std::string& layer) {
-  const int r = img.channelIndex(layer + "R"), g = img.channelIndex(layer + "G"), b = img.channelIndex(layer + "B");
+  const int r = img.channelIndex(layer + "R"), g = img.channelIndex(layer + "G"),
+            b = img.channelIndex(layer + "B");
   std::vector<float> lum;
   for (int y = 0; y < img.height; ++y)
     for (int x = 0; x < img.width; ++x)
@@ -77,10 +77,14 @@ fs::path withSuffix(const fs::path& exr, const std::string& suffix, const std::s
 }  // namespace
 
 int runRender(const RenderCommandOptions& opt) {
-  if (opt.world.empty() == opt.scene.empty()) fail("give exactly one of --world DIR (with --cell) or --scene NAME_OR_FILE");
+  if (opt.world.empty() == opt.scene.empty())
+    fail("give exactly one of --world DIR (with --cell) or --scene NAME_OR_FILE");
   if ((opt.neighboursFallback || opt.cellFade != 1.0f) && opt.world.empty())
-    fail("--neighbours-fallback / --cell-fade: streaming fallbacks are per world cell (give --world DIR --cell X,Z)");
-  if (!(opt.cellFade >= 0.0f && opt.cellFade <= 1.0f)) fail("--cell-fade {}: expected a value in [0, 1]", opt.cellFade);
+    fail(
+        "--neighbours-fallback / --cell-fade: streaming fallbacks are per world cell (give --world DIR "
+        "--cell X,Z)");
+  if (!(opt.cellFade >= 0.0f && opt.cellFade <= 1.0f))
+    fail("--cell-fade {}: expected a value in [0, 1]", opt.cellFade);
   if (opt.probes != "capture" && opt.probes != "vir" && opt.probes != "codec")
     fail("--probes '{}': expected capture, vir or codec", opt.probes);
   if (opt.probes == "codec" && opt.world.empty())
@@ -100,8 +104,8 @@ int runRender(const RenderCommandOptions& opt) {
   int width = 0, height = 0;
   {
     char x = 0, extra = 0;
-    if (std::sscanf(opt.size.c_str(), "%d%c%d%c", &width, &x, &height, &extra) != 3 || x != 'x' || width < 1 ||
-        height < 1 || width > 8192 || height > 8192)
+    if (std::sscanf(opt.size.c_str(), "%d%c%d%c", &width, &x, &height, &extra) != 3 || x != 'x' ||
+        width < 1 || height < 1 || width > 8192 || height > 8192)
       fail("--size '{}': expected WIDTHxHEIGHT, each in [1, 8192]", opt.size);
   }
   worlds::SkyState ss;
@@ -123,8 +127,8 @@ int runRender(const RenderCommandOptions& opt) {
   vo.resolution = opt.resolution;
   vo.frames = opt.virFrames;
   auto reportVir = [&](const bake::VirProbeStats& st, const std::string& where) {
-    spdlog::info("{}: VIR probes: {} probes from {} surfels, {} frames, {:.2f} s ({:.1f} ms device)", where, st.probes,
-                 st.surfels, vo.frames, st.seconds, st.gpuMs);
+    spdlog::info("{}: VIR probes: {} probes from {} surfels, {} frames, {:.2f} s ({:.1f} ms device)", where,
+                 st.probes, st.surfels, vo.frames, st.seconds, st.gpuMs);
   };
   worlds::TriangleMesh mesh;
   std::vector<ProbeField> fields;
@@ -134,7 +138,8 @@ int runRender(const RenderCommandOptions& opt) {
     worlds::ScenePreset preset;
     const fs::path p(opt.scene);
     std::string ext = p.extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
     if (ext == ".gltf" || ext == ".glb" || fs::is_regular_file(p)) {
       if (!fs::is_regular_file(p)) fail("--scene {}: no such file", opt.scene);
       preset.name = p.stem().string();
@@ -162,14 +167,15 @@ int runRender(const RenderCommandOptions& opt) {
     const ProbeGrid grid = worlds::presetProbeGrid(preset, mesh.bounds());
     if (opt.probes == "vir") {
       const worlds::Aabb box = mesh.bounds();
-      const float spacing =
-          opt.surfelSpacing > 0.0f ? opt.surfelSpacing : std::max(glm::length(box.max - box.min) / 64.0f, 1e-3f);
+      const float spacing = opt.surfelSpacing > 0.0f
+                                ? opt.surfelSpacing
+                                : std::max(glm::length(box.max - box.min) / 64.0f, 1e-3f);
       const std::vector<worlds::Surfel> surfels =
           worlds::sampleSurfels(bake::meshWithBackFaces(mesh), {spacing, opt.seed});
       vo.maxRange = 2.0f * glm::length(box.max - box.min);
-      spdlog::info("{}: {} triangles, VIR of {} surfels ({:.3f} m) into {}x{}x{} probes ({}x{} maps)", preset.name,
-                   mesh.triangleCount(), surfels.size(), spacing, grid.dims.x, grid.dims.y, grid.dims.z, vo.resolution,
-                   vo.resolution);
+      spdlog::info("{}: {} triangles, VIR of {} surfels ({:.3f} m) into {}x{}x{} probes ({}x{} maps)",
+                   preset.name, mesh.triangleCount(), surfels.size(), spacing, grid.dims.x, grid.dims.y,
+                   grid.dims.z, vo.resolution, vo.resolution);
       bake::VirProbeStats st;
       fields.push_back(bake::virProbeField(*ctx, surfels, grid, {}, {}, sky, vo, &st));
       reportVir(st, preset.name);
@@ -185,7 +191,8 @@ int runRender(const RenderCommandOptions& opt) {
     if (opt.cell.empty()) fail("--world {}: give the cell with --cell X,Z", opt.world);
     const worlds::SyntheticWorld world(worlds::readWorldManifest(opt.world));
     const worlds::CellCoord c = parseCellArg(opt.cell, "--cell");
-    if (!world.contains(c)) fail("--cell {}: outside the world ({} x {} cells)", opt.cell, world.cellsX(), world.cellsZ());
+    if (!world.contains(c))
+      fail("--cell {}: outside the world ({} x {} cells)", opt.cell, world.cellsX(), world.cellsZ());
     std::vector<worlds::CellCoord> cells;
     for (int dz = -1; dz <= 1; ++dz)
       for (int dx = -1; dx <= 1; ++dx)
@@ -206,19 +213,23 @@ int runRender(const RenderCommandOptions& opt) {
     if (opt.probeRadius > 0.0f) {
       for (size_t k = 0; k < built.size(); ++k)
         for (size_t i = 0; i < active[k].size() && (isCentre(k) || !opt.neighboursFallback); ++i)
-          active[k][i] = glm::length(built[k].probes.position(int64_t(i)) - camera.position) <= opt.probeRadius;
+          active[k][i] =
+              glm::length(built[k].probes.position(int64_t(i)) - camera.position) <= opt.probeRadius;
     } else {
       for (int y = 0; y < height; ++y)
         for (int x = 0; x < width; ++x) {
-          const glm::vec3 d = bake::cameraRayDirection(camera, width, height, float(x) + 0.5f, float(y) + 0.5f);
+          const glm::vec3 d =
+              bake::cameraRayDirection(camera, width, height, float(x) + 0.5f, float(y) + 0.5f);
           const std::optional<bake::RayHit> hit = scene.intersect(camera.position, d);
           if (!hit) continue;
           const glm::vec3 p = camera.position + hit->t * d;
           for (size_t k = 0; k < built.size(); ++k) {
-            if (opt.neighboursFallback && (built[k].layout.cell.x != c.x || built[k].layout.cell.z != c.z)) continue;
+            if (opt.neighboursFallback && (built[k].layout.cell.x != c.x || built[k].layout.cell.z != c.z))
+              continue;
             const ProbeGrid& g = built[k].probes.grid;
             const glm::vec3 local = (p - g.origin) / g.spacing;
-            if (glm::any(glm::lessThan(local, glm::vec3(-1.0f))) || glm::any(glm::greaterThan(local, glm::vec3(g.dims))))
+            if (glm::any(glm::lessThan(local, glm::vec3(-1.0f))) ||
+                glm::any(glm::greaterThan(local, glm::vec3(g.dims))))
               continue;
             const glm::ivec3 base = glm::ivec3(glm::floor(local));
             for (int c8 = 0; c8 < 8; ++c8) {
@@ -235,7 +246,8 @@ int runRender(const RenderCommandOptions& opt) {
     }
     std::vector<worlds::Surfel> surfels;
     if (opt.probes == "vir")
-      for (const worlds::BuiltCell& b : built) surfels.insert(surfels.end(), b.surfels.begin(), b.surfels.end());
+      for (const worlds::BuiltCell& b : built)
+        surfels.insert(surfels.end(), b.surfels.begin(), b.surfels.end());
     vo.maxRange = float(world.cellSizeM());
     std::vector<size_t> fieldCell;  // built index of fields[j]
     const bool wantFallbacks = opt.neighboursFallback || opt.cellFade != 1.0f;
@@ -248,21 +260,23 @@ int runRender(const RenderCommandOptions& opt) {
       for (size_t k = 0; k < built.size(); ++k) {
         const worlds::CellCoord cc = built[k].layout.cell;
         const bool centre = cc.x == c.x && cc.z == c.z;
-        const fs::path path = centre && !opt.cellFile.empty()
-                                  ? fs::path(opt.cellFile)
-                                  : fs::path(opt.world) / "baked" / "cells" / fmt::format("cell_{}_{}.vdb", cc.x, cc.z);
+        const fs::path path = centre && !opt.cellFile.empty() ? fs::path(opt.cellFile)
+                                                              : fs::path(opt.world) / "baked" / "cells" /
+                                                                    fmt::format("cell_{}_{}.vdb", cc.x, cc.z);
         if (!fs::is_regular_file(path)) {
           if (centre)
-            fail("--probes codec: no cell file {} (bake it with `lfgi bake --world {} --cells {},{}` or give --cell-file)",
-                 path.string(), opt.world, cc.x, cc.z);
+            fail(
+                "--probes codec: no cell file {} (bake it with `lfgi bake --world {} --cells {},{}` or give "
+                "--cell-file)",
+                path.string(), opt.world, cc.x, cc.z);
           spdlog::info("cell {},{}: no cell file {}, its probes are not used", cc.x, cc.z, path.string());
           continue;
         }
         CellFile cf = readCellFile(path);
         if (cf.cellX != cc.x || cf.cellZ != cc.z || cf.grid.dims != built[k].probes.grid.dims)
-          fail("{}: holds cell {},{} ({}x{}x{} probes), expected cell {},{} ({}x{}x{})", path.string(), cf.cellX,
-               cf.cellZ, cf.grid.dims.x, cf.grid.dims.y, cf.grid.dims.z, cc.x, cc.z, built[k].probes.grid.dims.x,
-               built[k].probes.grid.dims.y, built[k].probes.grid.dims.z);
+          fail("{}: holds cell {},{} ({}x{}x{} probes), expected cell {},{} ({}x{}x{})", path.string(),
+               cf.cellX, cf.cellZ, cf.grid.dims.x, cf.grid.dims.y, cf.grid.dims.z, cc.x, cc.z,
+               built[k].probes.grid.dims.x, built[k].probes.grid.dims.y, built[k].probes.grid.dims.z);
         files.emplace_back(k, std::move(cf));
         paths.push_back(path);
       }
@@ -277,7 +291,8 @@ int runRender(const RenderCommandOptions& opt) {
         const CellFile& cf = files[j].second;
         if (cf.generator && cf.generator->weights.arch.outputResolution() != res)
           fail("{}: decodes {}x{} maps but another cell file decodes {}x{}", paths[j].string(),
-               cf.generator->weights.arch.outputResolution(), cf.generator->weights.arch.outputResolution(), res, res);
+               cf.generator->weights.arch.outputResolution(), cf.generator->weights.arch.outputResolution(),
+               res, res);
         // A shared-model cell: the world's shared model beside its cells/ directory, read once.
         if (cf.generator && cf.generator->shared && !shared)
           shared = loadSharedModel(sharedModelPath(paths[j].parent_path().parent_path()));
@@ -285,8 +300,8 @@ int runRender(const RenderCommandOptions& opt) {
                                                    shared ? &*shared : nullptr);
         const size_t k = files[j].first;
         if (wantFallbacks) fallbacks[k] = bake::fieldFallback(decoded);
-        spdlog::info("cell {},{}: decoded {} probes from {} ({}){}", cf.cellX, cf.cellZ, cf.activeProbeCount(),
-                     paths[j].string(), cf.stats.model,
+        spdlog::info("cell {},{}: decoded {} probes from {} ({}){}", cf.cellX, cf.cellZ,
+                     cf.activeProbeCount(), paths[j].string(), cf.stats.model,
                      opt.neighboursFallback && !isCentre(k) ? ": its SH L1 fallback only" : "");
         if (opt.neighboursFallback && !isCentre(k)) continue;
         fields.push_back(std::move(decoded));
@@ -297,7 +312,8 @@ int runRender(const RenderCommandOptions& opt) {
       for (size_t k = 0; k < built.size(); ++k) {
         const worlds::BuiltCell& b = built[k];
         std::vector<uint8_t> disabled(b.probes.flags.size());
-        for (size_t i = 0; i < disabled.size(); ++i) disabled[i] = (b.probes.flags[i] & worlds::kProbeDisabledSolid) != 0;
+        for (size_t i = 0; i < disabled.size(); ++i)
+          disabled[i] = (b.probes.flags[i] & worlds::kProbeDisabledSolid) != 0;
         const std::vector<uint8_t> mask = bake::fallbackProbeMask(b.probes.grid, disabled);
         size_t n = 0;
         for (uint8_t m : mask) n += m;
@@ -307,7 +323,8 @@ int runRender(const RenderCommandOptions& opt) {
           fallbacks[k] = ShL1{};
           continue;
         }
-        spdlog::info("cell {},{}: SH L1 fallback from {} probes ({})", b.layout.cell.x, b.layout.cell.z, n, opt.probes);
+        spdlog::info("cell {},{}: SH L1 fallback from {} probes ({})", b.layout.cell.x, b.layout.cell.z, n,
+                     opt.probes);
         const ProbeField f =
             opt.probes == "vir"
                 ? bake::virProbeField(*ctx, surfels, b.probes.grid, b.probes.offsets, mask, sky, vo)
@@ -325,15 +342,19 @@ int runRender(const RenderCommandOptions& opt) {
       }
       if (n == 0) continue;
       if (opt.probes == "vir") {
-        spdlog::info("cell {},{}: VIR of {} of {} probes", b.layout.cell.x, b.layout.cell.z, n, active[k].size());
+        spdlog::info("cell {},{}: VIR of {} of {} probes", b.layout.cell.x, b.layout.cell.z, n,
+                     active[k].size());
         bake::VirProbeStats st;
-        fields.push_back(bake::virProbeField(*ctx, surfels, b.probes.grid, b.probes.offsets, active[k], sky, vo, &st));
+        fields.push_back(
+            bake::virProbeField(*ctx, surfels, b.probes.grid, b.probes.offsets, active[k], sky, vo, &st));
         fieldCell.push_back(k);
         reportVir(st, fmt::format("cell {},{}", b.layout.cell.x, b.layout.cell.z));
         continue;
       }
-      spdlog::info("cell {},{}: capturing {} of {} probes", b.layout.cell.x, b.layout.cell.z, n, active[k].size());
-      fields.push_back(bake::captureGridField(scene, sky, b.probes.grid, b.probes.offsets, active[k], co, true));
+      spdlog::info("cell {},{}: capturing {} of {} probes", b.layout.cell.x, b.layout.cell.z, n,
+                   active[k].size());
+      fields.push_back(
+          bake::captureGridField(scene, sky, b.probes.grid, b.probes.offsets, active[k], co, true));
       fieldCell.push_back(k);
     }
     if (fields.empty() && !wantFallbacks)
@@ -396,34 +417,44 @@ int runRender(const RenderCommandOptions& opt) {
   writeExr(withSuffix(exr, "_reference", ".exr"), ref.image);
   writePng(withSuffix(exr, "_reference", ".png"), ref.image, exposure);
   const float indirectExposure = std::log2(0.18f / medianLuminance(ref.image, "indirect."));
-  writePng(withSuffix(exr, "_indirect", ".png"), view.image, indirectExposure, ToneMap::kAcesFitted, "indirect.");
-  writePng(withSuffix(exr, "_reference_indirect", ".png"), ref.image, indirectExposure, ToneMap::kAcesFitted, "indirect.");
-  writePng(withSuffix(exr, "_error", ".png"), bake::errorHeatMap(view.image, "indirect.", ref.image, "indirect."), 1.0f);
+  writePng(withSuffix(exr, "_indirect", ".png"), view.image, indirectExposure, ToneMap::kAcesFitted,
+           "indirect.");
+  writePng(withSuffix(exr, "_reference_indirect", ".png"), ref.image, indirectExposure, ToneMap::kAcesFitted,
+           "indirect.");
+  writePng(withSuffix(exr, "_error", ".png"),
+           bake::errorHeatMap(view.image, "indirect.", ref.image, "indirect."), 1.0f);
   // Error over pixels that probes shade (surfaces), so sky pixels (exact in both) do not dilute it.
   std::vector<uint8_t> mask(size_t(width) * size_t(height), 0);
   const int wc = view.image.channelIndex("weight"), fc = view.image.channelIndex("fallback");
   double fallbackShare = 0.0;
   for (int y = 0; y < height; ++y)
     for (int x = 0; x < width; ++x) {
-      mask[size_t(y) * size_t(width) + size_t(x)] = view.image.at(x, y, wc) > 0.0f || view.image.at(x, y, fc) > 0.0f;
+      mask[size_t(y) * size_t(width) + size_t(x)] =
+          view.image.at(x, y, wc) > 0.0f || view.image.at(x, y, fc) > 0.0f;
       fallbackShare += view.image.at(x, y, fc);
     }
   size_t shaded = 0;
   for (uint8_t m : mask) shaded += m;
   if (shaded == 0) {
-    std::printf("no pixel is shaded from probes (none captured near what the camera sees; move the camera over --cell)\n");
+    std::printf(
+        "no pixel is shaded from probes (none captured near what the camera sees; move the camera over "
+        "--cell)\n");
     return 0;
   }
   const double total = bake::layerRelativeRms(view.image, "", ref.image, "", &mask);
   const double indirect = bake::layerRelativeRms(view.image, "indirect.", ref.image, "indirect.", &mask);
-  std::printf("relative RMS vs path-traced reference (%d spp, %zu pixels shaded from %s probes): total %.4f, indirect %.4f\n",
-              opt.referenceSpp, shaded, opt.probes.c_str(), total, indirect);
+  std::printf(
+      "relative RMS vs path-traced reference (%d spp, %zu pixels shaded from %s probes): total %.4f, "
+      "indirect %.4f\n",
+      opt.referenceSpp, shaded, opt.probes.c_str(), total, indirect);
   if (!cellInputs.empty())
-    std::printf("fallback share of the indirect light: %.4f (mean over shaded pixels; neighbours %s, cell fade %.3f)\n",
-                fallbackShare / double(shaded), opt.neighboursFallback ? "on their SH L1 fallback" : "full",
-                double(opt.cellFade));
-  spdlog::info("reference {:.2f} s -> {}, error map {}", ref.seconds, withSuffix(exr, "_reference", ".exr").string(),
-               withSuffix(exr, "_error", ".png").string());
+    std::printf(
+        "fallback share of the indirect light: %.4f (mean over shaded pixels; neighbours %s, cell fade "
+        "%.3f)\n",
+        fallbackShare / double(shaded), opt.neighboursFallback ? "on their SH L1 fallback" : "full",
+        double(opt.cellFade));
+  spdlog::info("reference {:.2f} s -> {}, error map {}", ref.seconds,
+               withSuffix(exr, "_reference", ".exr").string(), withSuffix(exr, "_error", ".png").string());
   return 0;
 }
 

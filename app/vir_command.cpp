@@ -61,7 +61,8 @@ int runVir(const VirCommandOptions& opt) {
   if (opt.outDir.empty()) fail("--out: give an output directory");
   const worlds::SyntheticWorld world(worlds::readWorldManifest(opt.world));
   const worlds::CellCoord c = parseCellArg(opt.cell, "--cell");
-  if (!world.contains(c)) fail("--cell {}: outside the world ({} x {} cells)", opt.cell, world.cellsX(), world.cellsZ());
+  if (!world.contains(c))
+    fail("--cell {}: outside the world ({} x {} cells)", opt.cell, world.cellsX(), world.cellsZ());
   worlds::SkyState state;
   state.timeOfDayHours = opt.timeOfDay;
   state.overcast = opt.overcast;
@@ -77,9 +78,9 @@ int runVir(const VirCommandOptions& opt) {
     probes.positions.push_back(cell.probes.position(i));
     probes.active.push_back((cell.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid) ? 0 : 1);
   }
-  std::fprintf(stderr, "vir: %zu surfels, %lld probes (%d x %d x %d, %.1f m), N=%d, %d frames\n", cell.surfels.size(),
-               (long long)probeCount, probes.grid.dims.x, probes.grid.dims.y, probes.grid.dims.z,
-               double(probes.grid.spacing.x), opt.resolution, opt.bounces + 1);
+  std::fprintf(stderr, "vir: %zu surfels, %lld probes (%d x %d x %d, %.1f m), N=%d, %d frames\n",
+               cell.surfels.size(), (long long)probeCount, probes.grid.dims.x, probes.grid.dims.y,
+               probes.grid.dims.z, double(probes.grid.spacing.x), opt.resolution, opt.bounces + 1);
 
   auto ctx = gpu::createContext();
   gpu::RelightPass relight(*ctx);
@@ -100,7 +101,8 @@ int runVir(const VirCommandOptions& opt) {
       return 130;
     }
     const auto f0 = std::chrono::steady_clock::now();
-    last = gpu::relightFrame(relight, vir, cell.surfels, probes, sky.params, virOptions, relightOptions, lighting);
+    last = gpu::relightFrame(relight, vir, cell.surfels, probes, sky.params, virOptions, relightOptions,
+                             lighting);
     frameMs.push_back(
         {{"frame", f + 1},
          {"wall", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - f0).count()},
@@ -118,10 +120,12 @@ int runVir(const VirCommandOptions& opt) {
   const int n = atlas.resolution, m = lighting.probes.irradianceResolution, pc = int(probeCount);
   fs::create_directories(opt.outDir);
   const fs::path out(opt.outDir);
-  writeExr(out / "radiance.exr", tileAtlas(pc, n, {"R", "G", "B"}, [&](size_t t) { return atlas.radiance[t]; }));
+  writeExr(out / "radiance.exr",
+           tileAtlas(pc, n, {"R", "G", "B"}, [&](size_t t) { return atlas.radiance[t]; }));
   writeExr(out / "distance.exr",
            tileAtlas(pc, n, {"r", "r2"}, [&](size_t t) { return glm::vec4(atlas.distance[t], 0.0f, 0.0f); }));
-  writeExr(out / "normal.exr", tileAtlas(pc, n, {"X", "Y", "Z", "coverage"}, [&](size_t t) { return atlas.normal[t]; }));
+  writeExr(out / "normal.exr",
+           tileAtlas(pc, n, {"X", "Y", "Z", "coverage"}, [&](size_t t) { return atlas.normal[t]; }));
   writeExr(out / "albedo.exr", tileAtlas(pc, n, {"R", "G", "B"}, [&](size_t t) { return atlas.albedo[t]; }));
   writeExr(out / "irradiance.exr",
            tileAtlas(pc, m, {"R", "G", "B"}, [&](size_t t) { return lighting.probes.irradiance[t]; }));
@@ -150,12 +154,14 @@ int runVir(const VirCommandOptions& opt) {
         const size_t t = (size_t(p) * size_t(n) + size_t(j)) * size_t(n) + size_t(i);
         glm::vec3 v(atlas.radiance[t]);
         if (atlas.normal[t].w == 0.0f)
-          v = worlds::skyRadiance(sky, shared::octTexelDirection(glm::uvec2(uint32_t(i), uint32_t(j)), uint32_t(n)));
+          v = worlds::skyRadiance(
+              sky, shared::octTexelDirection(glm::uvec2(uint32_t(i), uint32_t(j)), uint32_t(n)));
         lums.push_back(0.2126f * v.x + 0.7152f * v.y + 0.0722f * v.z);
         for (int y = 0; y < scale; ++y)
           for (int x = 0; x < scale; ++x)
             for (int ch = 0; ch < 3; ++ch)
-              sheet.at((k % cols) * tile + 1 + i * scale + x, (k / cols) * tile + 1 + j * scale + y, ch) = v[ch];
+              sheet.at((k % cols) * tile + 1 + i * scale + x, (k / cols) * tile + 1 + j * scale + y, ch) =
+                  v[ch];
       }
   }
   float exposureEv = 0.0f;
@@ -193,12 +199,13 @@ int runVir(const VirCommandOptions& opt) {
   j["contact_sheet_exposure_ev"] = exposureEv;
   writeFileAtomic(out / "vir.json", j.dump(2) + "\n");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::printf("vir: cell %d,%d: %zu surfels, %lld probes, N=%d, %d frames (first %.1f s, last %.1f s), holes %.4f -> "
-              "%.4f; wrote %s (%.1f s)\n",
-              c.x, c.z, cell.surfels.size(), (long long)probeCount, n, frames,
-              frameMs.front()["wall"].get<double>() * 1e-3, frameMs.back()["wall"].get<double>() * 1e-3,
-              atlas.holeFractionBeforeFill, atlas.holeFractionAfterFill, (out / "contact_sheet.png").string().c_str(),
-              seconds);
+  std::printf(
+      "vir: cell %d,%d: %zu surfels, %lld probes, N=%d, %d frames (first %.1f s, last %.1f s), holes %.4f -> "
+      "%.4f; wrote %s (%.1f s)\n",
+      c.x, c.z, cell.surfels.size(), (long long)probeCount, n, frames,
+      frameMs.front()["wall"].get<double>() * 1e-3, frameMs.back()["wall"].get<double>() * 1e-3,
+      atlas.holeFractionBeforeFill, atlas.holeFractionAfterFill, (out / "contact_sheet.png").string().c_str(),
+      seconds);
   return 0;
 }
 

@@ -3,8 +3,8 @@
 // Idempotent: a cell whose file exists with the same input hash (bake/world_bake.h: world seed, cell, the
 // mesh hashes of the cell and its 8 neighbours, probe grid, flags and offsets, every bake option) is
 // skipped; a corrupt existing file is rebaked. Interruptible (Ctrl-C: exit 130; the cell in flight is
-// dropped, not written half-trained; a rerun resumes with it; tests/interrupt_bake.sh). Slurm: --array-index/--array-size
-// bake one contiguous share of the selected cells.
+// dropped, not written half-trained; a rerun resumes with it; tests/interrupt_bake.sh). Slurm:
+// --array-index/--array-size bake one contiguous share of the selected cells.
 // --codec shared: OUT/shared_model.vdb is pre-trained first (or reused when its input hash matches; an
 // interrupted pre-training resumes from OUT/shared_model.ckpt), then every cell is fitted against it.
 // Bookkeeping (bake/bake_records.h): cells/cell_X_Z.json per baked cell (kind, seconds by stage, bytes,
@@ -36,7 +36,8 @@ namespace fs = std::filesystem;
 namespace {
 
 // "X,Z" cells and "A-B" / "A" linear index ranges (index = z * cellsX + x), comma-free ranges.
-std::vector<worlds::CellCoord> selectCells(const worlds::SyntheticWorld& world, const std::vector<std::string>& args) {
+std::vector<worlds::CellCoord> selectCells(const worlds::SyntheticWorld& world,
+                                           const std::vector<std::string>& args) {
   std::vector<worlds::CellCoord> cells;
   const int64_t total = int64_t(world.cellsX()) * world.cellsZ();
   if (args.empty()) {
@@ -46,16 +47,20 @@ std::vector<worlds::CellCoord> selectCells(const worlds::SyntheticWorld& world, 
   for (const std::string& a : args) {
     if (a.find(',') != std::string::npos) {
       worlds::CellCoord c = parseCellArg(a, "--cells");
-      if (!world.contains(c)) fail("--cells {}: outside the world ({} x {} cells)", a, world.cellsX(), world.cellsZ());
+      if (!world.contains(c))
+        fail("--cells {}: outside the world ({} x {} cells)", a, world.cellsX(), world.cellsZ());
       cells.push_back(c);
       continue;
     }
     long long lo = 0, hi = 0;
     char dash = 0, extra = 0;
     int n = std::sscanf(a.c_str(), "%lld%c%lld%c", &lo, &dash, &hi, &extra);
-    if (n == 1) hi = lo;
-    else if (n != 3 || dash != '-') fail("--cells '{}': expected X,Z or an index range A-B", a);
-    if (lo < 0 || hi < lo || hi >= total) fail("--cells '{}': indices must satisfy 0 <= A <= B < {}", a, total);
+    if (n == 1)
+      hi = lo;
+    else if (n != 3 || dash != '-')
+      fail("--cells '{}': expected X,Z or an index range A-B", a);
+    if (lo < 0 || hi < lo || hi >= total)
+      fail("--cells '{}': indices must satisfy 0 <= A <= B < {}", a, total);
     for (long long i = lo; i <= hi; ++i) cells.push_back({int(i % world.cellsX()), int(i / world.cellsX())});
   }
   return cells;
@@ -63,13 +68,15 @@ std::vector<worlds::CellCoord> selectCells(const worlds::SyntheticWorld& world, 
 
 }  // namespace
 
-std::vector<worlds::CellCoord> selectBakeCells(const worlds::SyntheticWorld& world, const WorldBakeOptions& opt) {
+std::vector<worlds::CellCoord> selectBakeCells(const worlds::SyntheticWorld& world,
+                                               const WorldBakeOptions& opt) {
   std::vector<worlds::CellCoord> cells;
   if (!opt.path.empty()) {
     if (!opt.cells.empty()) fail("--path {} and --cells: give one of them", opt.path);
     streaming::FlythroughOptions fo;
     fo.path = opt.path;
-    const streaming::WorldLayout layout{{0.0f, 0.0f}, float(world.params().cellM), {world.cellsX(), world.cellsZ()}};
+    const streaming::WorldLayout layout{
+        {0.0f, 0.0f}, float(world.params().cellM), {world.cellsX(), world.cellsZ()}};
     for (glm::ivec2 c : streaming::flightPathCells(layout, fo, opt.pathRadius)) cells.push_back({c.x, c.y});
   } else {
     cells = selectCells(world, opt.cells);
@@ -93,10 +100,12 @@ int runWorldBake(const WorldBakeOptions& opt) {
     bool reused = false;
     try {
       const SharedModel m = bake::ensureSharedModel(world, settings, out, &reused);
-      shared = ResolvedSharedModel{dequantizeWeights(m.weights), m.weightsHash(), sharedModelPath(out).string()};
+      shared =
+          ResolvedSharedModel{dequantizeWeights(m.weights), m.weightsHash(), sharedModelPath(out).string()};
       std::fprintf(stderr, "shared model %s: %s %016llx, %d steps on %s, mean irradiance error %.2f %%\n",
-                   shared->name.c_str(), reused ? "up to date" : "trained", static_cast<unsigned long long>(shared->hash),
-                   m.stats.steps, m.stats.cells.c_str(), 100.0 * m.stats.errorAchieved);
+                   shared->name.c_str(), reused ? "up to date" : "trained",
+                   static_cast<unsigned long long>(shared->hash), m.stats.steps, m.stats.cells.c_str(),
+                   100.0 * m.stats.errorAchieved);
     } catch (const Error& e) {
       if (!InterruptGuard::interrupted()) throw;
       std::fprintf(stderr, "\n%s\n", e.what());
@@ -138,8 +147,11 @@ int runWorldBake(const WorldBakeOptions& opt) {
         cf = bake::bakeCell(world, std::move(inputs), settings, &report, shared ? &*shared : nullptr);
       } catch (const Error&) {
         if (!InterruptGuard::interrupted()) throw;
-        // Interrupted mid-cell: that cell is not written (bakeCell throws rather than return a partial model).
-        std::fprintf(stderr, "\nbake: interrupted during cell %d,%d (not written) after %zu cells; run the same command again to resume\n",
+        // Interrupted mid-cell: that cell is not written (bakeCell throws rather than return a partial
+        // model).
+        std::fprintf(stderr,
+                     "\nbake: interrupted during cell %d,%d (not written) after %zu cells; run the same "
+                     "command again to resume\n",
                      c.x, c.z, done);
         return 130;
       }
@@ -165,12 +177,16 @@ int runWorldBake(const WorldBakeOptions& opt) {
       bake::clearCellBakeFailure(out, c);
       bytesTotal += bytes.total;
       networks += report.network ? 1 : 0;
-      std::fprintf(stderr, "\ncell %d,%d: %zu probes, %s, irradiance error %.2f %% (target %.1f %%), %zu bytes, %.1f s\n", c.x,
-                   c.z, report.probes, cf.stats.model.c_str(), 100.0 * cf.stats.errorAchieved, 100.0 * settings.errorTarget,
-                   bytes.total, record.totalSeconds);
+      std::fprintf(
+          stderr,
+          "\ncell %d,%d: %zu probes, %s, irradiance error %.2f %% (target %.1f %%), %zu bytes, %.1f s\n", c.x,
+          c.z, report.probes, cf.stats.model.c_str(), 100.0 * cf.stats.errorAchieved,
+          100.0 * settings.errorTarget, bytes.total, record.totalSeconds);
     } catch (const std::exception& e) {
       if (InterruptGuard::interrupted()) {
-        std::fprintf(stderr, "\nbake: interrupted during cell %d,%d (not written) after %zu cells; run the same command again to resume\n",
+        std::fprintf(stderr,
+                     "\nbake: interrupted during cell %d,%d (not written) after %zu cells; run the same "
+                     "command again to resume\n",
                      c.x, c.z, done);
         return 130;
       }
@@ -182,13 +198,14 @@ int runWorldBake(const WorldBakeOptions& opt) {
     progress.update(done);
   }
   progress.finish();
-  std::printf("done: %zu cells (%zu already baked, %zu with a network, %zu failed), %zu bytes written, in %s\n", cells.size(),
-              skipped, networks, failed.size(), bytesTotal, (out / "cells").string().c_str());
+  std::printf(
+      "done: %zu cells (%zu already baked, %zu with a network, %zu failed), %zu bytes written, in %s\n",
+      cells.size(), skipped, networks, failed.size(), bytesTotal, (out / "cells").string().c_str());
   if (!failed.empty()) {
     std::string list;
     for (const worlds::CellCoord c : failed) list += fmt::format(" {},{}", c.x, c.z);
-    std::fprintf(stderr, "bake: %zu cell(s) failed:%s (errors in %s/cell_X_Z.failed); rerun to retry them\n", failed.size(),
-                 list.c_str(), (out / "cells").string().c_str());
+    std::fprintf(stderr, "bake: %zu cell(s) failed:%s (errors in %s/cell_X_Z.failed); rerun to retry them\n",
+                 failed.size(), list.c_str(), (out / "cells").string().c_str());
     return 1;
   }
   return 0;

@@ -9,6 +9,7 @@
 namespace lfgi::app {
 
 // --cells (X,Z or index ranges; all when empty), then --array-index/--array-size's share.
-std::vector<worlds::CellCoord> selectBakeCells(const worlds::SyntheticWorld& world, const WorldBakeOptions& options);
+std::vector<worlds::CellCoord> selectBakeCells(const worlds::SyntheticWorld& world,
+                                               const WorldBakeOptions& options);
 
 }  // namespace lfgi::app

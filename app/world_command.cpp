@@ -1,8 +1,8 @@
 // `lfgi world generate | info | export-cell | edit`: the synthetic world as cells on disk
 // (worlds/world_cells.h) and its hand edits (worlds/world_edits.h).
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <atomic>
@@ -36,11 +36,12 @@ int runWorldGenerate(const WorldGenerateOptions& opt) {
   }
   for (const std::string& c : opt.cells) {
     worlds::CellCoord cc = parseCellArg(c, "--cells");
-    if (!world.contains(cc)) fail("--cells {}: outside the world ({} x {} cells)", c, world.cellsX(), world.cellsZ());
+    if (!world.contains(cc))
+      fail("--cells {}: outside the world ({} x {} cells)", c, world.cellsX(), world.cellsZ());
     todo.push_back(cc);
   }
-  spdlog::info("world: {} m x {} m, cells of {} m ({} x {}), seed {} -> {}", params.sizeM, params.sizeM, params.cellM,
-               world.cellsX(), world.cellsZ(), params.seed, opt.outDir);
+  spdlog::info("world: {} m x {} m, cells of {} m ({} x {}), seed {} -> {}", params.sizeM, params.sizeM,
+               params.cellM, world.cellsX(), world.cellsZ(), params.seed, opt.outDir);
   if (todo.empty()) {
     spdlog::info("wrote the manifest; cells are generated on demand, or all now with --all");
     return 0;
@@ -87,7 +88,8 @@ int runWorldGenerate(const WorldGenerateOptions& opt) {
   progress.finish();
   if (!firstError.empty()) fail("{}", firstError);
   if (InterruptGuard::interrupted()) {
-    spdlog::warn("interrupted after {} of {} cells; run the same command again to resume", done.load(), total);
+    spdlog::warn("interrupted after {} of {} cells; run the same command again to resume", done.load(),
+                 total);
     return 130;
   }
   spdlog::info("done: {} cells in {}", total, opt.outDir);
@@ -137,8 +139,8 @@ int runWorldInfo(const WorldInfoOptions& opt) {
     std::printf("%s\n", j.dump(2).c_str());
     return 0;
   }
-  std::printf("world %s: %.0f m x %.0f m, cells %.0f m, seed %llu\n", opt.dir.c_str(), params.sizeM, params.sizeM,
-              params.cellM, (unsigned long long)params.seed);
+  std::printf("world %s: %.0f m x %.0f m, cells %.0f m, seed %llu\n", opt.dir.c_str(), params.sizeM,
+              params.sizeM, params.cellM, (unsigned long long)params.seed);
   std::printf("cells generated   %zu of %d%s\n", cells, world.cellsX() * world.cellsZ(),
               cells == 0 ? " (run `lfgi world generate ... --all`)" : "");
   std::printf("triangles         %zu (%.0f m2 of surface)\n", triangles, area);
@@ -158,12 +160,16 @@ int runWorldEdit(const WorldEditOptions& opt) {
   std::vector<worlds::WorldEdit> edits;
   for (const auto& [flag, text] : opt.edits) {
     worlds::WorldEditKind kind = worlds::WorldEditKind::kAddBox;
-    if (flag == "add-building") kind = worlds::WorldEditKind::kAddBuilding;
-    else if (flag == "clear-region") kind = worlds::WorldEditKind::kClearRegion;
-    else if (flag != "add-box") fail("world edit: unknown edit flag --{}", flag);
+    if (flag == "add-building")
+      kind = worlds::WorldEditKind::kAddBuilding;
+    else if (flag == "clear-region")
+      kind = worlds::WorldEditKind::kClearRegion;
+    else if (flag != "add-box")
+      fail("world edit: unknown edit flag --{}", flag);
     edits.push_back(worlds::parseWorldEdit(kind, text));
   }
-  if (edits.empty()) fail("world edit {}: nothing to do (give --add-building, --add-box or --clear-region)", opt.dir);
+  if (edits.empty())
+    fail("world edit {}: nothing to do (give --add-building, --add-box or --clear-region)", opt.dir);
   const worlds::SyntheticWorld before(worlds::readWorldManifest(opt.dir));
   const worlds::SyntheticWorld after(worlds::appendWorldEdits(opt.dir, edits));
   // Cells whose content changed: compare the content hashes of every cell the new edits overlap.
@@ -171,7 +177,8 @@ int runWorldEdit(const WorldEditOptions& opt) {
   for (const worlds::WorldEdit& e : edits)
     for (const worlds::CellCoord c : after.editCells(e))
       if (std::find(candidates.begin(), candidates.end(), c) == candidates.end()) candidates.push_back(c);
-  std::sort(candidates.begin(), candidates.end(), [](auto a, auto b) { return a.z != b.z ? a.z < b.z : a.x < b.x; });
+  std::sort(candidates.begin(), candidates.end(),
+            [](auto a, auto b) { return a.z != b.z ? a.z < b.z : a.x < b.x; });
   for (const worlds::CellCoord c : candidates)
     if (before.generateCell(c).contentHash() != after.generateCell(c).contentHash()) changed.push_back(c);
   // Bake inputs: a cell's capture scene is its 3 x 3 block (bake/world_bake.h), and probe placement reads
@@ -199,11 +206,13 @@ int runWorldEdit(const WorldEditOptions& opt) {
   std::printf("world edit: %zu edit(s) appended to %s (%zu in all)\n", edits.size(),
               (std::filesystem::path(opt.dir) / "world.json").string().c_str(), after.params().edits.size());
   std::printf("content changed in %zu cells:%s\n", changed.size(), list(changed).c_str());
-  std::printf("bake inputs changed in %zu cells (changed cells and their in-world neighbours):%s\n", stale.size(),
-              list(stale).c_str());
+  std::printf("bake inputs changed in %zu cells (changed cells and their in-world neighbours):%s\n",
+              stale.size(), list(stale).c_str());
   if (regenerate > 0)
-    std::printf("%zu generated cells are out of date; rerun `lfgi world generate --out %s --all ...` to rebuild them\n",
-                regenerate, opt.dir.c_str());
+    std::printf(
+        "%zu generated cells are out of date; rerun `lfgi world generate --out %s --all ...` to rebuild "
+        "them\n",
+        regenerate, opt.dir.c_str());
   return 0;
 }
 
@@ -211,7 +220,8 @@ int runWorldExportCell(const WorldExportOptions& opt) {
   worlds::WorldParams params = worlds::readWorldManifest(opt.dir);
   worlds::SyntheticWorld world(params);
   worlds::CellCoord c = parseCellArg(opt.cell, "--cell");
-  if (!world.contains(c)) fail("--cell {}: outside the world ({} x {} cells)", opt.cell, world.cellsX(), world.cellsZ());
+  if (!world.contains(c))
+    fail("--cell {}: outside the world ({} x {} cells)", opt.cell, world.cellsX(), world.cellsZ());
   worlds::TriangleMesh mesh = world.generateCell(c);
   worlds::exportGlb(opt.out, mesh);
   spdlog::info("wrote {} ({} triangles, {} materials)", opt.out, mesh.triangleCount(), mesh.materials.size());

@@ -9,8 +9,8 @@
 #include <sstream>
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
 #include "bake/parallel_work.h"
 #include "core/error.h"
@@ -55,7 +55,8 @@ CellBakeRecord parseRecord(const fs::path& file) {
     r.captureSeconds = s.at("capture").get<double>();
     r.trainingSeconds = s.at("training").get<double>();
     r.totalSeconds = s.at("total").get<double>();
-    if (!(r.totalSeconds >= 0.0) || !std::isfinite(r.totalSeconds)) fail("{}: seconds.total {} is not a duration", file.string(), r.totalSeconds);
+    if (!(r.totalSeconds >= 0.0) || !std::isfinite(r.totalSeconds))
+      fail("{}: seconds.total {} is not a duration", file.string(), r.totalSeconds);
     r.bytes = j.at("bytes").get<uint64_t>();
     r.host = j.at("host").get<std::string>();
     r.finishedUtc = j.at("finished_utc").get<std::string>();
@@ -71,8 +72,12 @@ CellBakeRecord parseRecord(const fs::path& file) {
 
 }  // namespace
 
-fs::path cellRecordPath(const fs::path& outDir, worlds::CellCoord c) { return cellPathWithExtension(outDir, c, ".json"); }
-fs::path cellFailurePath(const fs::path& outDir, worlds::CellCoord c) { return cellPathWithExtension(outDir, c, ".failed"); }
+fs::path cellRecordPath(const fs::path& outDir, worlds::CellCoord c) {
+  return cellPathWithExtension(outDir, c, ".json");
+}
+fs::path cellFailurePath(const fs::path& outDir, worlds::CellCoord c) {
+  return cellPathWithExtension(outDir, c, ".failed");
+}
 
 void writeCellBakeRecord(const fs::path& outDir, const CellBakeRecord& r) {
   nlohmann::ordered_json j;
@@ -106,7 +111,8 @@ std::vector<CellBakeRecord> readAllCellBakeRecords(const fs::path& outDir) {
   if (!fs::is_directory(dir, ec)) return records;
   std::vector<fs::path> files;
   for (const fs::directory_entry& e : fs::directory_iterator(dir, ec))
-    if (e.path().extension() == ".json" && e.path().filename().string().starts_with("cell_")) files.push_back(e.path());
+    if (e.path().extension() == ".json" && e.path().filename().string().starts_with("cell_"))
+      files.push_back(e.path());
   std::sort(files.begin(), files.end());  // directory order differs between file systems
   for (const fs::path& f : files) {
     try {
@@ -120,7 +126,8 @@ std::vector<CellBakeRecord> readAllCellBakeRecords(const fs::path& outDir) {
 
 void writeCellBakeFailure(const fs::path& outDir, worlds::CellCoord c, const std::string& error) {
   std::string firstLine = error.substr(0, error.find('\n'));
-  writeFileAtomic(cellFailurePath(outDir, c), fmt::format("{}\nhost: {}\ntime: {}\n", firstLine, hostName(), utcNow()));
+  writeFileAtomic(cellFailurePath(outDir, c),
+                  fmt::format("{}\nhost: {}\ntime: {}\n", firstLine, hostName(), utcNow()));
 }
 
 void clearCellBakeFailure(const fs::path& outDir, worlds::CellCoord c) {
@@ -168,11 +175,14 @@ const char* cellStatusName(CellStatus s) {
   return "unknown";
 }
 
-std::vector<CellStatusEntry> worldBakeStatus(const worlds::SyntheticWorld& world, const std::vector<worlds::CellCoord>& cells,
-                                             const WorldBakeSettings& settings, const fs::path& outDir, bool showProgress) {
+std::vector<CellStatusEntry> worldBakeStatus(const worlds::SyntheticWorld& world,
+                                             const std::vector<worlds::CellCoord>& cells,
+                                             const WorldBakeSettings& settings, const fs::path& outDir,
+                                             bool showProgress) {
   settings.validate();
   std::vector<CellStatusEntry> out(cells.size());
-  const uint64_t sharedHash = currentSharedModelHash(world, settings, outDir);  // 0: per-cell codec or none yet
+  const uint64_t sharedHash =
+      currentSharedModelHash(world, settings, outDir);  // 0: per-cell codec or none yet
   // The input hash builds the cell (probe placement) and its neighbours' meshes: the expensive part, so only
   // cells with a readable file pay it; a missing file needs no hash.
   const detail::ParallelWorkResult r =
@@ -191,7 +201,8 @@ std::vector<CellStatusEntry> worldBakeStatus(const worlds::SyntheticWorld& world
         uint64_t stored = 0;
         try {
           stored = readCellFile(file).inputHash;
-        } catch (const std::exception& err) {  // lfgi::Error, or e.g. bad_alloc from a reader bug: still corrupt
+        } catch (
+            const std::exception& err) {  // lfgi::Error, or e.g. bad_alloc from a reader bug: still corrupt
           e.status = failure ? CellStatus::Failed : CellStatus::Corrupt;
           e.detail = failure ? *failure : std::string(err.what());
           return;

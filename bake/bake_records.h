@@ -75,9 +75,10 @@ struct CellStatusEntry {
 // Status of each cell. The input hash (cellInputHash: builds the cell and its neighbours' meshes) is only
 // computed where a readable cell file exists, in parallel over all cores, with progress on stderr when
 // showProgress. Interruptible: throws lfgi::Error on Ctrl-C (the caller installs the InterruptGuard).
-std::vector<CellStatusEntry> worldBakeStatus(const worlds::SyntheticWorld& world, const std::vector<worlds::CellCoord>& cells,
-                                             const WorldBakeSettings& settings, const std::filesystem::path& outDir,
-                                             bool showProgress);
+std::vector<CellStatusEntry> worldBakeStatus(const worlds::SyntheticWorld& world,
+                                             const std::vector<worlds::CellCoord>& cells,
+                                             const WorldBakeSettings& settings,
+                                             const std::filesystem::path& outDir, bool showProgress);
 
 inline constexpr size_t kCellKindCount = 4;
 

@@ -92,8 +92,9 @@ TEST(BakeRecords, FailureMarkerKeepsTheFirstLineAndClears) {
 }
 
 TEST(BakeRecords, CostModelMeansByKindAndFallsBackToTheOverallMean) {
-  const std::vector<CellBakeRecord> recs = {makeRecord({0, 0}, CellKind::kCity, 10.0), makeRecord({1, 0}, CellKind::kCity, 20.0),
-                                            makeRecord({2, 0}, CellKind::kField, 3.0), makeRecord({3, 0}, CellKind::kSuburb, 7.0)};
+  const std::vector<CellBakeRecord> recs = {
+      makeRecord({0, 0}, CellKind::kCity, 10.0), makeRecord({1, 0}, CellKind::kCity, 20.0),
+      makeRecord({2, 0}, CellKind::kField, 3.0), makeRecord({3, 0}, CellKind::kSuburb, 7.0)};
   const BakeCostModel m = costModelFromRecords(recs);
   EXPECT_EQ(m.totalSamples, 4u);
   EXPECT_DOUBLE_EQ(m.secondsPerCell(CellKind::kCity), 15.0);
@@ -121,8 +122,9 @@ TEST(BakeRecords, ProjectionIsCountsTimesSecondsOverNodes) {
   EXPECT_DOUBLE_EQ(worldParamsForArea(1e-6, 64.0, 1).sizeM, 64.0);
   EXPECT_THROW(worldParamsForArea(0.0, 64.0, 1), Error);
 
-  const BakeCostModel m = costModelFromRecords({makeRecord({0, 0}, CellKind::kCity, 10.0), makeRecord({1, 0}, CellKind::kField, 2.0),
-                                                makeRecord({2, 0}, CellKind::kSuburb, 4.0), makeRecord({3, 0}, CellKind::kPark, 6.0)});
+  const BakeCostModel m = costModelFromRecords(
+      {makeRecord({0, 0}, CellKind::kCity, 10.0), makeRecord({1, 0}, CellKind::kField, 2.0),
+       makeRecord({2, 0}, CellKind::kSuburb, 4.0), makeRecord({3, 0}, CellKind::kPark, 6.0)});
   const worlds::WorldParams small = worlds::WorldParams::smallDefault(1);
   const BakeProjection proj = projectBake(m, small);
   EXPECT_DOUBLE_EQ(proj.cellSeconds, 6 * 2.0 + 5 * 4.0 + 4 * 10.0 + 1 * 6.0);
@@ -159,9 +161,10 @@ TEST(BakeRecords, WorldBakeStatusClassifiesEveryCell) {
   };
   writeFile({0, 0}, cellInputHash(world, {0, 0}, settings));      // done
   writeFile({1, 0}, cellInputHash(world, {1, 0}, settings) ^ 1);  // stale
-  std::ofstream(cellFilePath(d, {0, 1})) << "not a cell file";   // corrupt
+  std::ofstream(cellFilePath(d, {0, 1})) << "not a cell file";    // corrupt
   writeCellBakeFailure(d, {1, 1}, "boom");                        // failed, no file
-  const std::vector<CellStatusEntry> s = worldBakeStatus(world, {{0, 0}, {1, 0}, {0, 1}, {1, 1}}, settings, d, false);
+  const std::vector<CellStatusEntry> s =
+      worldBakeStatus(world, {{0, 0}, {1, 0}, {0, 1}, {1, 1}}, settings, d, false);
   ASSERT_EQ(s.size(), 4u);
   EXPECT_EQ(s[0].status, CellStatus::Done);
   EXPECT_EQ(s[1].status, CellStatus::Stale);

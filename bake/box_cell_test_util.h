@@ -14,9 +14,10 @@ namespace lfgi::test {
 
 // A box [boxMin, boxMax] on a 60 m ground slab, captured by 8 probes at (+-4, {1, 4}, +-4): 8 x 8 maps,
 // 4 x 4 irradiance, 4 spp, 1 bounce (~0.1 s per key).
-inline bake::GeneratorTrainingSet boxOnGroundCell(glm::vec3 groundAlbedo, glm::vec3 wallAlbedo, glm::vec3 boxMin,
-                                            glm::vec3 boxMax, std::span<const bake::LightingKeySpec> keys,
-                                            const std::string& name) {
+inline bake::GeneratorTrainingSet boxOnGroundCell(glm::vec3 groundAlbedo, glm::vec3 wallAlbedo,
+                                                  glm::vec3 boxMin, glm::vec3 boxMax,
+                                                  std::span<const bake::LightingKeySpec> keys,
+                                                  const std::string& name) {
   worlds::TriangleMesh mesh;
   worlds::Material ground, wall;
   ground.albedo = groundAlbedo;
@@ -34,7 +35,8 @@ inline bake::GeneratorTrainingSet boxOnGroundCell(glm::vec3 groundAlbedo, glm::v
   o.irradianceResolution = 4;
   o.samplesPerTexel = 4;
   o.maxBounces = 1;
-  return bake::captureTrainingSet(scene, positions, glm::vec3(-4.0f, 1.0f, -4.0f), glm::vec3(4.0f, 4.0f, 4.0f), keys, o);
+  return bake::captureTrainingSet(scene, positions, glm::vec3(-4.0f, 1.0f, -4.0f),
+                                  glm::vec3(4.0f, 4.0f, 4.0f), keys, o);
 }
 
 }  // namespace lfgi::test

@@ -19,8 +19,8 @@ Frame frame(glm::vec3 n) {
   const float sign = std::copysign(1.0f, n.z);
   const float a = -1.0f / (sign + n.z);
   const float b = n.x * n.y * a;
-  return {glm::vec3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x), glm::vec3(b, sign + n.y * n.y * a, -n.y),
-          n};
+  return {glm::vec3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x),
+          glm::vec3(b, sign + n.y * n.y * a, -n.y), n};
 }
 
 float luminance(glm::vec3 c) {

@@ -50,7 +50,7 @@ struct BrdfSample {
   glm::vec3 wi{0.0f};
   glm::vec3 weight{0.0f};  // f(wo, wi) (n . wi) / pdf
   float pdf = 0.0f;
-  bool valid = false;      // false if the sampled direction is below the surface (path ends)
+  bool valid = false;  // false if the sampled direction is below the surface (path ends)
 };
 // u0 picks the lobe, (u1, u2) the direction; all in [0, 1).
 BrdfSample sampleBrdf(const SurfaceBrdf& b, glm::vec3 n, glm::vec3 wo, float u0, float u1, float u2);

@@ -43,8 +43,11 @@ TEST(Brdf, ImportanceSamplingAgreesWithUniformSamplingAndItsPdf) {
   struct Case {
     float roughness, metallic, thetaDeg;
   };
-  const Case cases[] = {{0.3f, 0.0f, 20.0f}, {0.5f, 1.0f, 45.0f}, {0.25f, 0.5f, 70.0f},
-                        {0.8f, 0.0f, 80.0f}, {0.4f, 1.0f, 5.0f}};
+  const Case cases[] = {{0.3f, 0.0f, 20.0f},
+                        {0.5f, 1.0f, 45.0f},
+                        {0.25f, 0.5f, 70.0f},
+                        {0.8f, 0.0f, 80.0f},
+                        {0.4f, 1.0f, 5.0f}};
   for (const Case& c : cases) {
     const SurfaceBrdf b{glm::vec3(0.9f, 0.6f, 0.3f), c.roughness, c.metallic};
     const glm::vec3 wo = viewDirection(c.thetaDeg);
@@ -62,7 +65,8 @@ TEST(Brdf, ImportanceSamplingAgreesWithUniformSamplingAndItsPdf) {
         worstPdf = std::max(worstPdf, std::abs(p - s.pdf) / p);
       }
       // Uniform hemisphere: pdf 1 / (2 pi).
-      const float z = u1, r = std::sqrt(std::max(0.0f, 1.0f - z * z)), phi = 2.0f * std::numbers::pi_v<float> * u2;
+      const float z = u1, r = std::sqrt(std::max(0.0f, 1.0f - z * z)),
+                  phi = 2.0f * std::numbers::pi_v<float> * u2;
       const glm::vec3 wi(r * std::cos(phi), z, r * std::sin(phi));
       const double v = double(evalBrdf(b, n, wo, wi).y) * z * 2.0 * std::numbers::pi;
       su += v;
@@ -75,8 +79,10 @@ TEST(Brdf, ImportanceSamplingAgreesWithUniformSamplingAndItsPdf) {
         << "roughness " << c.roughness << " metallic " << c.metallic << " theta " << c.thetaDeg;
     EXPECT_LT(worstPdf, 1e-4);
     EXPECT_LE(mi, 1.0 + 4.0 * ei);  // green albedo 0.6: no energy gain
-    std::printf("brdf r=%.2f m=%.1f theta=%2.0f: directional albedo (G) importance %.4f +- %.4f, uniform %.4f +- %.4f\n",
-                c.roughness, c.metallic, c.thetaDeg, mi, ei, mu, eu);
+    std::printf(
+        "brdf r=%.2f m=%.1f theta=%2.0f: directional albedo (G) importance %.4f +- %.4f, uniform %.4f +- "
+        "%.4f\n",
+        c.roughness, c.metallic, c.thetaDeg, mi, ei, mu, eu);
   }
 }
 
@@ -106,7 +112,8 @@ TEST(Brdf, WhiteMetalDirectionalAlbedo) {
       const double c = std::cos(30.0 * std::numbers::pi / 180.0);
       const double exact = 1.0 - c * std::log((1.0 + c) / c);
       EXPECT_NEAR(albedo, exact, 4.0 * se + 1e-4);
-      std::printf("white metal, roughness 1, 30 deg: albedo %.5f +- %.5f, analytic %.5f\n", albedo, se, exact);
+      std::printf("white metal, roughness 1, 30 deg: albedo %.5f +- %.5f, analytic %.5f\n", albedo, se,
+                  exact);
     } else {
       EXPECT_GT(albedo, roughness < 0.1f ? 0.98 : 0.75) << roughness;
       std::printf("white metal, roughness %.2f, 30 deg: albedo %.5f +- %.5f\n", roughness, albedo, se);

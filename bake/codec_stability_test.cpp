@@ -91,7 +91,7 @@ TEST(CodecStability, Fp16KeepsSunAndA1e5DarkerInteriorFinite) {
   const float sun = 3.0e6f, interior = sun * 1e-5f;
   for (size_t t = 0; t < n2 * 3; ++t) {
     f.radiance[t] = t < 3 ? sun : interior * (1.0f + 0.01f * float(t));  // probe 0: one sun texel
-    f.radiance[n2 * 3 + t] = interior * (1.0f + 0.02f * float(t));      // probe 1: interior only
+    f.radiance[n2 * 3 + t] = interior * (1.0f + 0.02f * float(t));       // probe 1: interior only
   }
   for (int lmax : {0, 2}) {
     const auto codec = lmax == 0 ? makeRawFp16Codec() : makeShCodec(lmax);
@@ -125,7 +125,8 @@ TEST(CodecStability, MissedTargetFallsBackAndIsReported) {
   const double shL1 = c.attempts[0].irradianceRelativeRms, net = c.attempts[1].irradianceRelativeRms;
   EXPECT_DOUBLE_EQ(c.error.irradianceRelativeRms, std::min(shL1, net));
   EXPECT_EQ(c.kind, net < shL1 ? CellModelKind::kGenerator : CellModelKind::kShL1);
-  std::printf("[ measure  ] missed target: SH L1 %.4f, 5-step network %.4f -> %s\n", shL1, net, c.describe().c_str());
+  std::printf("[ measure  ] missed target: SH L1 %.4f, 5-step network %.4f -> %s\n", shL1, net,
+              c.describe().c_str());
 }
 
 TEST(CodecStability, DivergedTrainingIsDetectedAndNeverShipped) {

@@ -23,11 +23,11 @@
 namespace lfgi::bake {
 
 struct RayHit {
-  float t = 0.0f;              // distance along the (unit) ray direction
-  uint32_t triangle = 0;       // index into the mesh's triangles
-  glm::vec3 normal{0.0f};      // unit geometric normal of the triangle's front side (CCW, mesh convention)
-  glm::vec2 barycentric{0.0f}; // Embree's (u, v): hit = (1-u-v) v0 + u v1 + v v2
-  bool backface = false;       // the ray arrived from behind the front side (dot(dir, normal) > 0)
+  float t = 0.0f;               // distance along the (unit) ray direction
+  uint32_t triangle = 0;        // index into the mesh's triangles
+  glm::vec3 normal{0.0f};       // unit geometric normal of the triangle's front side (CCW, mesh convention)
+  glm::vec2 barycentric{0.0f};  // Embree's (u, v): hit = (1-u-v) v0 + u v1 + v v2
+  bool backface = false;        // the ray arrived from behind the front side (dot(dir, normal) > 0)
 };
 
 class EmbreeScene {

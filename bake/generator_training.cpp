@@ -65,11 +65,11 @@ struct GeneratorNetImpl : torch::nn::Module {
     for (int i = 0; i < a.layers(); ++i)
       convs.push_back(register_module(
           "conv" + std::to_string(i),
-          torch::nn::ConvTranspose2d(
-              torch::nn::ConvTranspose2dOptions(a.convChannels[size_t(i)], a.convChannels[size_t(i) + 1],
-                                                kGeneratorKernel)
-                  .stride(2)
-                  .padding(1))));
+          torch::nn::ConvTranspose2d(torch::nn::ConvTranspose2dOptions(a.convChannels[size_t(i)],
+                                                                       a.convChannels[size_t(i) + 1],
+                                                                       kGeneratorKernel)
+                                         .stride(2)
+                                         .padding(1))));
   }
   // film: a per-cell adapter (core/generator.h GeneratorAdapter) as [2][channels] (scale row, shift row),
   // undefined for none; `stages` of it are applied.
@@ -176,14 +176,14 @@ std::vector<double> irradianceKernel(int n, int m) {
 // ---- data tensors ---------------------------------------------------------------------------------
 struct Data {
   int n = 0, m = 0;
-  int64_t P = 0, K = 0, S = 0;   // probes, keys, samples (s = k * P + p)
+  int64_t P = 0, K = 0, S = 0;  // probes, keys, samples (s = k * P + p)
   GeneratorOutputScale scale;
-  torch::Tensor target;          // [S][11][n][n] encoded
-  torch::Tensor irradiance;      // [S][3][m*m] of the captured radiance
-  torch::Tensor kernel;          // [n*n][m*m]
-  torch::Tensor radianceWeight;  // [n][n], solid angle normalised to mean 1
-  torch::Tensor cond;            // [K][condDim]
-  torch::Tensor positionLatents; // [P][L] (PositionFourier)
+  torch::Tensor target;           // [S][11][n][n] encoded
+  torch::Tensor irradiance;       // [S][3][m*m] of the captured radiance
+  torch::Tensor kernel;           // [n*n][m*m]
+  torch::Tensor radianceWeight;   // [n][n], solid angle normalised to mean 1
+  torch::Tensor cond;             // [K][condDim]
+  torch::Tensor positionLatents;  // [P][L] (PositionFourier)
 };
 
 float autoExposure(const GeneratorTrainingSet& set) {
@@ -270,11 +270,12 @@ uint64_t fingerprint(const GeneratorTrainingSet& set, const GeneratorTrainingOpt
   for (int c : a.convChannels) h = fnvValue(h, c);
   h = fnvValue(h, uint8_t(a.latentSource));
   h = fnvValue(h, a.fourierOctaves);
-  for (float v : {o.learningRate, o.latentLearningRate, o.loss.radiance, o.loss.irradiance, o.loss.distance,
-                  o.loss.normal, o.loss.albedo, o.loss.latent, o.loss.adversarial, d.scale.exposure,
-                  d.scale.range})
+  for (float v :
+       {o.learningRate, o.latentLearningRate, o.loss.radiance, o.loss.irradiance, o.loss.distance,
+        o.loss.normal, o.loss.albedo, o.loss.latent, o.loss.adversarial, d.scale.exposure, d.scale.range})
     h = fnvValue(h, v);
-  for (int v : {o.maxSteps, o.discriminatorWidth, o.batchSize, int(o.adversarial), o.latentQuantBits}) h = fnvValue(h, v);
+  for (int v : {o.maxSteps, o.discriminatorWidth, o.batchSize, int(o.adversarial), o.latentQuantBits})
+    h = fnvValue(h, v);
   return fnvValue(h, o.seed);
 }
 
@@ -351,7 +352,8 @@ torch::Tensor reconstructionLoss(const torch::Tensor& y, const torch::Tensor& id
                         w.albedo * diff2.narrow(1, 8, 3).mean();
   if (w.irradiance > 0.0f) {
     torch::Tensor eRef = d.irradiance.index_select(0, idx);
-    total = total + w.irradiance * (predictedIrradiance(y, d) - eRef).pow(2).sum() / eRef.pow(2).sum().clamp_min(1e-30);
+    total = total + w.irradiance * (predictedIrradiance(y, d) - eRef).pow(2).sum() /
+                        eRef.pow(2).sum().clamp_min(1e-30);
   }
   return total;
 }
@@ -417,8 +419,8 @@ struct StepState {
   bool& done;
 };
 template <typename Eval, typename Keep, typename Save>
-bool afterStep(const GeneratorTrainingOptions& o, const char* label, double loss, StepState st, Eval&& evaluate,
-               Keep&& keep, Save&& save, std::optional<Progress>& progress) {
+bool afterStep(const GeneratorTrainingOptions& o, const char* label, double loss, StepState st,
+               Eval&& evaluate, Keep&& keep, Save&& save, std::optional<Progress>& progress) {
   ++st.step;
   ++st.stepsThisCall;
   if (st.step % o.evalEvery == 0 || st.step == o.maxSteps) {
@@ -426,8 +428,8 @@ bool afterStep(const GeneratorTrainingOptions& o, const char* label, double loss
     if (!std::isfinite(st.err)) return false;
     keep();
     if (o.showProgress)
-      std::fprintf(stderr, "\n%s: step %d loss %.5f irradiance rel RMS %.4f (target %.4f)\n", label, st.step, loss,
-                   st.err, o.irradianceErrorTarget);
+      std::fprintf(stderr, "\n%s: step %d loss %.5f irradiance rel RMS %.4f (target %.4f)\n", label, st.step,
+                   loss, st.err, o.irradianceErrorTarget);
     if (st.err <= o.irradianceErrorTarget) st.done = true;
   }
   if (!o.checkpoint.empty() && st.step % o.checkpointEvery == 0 && !st.done) save();
@@ -469,8 +471,8 @@ void GeneratorTrainingSet::validate() const {
       const size_t T = size_t(n) * size_t(n);
       if (c.resolution != n || c.irradianceResolution != m || c.radiance.size() != T * 3 ||
           c.distance.size() != T * 2 || c.normal.size() != T * 3 || c.albedo.size() != T * 3)
-        fail("GeneratorTrainingSet.keys[{}].probes[{}]: maps missing or not {} x {} (irradiance {} x {})", k, p,
-             n, n, m, m);
+        fail("GeneratorTrainingSet.keys[{}].probes[{}]: maps missing or not {} x {} (irradiance {} x {})", k,
+             p, n, n, m, m);
     }
   }
   if (n < 8) fail("GeneratorTrainingSet: resolution {} below the generator's smallest output (8)", n);
@@ -506,8 +508,10 @@ void GeneratorTrainingOptions::validate() const {
     fail("GeneratorTrainingOptions: learning rates must be > 0");
   if (batchSize < 1) fail("GeneratorTrainingOptions.batchSize = {}: need >= 1", batchSize);
   if (threads < 1 || threads > 256) fail("GeneratorTrainingOptions.threads = {} outside [1, 256]", threads);
-  if (discriminatorWidth < 1) fail("GeneratorTrainingOptions.discriminatorWidth = {}: need >= 1", discriminatorWidth);
-  if (!(exposure >= 0.0f) || !(range >= 0.0f)) fail("GeneratorTrainingOptions: exposure and range must be >= 0");
+  if (discriminatorWidth < 1)
+    fail("GeneratorTrainingOptions.discriminatorWidth = {}: need >= 1", discriminatorWidth);
+  if (!(exposure >= 0.0f) || !(range >= 0.0f))
+    fail("GeneratorTrainingOptions: exposure and range must be >= 0");
   if (checkpointEvery < 1) fail("GeneratorTrainingOptions.checkpointEvery = {}: need >= 1", checkpointEvery);
   if (latentQuantBits != 0 && latentQuantBits != 4 && latentQuantBits != 8)
     fail("GeneratorTrainingOptions.latentQuantBits = {}: 0 (off), 4 or 8", latentQuantBits);
@@ -547,16 +551,16 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
   set.validate();
   o.validate();
   if (o.arch.outputResolution() != set.resolution())
-    fail("GeneratorTrainingOptions.arch: output {} x {} but the captures are {} x {}", o.arch.outputResolution(),
-         o.arch.outputResolution(), set.resolution(), set.resolution());
+    fail("GeneratorTrainingOptions.arch: output {} x {} but the captures are {} x {}",
+         o.arch.outputResolution(), o.arch.outputResolution(), set.resolution(), set.resolution());
   setThreads(o.threads);
   torch::manual_seed(o.seed);
   const Data d = makeData(set, o);
   const bool stored = o.arch.latentSource == LatentSource::Stored;
 
   GeneratorNet gen(o.arch);
-  torch::Tensor latents = stored ? (torch::randn({d.P, o.arch.latentDim}) * 0.1).requires_grad_(true)
-                                 : d.positionLatents;
+  torch::Tensor latents =
+      stored ? (torch::randn({d.P, o.arch.latentDim}) * 0.1).requires_grad_(true) : d.positionLatents;
   std::vector<torch::optim::OptimizerParamGroup> groups;
   groups.emplace_back(gen->parameters(), std::make_unique<torch::optim::AdamOptions>(o.learningRate));
   if (stored)
@@ -616,7 +620,9 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
     torch::Tensor z = (stored ? fakeQuantize(latents, o.latentQuantBits) : latents).index_select(0, p);
     return o.arch.condDim > 0 ? torch::cat({z, d.cond.index_select(0, k)}, 1) : z;
   };
-  auto evaluate = [&]() { return irradianceError(d, [&](const torch::Tensor& idx) { return gen->forward(inputs(idx)); }); };
+  auto evaluate = [&]() {
+    return irradianceError(d, [&](const torch::Tensor& idx) { return gen->forward(inputs(idx)); });
+  };
 
   BatchSchedule schedule(d.S, o.batchSize, o.seed);
   std::optional<Progress> progress;
@@ -667,8 +673,9 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
     total.backward();
     opt.step();
     loss = total.item<double>();
-    if (!afterStep(o, "train generator", loss, {step, stepsThisCall, err, done}, evaluate,
-                   [&] { lastFinite = snapshot(); }, saveCheckpoint, progress)) {
+    if (!afterStep(
+            o, "train generator", loss, {step, stepsThisCall, err, done}, evaluate,
+            [&] { lastFinite = snapshot(); }, saveCheckpoint, progress)) {
       restoreLastFinite();
       break;
     }
@@ -693,11 +700,13 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
 // ---- world-shared generator + per-cell adapters ------------------------------------------------------
 void SharedTrainingOptions::validate() const {
   training.validate();
-  if (training.adversarial) fail("SharedTrainingOptions.training.adversarial: not supported by the shared generator");
+  if (training.adversarial)
+    fail("SharedTrainingOptions.training.adversarial: not supported by the shared generator");
   if (training.arch.latentSource != LatentSource::Stored)
     fail("SharedTrainingOptions.training.arch: the shared generator needs stored latents");
   if (adapterStages < 0 || adapterStages > training.arch.layers() + 1)
-    fail("SharedTrainingOptions.adapterStages = {} outside [0, {}]", adapterStages, training.arch.layers() + 1);
+    fail("SharedTrainingOptions.adapterStages = {} outside [0, {}]", adapterStages,
+         training.arch.layers() + 1);
   if (!(adapterLearningRate > 0.0f)) fail("SharedTrainingOptions.adapterLearningRate must be > 0");
   if (!(adapterPrior >= 0.0f)) fail("SharedTrainingOptions.adapterPrior must be >= 0");
   if (adapterQuantBits != 0 && adapterQuantBits != 4 && adapterQuantBits != 8)
@@ -726,8 +735,8 @@ SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const Ge
   for (size_t c = 0; c < sets.size(); ++c) {
     sets[c].validate();
     if (o.arch.outputResolution() != sets[c].resolution())
-      fail("shared generator: cell {} captures are {} x {}, the model outputs {} x {}", c, sets[c].resolution(),
-           sets[c].resolution(), o.arch.outputResolution(), o.arch.outputResolution());
+      fail("shared generator: cell {} captures are {} x {}, the model outputs {} x {}", c,
+           sets[c].resolution(), sets[c].resolution(), o.arch.outputResolution(), o.arch.outputResolution());
   }
   if (frozen) {
     frozen->validate();
@@ -871,8 +880,9 @@ SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const Ge
     total.backward();
     opt.step();
     loss = total.item<double>();
-    if (!afterStep(o, label, loss, {step, stepsThisCall, err, done}, evaluate, [&] { lastFinite = snapshotOf(trainable); },
-                   saveCheckpoint, progress)) {
+    if (!afterStep(
+            o, label, loss, {step, stepsThisCall, err, done}, evaluate,
+            [&] { lastFinite = snapshotOf(trainable); }, saveCheckpoint, progress)) {
       restoreLastFinite();
       break;
     }
@@ -934,7 +944,8 @@ CellAdaptation fitCellToSharedGenerator(const GeneratorWeights& shared, const Ge
 }
 
 std::vector<float> torchGeneratorForward(const GeneratorWeights& weights, std::span<const float> latents,
-                                         std::span<const float> cond, size_t count, const GeneratorAdapter* adapter) {
+                                         std::span<const float> cond, size_t count,
+                                         const GeneratorAdapter* adapter) {
   weights.validate();
   const GeneratorArch& a = weights.arch;
   if (latents.size() != count * size_t(a.latentDim))
@@ -944,8 +955,8 @@ std::vector<float> torchGeneratorForward(const GeneratorWeights& weights, std::s
   torch::NoGradGuard noGrad;
   GeneratorNet net(a);
   importWeights(net, weights);
-  torch::Tensor z = torch::from_blob(const_cast<float*>(latents.data()), {int64_t(count), a.latentDim},
-                                     torch::kFloat32);
+  torch::Tensor z =
+      torch::from_blob(const_cast<float*>(latents.data()), {int64_t(count), a.latentDim}, torch::kFloat32);
   if (a.condDim > 0) {
     torch::Tensor c = torch::from_blob(const_cast<float*>(cond.data()), {1, a.condDim}, torch::kFloat32)
                           .expand({int64_t(count), a.condDim});
@@ -955,7 +966,8 @@ std::vector<float> torchGeneratorForward(const GeneratorWeights& weights, std::s
   adapter->validate(a);
   if (adapter->scale.empty()) return toVector(net->forward(z));
   const int64_t n = int64_t(adapter->scale.size());
-  torch::Tensor film = torch::cat({fromVector(adapter->scale, {1, n}), fromVector(adapter->shift, {1, n})}, 0);
+  torch::Tensor film =
+      torch::cat({fromVector(adapter->scale, {1, n}), fromVector(adapter->shift, {1, n})}, 0);
   return toVector(net->forward(z, film, adapter->stages));
 }
 
@@ -1028,21 +1040,27 @@ CodecError evaluateGenerator(const TrainedGenerator& model, const GeneratorTrain
 // ---- model sizing ----------------------------------------------------------------------------------
 std::string_view cellModelKindName(CellModelKind k) {
   switch (k) {
-    case CellModelKind::kConstant: return "constant";
-    case CellModelKind::kShL1: return "sh-l1";
-    case CellModelKind::kGenerator: return "generator";
-    case CellModelKind::kShL2: return "sh-l2";
+    case CellModelKind::kConstant:
+      return "constant";
+    case CellModelKind::kShL1:
+      return "sh-l1";
+    case CellModelKind::kGenerator:
+      return "generator";
+    case CellModelKind::kShL2:
+      return "sh-l2";
   }
   return "unknown";
 }
 
 std::string CellModelChoice::describe() const {
-  if (kind != CellModelKind::kGenerator || !generator) return "no network: " + std::string(cellModelKindName(kind));
+  if (kind != CellModelKind::kGenerator || !generator)
+    return "no network: " + std::string(cellModelKindName(kind));
   const GeneratorArch& a = generator->weights.arch;
   std::string s = a.latentSource == LatentSource::Stored ? "z" + std::to_string(a.latentDim)
                                                          : "pos" + std::to_string(a.fourierOctaves);
   s += " C";
-  for (size_t i = 0; i + 1 < a.convChannels.size(); ++i) s += (i ? "-" : "") + std::to_string(a.convChannels[i]);
+  for (size_t i = 0; i + 1 < a.convChannels.size(); ++i)
+    s += (i ? "-" : "") + std::to_string(a.convChannels[i]);
   return s + (a.latentSource == LatentSource::Stored ? " (stored latents)" : " (position latents)");
 }
 
@@ -1136,7 +1154,8 @@ namespace {
 // The no-network part of chooseCellModel: the first of options.noNetworkKinds that meets the target, else
 // (all probes sky-only) the most accurate of them, else nullopt with the attempts recorded in `choice` and
 // the no-network fits in `fits` (chooseCellModel's last resort).
-std::optional<CellModelChoice> noNetworkChoice(const GeneratorTrainingSet& set, std::span<const uint8_t> probeFlags,
+std::optional<CellModelChoice> noNetworkChoice(const GeneratorTrainingSet& set,
+                                               std::span<const uint8_t> probeFlags,
                                                const ModelSizingOptions& options, CellModelChoice& choice,
                                                std::chrono::steady_clock::time_point t0,
                                                std::vector<CellModelChoice>& fits) {
@@ -1184,7 +1203,8 @@ std::optional<CellModelChoice> noNetworkChoice(const GeneratorTrainingSet& set, 
 
 }  // namespace
 
-std::optional<CellModelChoice> chooseNoNetworkModel(const GeneratorTrainingSet& set, std::span<const uint8_t> probeFlags,
+std::optional<CellModelChoice> chooseNoNetworkModel(const GeneratorTrainingSet& set,
+                                                    std::span<const uint8_t> probeFlags,
                                                     const ModelSizingOptions& options) {
   CellModelChoice attempts;
   std::vector<CellModelChoice> fits;
@@ -1196,7 +1216,8 @@ CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const
   const auto t0 = std::chrono::steady_clock::now();
   CellModelChoice choice;
   std::vector<CellModelChoice> fits;
-  if (std::optional<CellModelChoice> c = noNetworkChoice(set, probeFlags, options, choice, t0, fits)) return std::move(*c);
+  if (std::optional<CellModelChoice> c = noNetworkChoice(set, probeFlags, options, choice, t0, fits))
+    return std::move(*c);
   const double target = options.irradianceErrorTarget;
   auto finish = [&](CellModelChoice c) {
     c.errorTarget = target;
@@ -1205,8 +1226,9 @@ CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const
     return c;
   };
 
-  std::vector<GeneratorArch> candidates =
-      options.candidates.empty() ? sizingCandidates(set.resolution(), options.latentSource) : options.candidates;
+  std::vector<GeneratorArch> candidates = options.candidates.empty()
+                                              ? sizingCandidates(set.resolution(), options.latentSource)
+                                              : options.candidates;
   const size_t P = set.probeCount();
   std::stable_sort(candidates.begin(), candidates.end(), [P](const GeneratorArch& a, const GeneratorArch& b) {
     return generatorBytes(a, P) < generatorBytes(b, P);
@@ -1221,7 +1243,8 @@ CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const
     TrainedGenerator g = trainGenerator(set, to);
     CellModelChoice c;
     c.kind = CellModelKind::kGenerator;
-    c.error = CodecError{g.report.irradianceRelativeRms, g.report.radianceRelativeRms, g.report.radiancePsnrDb};
+    c.error =
+        CodecError{g.report.irradianceRelativeRms, g.report.radianceRelativeRms, g.report.radiancePsnrDb};
     c.parameterCount = to.arch.parameterCount();
     c.latentCount = g.latents.size();
     c.bytes = generatorBytes(to.arch, P);
@@ -1233,7 +1256,8 @@ CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const
     const bool usable = !g.report.diverged && std::isfinite(c.error.irradianceRelativeRms);
     c.generator = std::move(g);
     if (c.reachedTarget && usable) return finish(std::move(c));
-    if (!best || (usable && (!bestUsable || c.error.irradianceRelativeRms < best->error.irradianceRelativeRms))) {
+    if (!best ||
+        (usable && (!bestUsable || c.error.irradianceRelativeRms < best->error.irradianceRelativeRms))) {
       best = std::move(c);
       bestUsable = usable;
     }

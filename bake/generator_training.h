@@ -34,8 +34,9 @@
 // OpenBLAS may reduce in a thread-count dependent order).
 // Resume: with a checkpoint path, the whole state (weights, latents, discriminator, both Adam states,
 // step) is written atomically every checkpointEvery steps and when interrupted (polls core/progress.h
-// InterruptGuard::interrupted() between steps; the caller installs the guard); a run that finds the checkpoint continues from it and ends bit-identical to an
-// uninterrupted run (tested). A checkpoint written for other data or options is an error.
+// InterruptGuard::interrupted() between steps; the caller installs the guard); a run that finds the
+// checkpoint continues from it and ends bit-identical to an uninterrupted run (tested). A checkpoint written
+// for other data or options is an error.
 #pragma once
 
 #include <cstdint>
@@ -55,8 +56,8 @@ namespace lfgi::bake {
 // One lighting key of a cell: the captures of every training probe under it.
 struct LightingKey {
   float timeOfDayHours = 12.0f;
-  float weather = 0.0f;                 // overcast, [0, 1]
-  std::vector<ProbeCapture> probes;     // the same probes in the same order in every key
+  float weather = 0.0f;              // overcast, [0, 1]
+  std::vector<ProbeCapture> probes;  // the same probes in the same order in every key
 };
 
 struct GeneratorTrainingSet {
@@ -65,8 +66,8 @@ struct GeneratorTrainingSet {
   std::vector<LightingKey> keys;
 
   size_t probeCount() const { return positions01.size(); }
-  int resolution() const;               // radiance map side n of the captures
-  int irradianceResolution() const;     // m of the irradiance metric
+  int resolution() const;            // radiance map side n of the captures
+  int irradianceResolution() const;  // m of the irradiance metric
   // Throws lfgi::Error unless there is >= 1 key and >= 1 probe, every key holds positions01.size()
   // captures, and all captures share n and m and hold full maps.
   void validate() const;
@@ -81,11 +82,11 @@ struct TrainingLossWeights {
   float normal = 0.25f;
   float albedo = 0.25f;
   float latent = 1e-4f;
-  float adversarial = 0.02f;            // used only with GeneratorTrainingOptions::adversarial
+  float adversarial = 0.02f;  // used only with GeneratorTrainingOptions::adversarial
 };
 
 struct GeneratorTrainingOptions {
-  GeneratorArch arch;                   // outputResolution() must equal the captures' n
+  GeneratorArch arch;  // outputResolution() must equal the captures' n
   int maxSteps = 3000;
   double irradianceErrorTarget = 0.05;  // stop when the irradiance relative RMS is <= this
   int evalEvery = 100;                  // steps between error evaluations (and progress lines)
@@ -93,17 +94,17 @@ struct GeneratorTrainingOptions {
   float latentLearningRate = 1e-2f;
   TrainingLossWeights loss;
   bool adversarial = false;
-  int discriminatorWidth = 16;          // channels of the discriminator's first conv
-  int batchSize = 256;                  // (probe, key) samples per step; >= all samples: full batch
+  int discriminatorWidth = 16;  // channels of the discriminator's first conv
+  int batchSize = 256;          // (probe, key) samples per step; >= all samples: full batch
   uint64_t seed = 1;
-  int threads = 1;                      // libtorch intra-op and OpenBLAS threads
-  float exposure = 0.0f;                // 0: 0.1 x the mean captured radiance
-  float range = 0.0f;                   // 0: 1.5 x the 95th percentile of texel mean distances (>= 1 m)
-  std::filesystem::path checkpoint;     // empty: no checkpoints, no resume
+  int threads = 1;                   // libtorch intra-op and OpenBLAS threads
+  float exposure = 0.0f;             // 0: 0.1 x the mean captured radiance
+  float range = 0.0f;                // 0: 1.5 x the 95th percentile of texel mean distances (>= 1 m)
+  std::filesystem::path checkpoint;  // empty: no checkpoints, no resume
   int checkpointEvery = 500;
-  int stopAfterSteps = 0;               // > 0: return (checkpointed, interrupted = true) after this many
-                                        // steps of this call, as an interrupt would (for resume tests)
-  bool showProgress = false;            // progress and errors on stderr
+  int stopAfterSteps = 0;     // > 0: return (checkpointed, interrupted = true) after this many
+                              // steps of this call, as an interrupt would (for resume tests)
+  bool showProgress = false;  // progress and errors on stderr
   // Quantizer in the loop: 0 off; 4 or 8: Stored latents pass through straight-through fake
   // quantization (core/quantize.h's symmetric per-dimension grid) in every forward pass, and the
   // exported latents are those grid values, so quantizeLatents(latents, dim, bits) is lossless on them.
@@ -113,23 +114,23 @@ struct GeneratorTrainingOptions {
 };
 
 struct GeneratorTrainingReport {
-  int steps = 0;                        // optimisation steps taken in total (resumed ones included)
-  int resumedFromStep = 0;              // 0: started fresh
+  int steps = 0;            // optimisation steps taken in total (resumed ones included)
+  int resumedFromStep = 0;  // 0: started fresh
   bool reachedTarget = false;
-  bool interrupted = false;             // stopped by InterruptGuard or stopAfterSteps (checkpoint written)
-  bool diverged = false;                // the loss or the error went non-finite: training stopped and the
-                                        // last finite state (last finite evaluation, else the initial
-                                        // weights) is what was exported; chooseCellModel never prefers it
-  double seconds = 0.0;                 // wall time of this call
+  bool interrupted = false;  // stopped by InterruptGuard or stopAfterSteps (checkpoint written)
+  bool diverged = false;     // the loss or the error went non-finite: training stopped and the
+                             // last finite state (last finite evaluation, else the initial
+                             // weights) is what was exported; chooseCellModel never prefers it
+  double seconds = 0.0;      // wall time of this call
   double finalLoss = 0.0;
-  double irradianceRelativeRms = 0.0;   // of the exported model through core generatorForward
+  double irradianceRelativeRms = 0.0;  // of the exported model through core generatorForward
   double radianceRelativeRms = 0.0;
   double radiancePsnrDb = 0.0;
 };
 
 struct TrainedGenerator {
   GeneratorWeights weights;
-  std::vector<float> latents;           // probeCount * latentDim for Stored; empty for PositionFourier
+  std::vector<float> latents;  // probeCount * latentDim for Stored; empty for PositionFourier
   GeneratorOutputScale scale;
   GeneratorTrainingReport report;
   // The latent the decoder feeds for probe i (stored, or positionLatent of positions01[i]).
@@ -165,20 +166,20 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
 // divergence guard, progress, InterruptGuard / stopAfterSteps, an atomic checkpoint that a rerun resumes
 // from bit-identically, determinism for a seed (1 thread).
 struct SharedTrainingOptions {
-  GeneratorTrainingOptions training;    // arch = the shared model; adversarial must be off
-  int adapterStages = 2;                // FiLM on the first stages: 0 none .. arch.layers() + 1 (all)
+  GeneratorTrainingOptions training;  // arch = the shared model; adversarial must be off
+  int adapterStages = 2;              // FiLM on the first stages: 0 none .. arch.layers() + 1 (all)
   float adapterLearningRate = 1e-2f;
-  float adapterPrior = 1e-3f;           // weight of mean(scale^2 + shift^2)
-  int adapterQuantBits = 0;             // 0: float; 8 (or 4): fake-quantized in the loop
+  float adapterPrior = 1e-3f;  // weight of mean(scale^2 + shift^2)
+  int adapterQuantBits = 0;    // 0: float; 8 (or 4): fake-quantized in the loop
   void validate() const;
 };
 
 // One cell's part of a shared model.
 struct CellAdaptation {
-  std::vector<float> latents;           // probeCount * latentDim (on the grid with latentQuantBits)
-  GeneratorAdapter adapter;             // (on the grid with adapterQuantBits)
+  std::vector<float> latents;  // probeCount * latentDim (on the grid with latentQuantBits)
+  GeneratorAdapter adapter;    // (on the grid with adapterQuantBits)
   GeneratorOutputScale scale;
-  GeneratorTrainingReport report;       // errors of folded(shared) through the core decoder
+  GeneratorTrainingReport report;  // errors of folded(shared) through the core decoder
   // weightsContentHash of the shared network as it stood when training ended (fitCellToSharedGenerator:
   // equal to the frozen input's, the fit never writes it).
   uint64_t sharedWeightsHash = 0;
@@ -187,9 +188,9 @@ struct CellAdaptation {
 };
 
 struct SharedGenerator {
-  GeneratorWeights weights;             // the shared network
-  std::vector<CellAdaptation> cells;    // the pre-training cells, in input order
-  GeneratorTrainingReport report;       // irradianceRelativeRms etc.: means over the cells
+  GeneratorWeights weights;           // the shared network
+  std::vector<CellAdaptation> cells;  // the pre-training cells, in input order
+  GeneratorTrainingReport report;     // irradianceRelativeRms etc.: means over the cells
 };
 
 SharedGenerator pretrainSharedGenerator(std::span<const GeneratorTrainingSet> cells,
@@ -242,8 +243,8 @@ std::string_view cellModelKindName(CellModelKind k);
 
 struct SizingAttempt {
   CellModelKind kind = CellModelKind::kConstant;
-  GeneratorArch arch;                   // kGenerator only
-  size_t bytes = 0;                     // FP32, see CellModelChoice::bytes
+  GeneratorArch arch;  // kGenerator only
+  size_t bytes = 0;    // FP32, see CellModelChoice::bytes
   double irradianceRelativeRms = 0.0;
   double seconds = 0.0;
   int steps = 0;
@@ -252,8 +253,8 @@ struct SizingAttempt {
 // What the cell writer stores about the chosen model.
 struct CellModelChoice {
   CellModelKind kind = CellModelKind::kConstant;
-  std::vector<float> lighting;          // kConstant: keys * 3; kShL1 / kShL2: keys * 4 (9) * 3, per key
-                                        // coefficient-major (core/sh.h order), RGB innermost
+  std::vector<float> lighting;                // kConstant: keys * 3; kShL1 / kShL2: keys * 4 (9) * 3, per key
+                                              // coefficient-major (core/sh.h order), RGB innermost
   std::optional<TrainedGenerator> generator;  // kGenerator only
   bool reachedTarget = false;
   double errorTarget = 0.0;
@@ -279,7 +280,7 @@ struct ModelSizingOptions {
   // one SH L1 fallback per cell: a writer of that format passes {kShL1} and one lighting key.
   std::vector<CellModelKind> noNetworkKinds = {CellModelKind::kConstant, CellModelKind::kShL1,
                                                CellModelKind::kShL2};
-  GeneratorTrainingOptions training;    // template: arch and target are replaced per candidate
+  GeneratorTrainingOptions training;  // template: arch and target are replaced per candidate
 };
 
 // Widths C0 in {8, 16, 32, 64} (each later stage halves, at least 8) x latent sizes {4, 8, 16} (Stored)
@@ -298,7 +299,8 @@ CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const
 // The no-network step of chooseCellModel alone (no training): the choice it would return without a
 // network (a no-network model meets the target, or every probe is sky-only), else nullopt. The shared
 // codec (bake/world_bake.h) fits a cell to the world's shared model when this gives nullopt.
-std::optional<CellModelChoice> chooseNoNetworkModel(const GeneratorTrainingSet& set, std::span<const uint8_t> probeFlags,
+std::optional<CellModelChoice> chooseNoNetworkModel(const GeneratorTrainingSet& set,
+                                                    std::span<const uint8_t> probeFlags,
                                                     const ModelSizingOptions& options);
 
 }  // namespace lfgi::bake

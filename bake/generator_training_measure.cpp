@@ -1,5 +1,6 @@
 // Developer measurement of the generator training (not a test, not built by default):
-//   lfgi_generator_training_measure [SCENES_DIR] [--quick] [--threads N] [--steps N] [--probes N] [--spp N] [--sizing-steps N]
+//   lfgi_generator_training_measure [SCENES_DIR] [--quick] [--threads N] [--steps N] [--probes N] [--spp N]
+//   [--sizing-steps N]
 // Captures a city cell and a field cell of WorldParams::smallDefault(1) under four lighting keys and the
 // Cornell box under one, then trains per scene: stored latents without and with the adversarial term,
 // position latents, and the automatic model sizing at a 5 % irradiance target. Prints one table row per
@@ -25,8 +26,8 @@ struct Scene {
   std::vector<uint8_t> flags;
 };
 
-void row(const std::string& scene, const std::string& run, const std::string& model, size_t params, size_t bytes,
-         size_t probes, double irr, double psnr, double seconds, int steps) {
+void row(const std::string& scene, const std::string& run, const std::string& model, size_t params,
+         size_t bytes, size_t probes, double irr, double psnr, double seconds, int steps) {
   std::printf("%-12s %-22s %-26s %8zu %9zu %8.0f %8.4f %7.1f %8.1f %6d\n", scene.c_str(), run.c_str(),
               model.c_str(), params, bytes, double(bytes) / double(probes), irr, psnr, seconds, steps);
   std::fflush(stdout);
@@ -36,7 +37,8 @@ std::string archName(const GeneratorArch& a) {
   std::string s = a.latentSource == LatentSource::Stored ? "z" + std::to_string(a.latentDim)
                                                          : "pos" + std::to_string(a.fourierOctaves);
   s += " C";
-  for (size_t i = 0; i + 1 < a.convChannels.size(); ++i) s += (i ? "-" : "") + std::to_string(a.convChannels[i]);
+  for (size_t i = 0; i + 1 < a.convChannels.size(); ++i)
+    s += (i ? "-" : "") + std::to_string(a.convChannels[i]);
   return s;
 }
 
@@ -52,7 +54,8 @@ Scene syntheticCell(worlds::CellKind kind, const CaptureOptions& co, size_t maxP
     if (!(built.probes.flags[i] & worlds::kProbeDisabledSolid)) usable.push_back(i);
   const size_t stride = std::max<size_t>(1, usable.size() / maxProbes);
   Scene s;
-  s.name = std::string(worlds::cellKindName(kind)) + "_" + std::to_string(cell.x) + "_" + std::to_string(cell.z);
+  s.name =
+      std::string(worlds::cellKindName(kind)) + "_" + std::to_string(cell.x) + "_" + std::to_string(cell.z);
   std::vector<glm::vec3> positions;
   for (size_t k = 0; k < usable.size() && positions.size() < maxProbes; k += stride) {
     positions.push_back(built.probes.position(int64_t(usable[k])));
@@ -95,13 +98,20 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&] { return i + 1 < argc ? std::stoi(argv[++i]) : 0; };
-    if (a == "--quick") quick = true;
-    else if (a == "--threads") threads = next();
-    else if (a == "--steps") steps = next();
-    else if (a == "--probes") probes = next();
-    else if (a == "--spp") spp = next();
-    else if (a == "--sizing-steps") sizingSteps = next();
-    else scenesDir = a;
+    if (a == "--quick")
+      quick = true;
+    else if (a == "--threads")
+      threads = next();
+    else if (a == "--steps")
+      steps = next();
+    else if (a == "--probes")
+      probes = next();
+    else if (a == "--spp")
+      spp = next();
+    else if (a == "--sizing-steps")
+      sizingSteps = next();
+    else
+      scenesDir = a;
   }
   if (steps <= 0) steps = quick ? 300 : 1500;
   if (probes <= 0) probes = quick ? 16 : 48;
@@ -153,14 +163,14 @@ int main(int argc, char** argv) {
       so.training.maxSteps = sizingSteps;
       const CellModelChoice c = chooseCellModel(s.set, s.flags, so);
       for (const SizingAttempt& a : c.attempts)
-        row(s.name, "  sizing try", a.kind == CellModelKind::kGenerator ? archName(a.arch)
-                                                                       : std::string(cellModelKindName(a.kind)),
-            a.kind == CellModelKind::kGenerator ? a.arch.parameterCount() : 0, a.bytes, P, a.irradianceRelativeRms,
-            0.0, a.seconds, a.steps);
+        row(s.name, "  sizing try",
+            a.kind == CellModelKind::kGenerator ? archName(a.arch) : std::string(cellModelKindName(a.kind)),
+            a.kind == CellModelKind::kGenerator ? a.arch.parameterCount() : 0, a.bytes, P,
+            a.irradianceRelativeRms, 0.0, a.seconds, a.steps);
       row(s.name, c.reachedTarget ? "sizing: chosen" : "sizing: best (missed)",
           c.generator ? archName(c.generator->weights.arch) : std::string(cellModelKindName(c.kind)),
-          c.parameterCount, c.bytes, P, c.error.irradianceRelativeRms, c.error.radiancePsnrDb, c.trainingSeconds,
-          c.generator ? c.generator->report.steps : 0);
+          c.parameterCount, c.bytes, P, c.error.irradianceRelativeRms, c.error.radiancePsnrDb,
+          c.trainingSeconds, c.generator ? c.generator->report.steps : 0);
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());

@@ -112,8 +112,8 @@ TEST(GeneratorTraining, CpuReferenceMatchesLibtorchForward) {
       maxDiff = std::max(maxDiff, double(std::abs(ref[i] - cpu[i])));
       nonZero += ref[i] != 0.0f;
     }
-    std::printf("variant %d: %zu outputs, max |y| %.3f, max |cpu - torch| %.3g\n", variant, ref.size(), maxAbs,
-                maxDiff);
+    std::printf("variant %d: %zu outputs, max |y| %.3f, max |cpu - torch| %.3g\n", variant, ref.size(),
+                maxAbs, maxDiff);
     EXPECT_GT(nonZero, ref.size() / 2);  // the comparison is not between two zero maps
     EXPECT_LE(maxDiff, 1e-5 * (1.0 + maxAbs));
   }
@@ -136,11 +136,12 @@ TEST(GeneratorTraining, TrainingBeatsTheCellConstantAndExportsAValidModel) {
   const CellModelChoice none = chooseCellModel(set, {}, so);
   ASSERT_GE(none.attempts.size(), 3u);
   const double constantError = none.attempts[0].irradianceRelativeRms;
-  std::printf("tiny cell: trained %d steps in %.2f s: irradiance rel RMS %.4f, radiance rel RMS %.4f, PSNR %.1f dB; "
-              "cell constant %.4f, SH L1 %.4f, SH L2 %.4f\n",
-              g.report.steps, g.report.seconds, g.report.irradianceRelativeRms, g.report.radianceRelativeRms,
-              g.report.radiancePsnrDb, constantError, none.attempts[1].irradianceRelativeRms,
-              none.attempts[2].irradianceRelativeRms);
+  std::printf(
+      "tiny cell: trained %d steps in %.2f s: irradiance rel RMS %.4f, radiance rel RMS %.4f, PSNR %.1f dB; "
+      "cell constant %.4f, SH L1 %.4f, SH L2 %.4f\n",
+      g.report.steps, g.report.seconds, g.report.irradianceRelativeRms, g.report.radianceRelativeRms,
+      g.report.radiancePsnrDb, constantError, none.attempts[1].irradianceRelativeRms,
+      none.attempts[2].irradianceRelativeRms);
   EXPECT_LT(g.report.irradianceRelativeRms, 0.5 * constantError);
   // The stop metric, measured again independently of the report.
   EXPECT_DOUBLE_EQ(evaluateGenerator(g, set).irradianceRelativeRms, g.report.irradianceRelativeRms);

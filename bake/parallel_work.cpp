@@ -10,8 +10,8 @@
 
 namespace lfgi::bake::detail {
 
-ParallelWorkResult runParallelInterruptible(size_t count, const char* label, const char* unit, bool showProgress,
-                                            const std::function<void(size_t)>& work) {
+ParallelWorkResult runParallelInterruptible(size_t count, const char* label, const char* unit,
+                                            bool showProgress, const std::function<void(size_t)>& work) {
   std::atomic<size_t> finished{0};
   std::atomic<bool> stopped{false};
   std::optional<Progress> progress;

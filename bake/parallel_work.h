@@ -15,7 +15,7 @@ struct ParallelWorkResult {
 
 // Calls work(i) for every i in [0, count), in parallel, each exactly once unless interrupted. With
 // showProgress, prints "<label> [...] done/count <unit>" to stderr.
-ParallelWorkResult runParallelInterruptible(size_t count, const char* label, const char* unit, bool showProgress,
-                                            const std::function<void(size_t)>& work);
+ParallelWorkResult runParallelInterruptible(size_t count, const char* label, const char* unit,
+                                            bool showProgress, const std::function<void(size_t)>& work);
 
 }  // namespace lfgi::bake::detail

@@ -56,7 +56,6 @@ glm::vec3 offsetRayOrigin(glm::vec3 p, glm::vec3 n) {
   return out;
 }
 
-
 Discs activeDiscs(const worlds::SkyModel& sky) {
   Discs d{};
   for (const worlds::DiscLight* l : {&sky.sun, &sky.moon}) {
@@ -69,9 +68,9 @@ Discs activeDiscs(const worlds::SkyModel& sky) {
 // and those arriving at hit 0 straight from an emitter or the sky are `direct`; everything else is
 // accumulated in `beyond` per unit of the first bounce's weight w0 (rest = the throughput after it) and
 // multiplied at the end by w0's diffuse and specular parts.
-glm::vec3 tracePath(const EmbreeScene& scene, const worlds::SkyModel& sky, const Discs& discs, const PathOptions& o,
-                    glm::vec3 origin, glm::vec3 dir, PathRng& rng, FirstHit& first, uint64_t& rays,
-                    PathSplit* split) {
+glm::vec3 tracePath(const EmbreeScene& scene, const worlds::SkyModel& sky, const Discs& discs,
+                    const PathOptions& o, glm::vec3 origin, glm::vec3 dir, PathRng& rng, FirstHit& first,
+                    uint64_t& rays, PathSplit* split) {
   const worlds::TriangleMesh& mesh = scene.mesh();
   glm::vec3 radiance(0.0f);
   glm::vec3 throughput(1.0f);

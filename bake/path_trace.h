@@ -79,8 +79,8 @@ struct PathSplit {
 // One path from origin along unit dir; returns its radiance estimate. first receives the first hit
 // (r = maxDistance and zeros on a miss); rays counts closest-hit and shadow rays; split, if not null,
 // receives the split (costs a few vector operations per vertex; the total is computed identically).
-glm::vec3 tracePath(const EmbreeScene& scene, const worlds::SkyModel& sky, const Discs& discs, const PathOptions& o,
-                    glm::vec3 origin, glm::vec3 dir, PathRng& rng, FirstHit& first, uint64_t& rays,
-                    PathSplit* split = nullptr);
+glm::vec3 tracePath(const EmbreeScene& scene, const worlds::SkyModel& sky, const Discs& discs,
+                    const PathOptions& o, glm::vec3 origin, glm::vec3 dir, PathRng& rng, FirstHit& first,
+                    uint64_t& rays, PathSplit* split = nullptr);
 
 }  // namespace lfgi::bake::detail

@@ -65,12 +65,12 @@
 namespace lfgi::bake {
 
 struct CaptureOptions {
-  int resolution = 16;            // n: radiance, distance, normal, albedo maps, [1, 256]
-  int irradianceResolution = 8;   // m: derived irradiance map, [1, 256]
-  int samplesPerTexel = 64;       // S, [1, 65536]
-  int maxBounces = 12;            // [0, 256]; see the depth rule above
-  int rouletteAfter = 3;          // first hit index with Russian roulette, >= 1
-  float maxDistance = 1.0e4f;     // m: distance recorded for a miss; also the ray length limit, > 0
+  int resolution = 16;           // n: radiance, distance, normal, albedo maps, [1, 256]
+  int irradianceResolution = 8;  // m: derived irradiance map, [1, 256]
+  int samplesPerTexel = 64;      // S, [1, 65536]
+  int maxBounces = 12;           // [0, 256]; see the depth rule above
+  int rouletteAfter = 3;         // first hit index with Russian roulette, >= 1
+  float maxDistance = 1.0e4f;    // m: distance recorded for a miss; also the ray length limit, > 0
   uint64_t seed = 1;
 };
 
@@ -100,7 +100,7 @@ struct CaptureResult {
   std::vector<ProbeCapture> probes;  // one per input position; only those with done[i] != 0 are filled
   std::vector<uint8_t> done;
   size_t probesDone = 0;
-  bool interrupted = false;          // stopped early by InterruptGuard
+  bool interrupted = false;  // stopped early by InterruptGuard
   uint64_t rays = 0;
   double seconds = 0.0;
   double raysPerSecond() const { return seconds > 0.0 ? double(rays) / seconds : 0.0; }

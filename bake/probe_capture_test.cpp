@@ -5,8 +5,8 @@
 #include <tbb/info.h>
 
 #include <chrono>
-#include <csignal>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <limits>
 #include <numbers>
@@ -79,10 +79,11 @@ TEST(ProbeCapture, FurnaceConvergesToTheTruncatedGeometricSeries) {
   // A uniform field L has irradiance pi L for every normal; the texel-centre cosine sum at n = 8 is off
   // by < 1 % (measured 0.7 %), hence 1.5 %.
   for (float e : c.irradiance) EXPECT_NEAR(e, std::numbers::pi * truth, 0.015 * std::numbers::pi * truth);
-  std::printf("furnace: truth %.6f, map mean %.6f (%.2f sigma of the mean), texel sigma %.4f (%.2f %%), "
-              "worst texel %.2f sigma, mean rel std error %.4f\n",
-              truth, mean, std::abs(mean - truth) / meanSigma, sigma, 100.0 * sigma / truth, worstSigmas,
-              c.meanRelativeStdError);
+  std::printf(
+      "furnace: truth %.6f, map mean %.6f (%.2f sigma of the mean), texel sigma %.4f (%.2f %%), "
+      "worst texel %.2f sigma, mean rel std error %.4f\n",
+      truth, mean, std::abs(mean - truth) / meanSigma, sigma, 100.0 * sigma / truth, worstSigmas,
+      c.meanRelativeStdError);
 }
 
 // A closed, watertight UV sphere (shared vertices) with per-channel albedo and emission: the same series
@@ -132,7 +133,8 @@ TEST(ProbeCapture, FurnaceInAClosedSpherePerChannel) {
   for (int ch = 0; ch < 3; ++ch) {
     const double truth = E[ch] * (1.0 - std::pow(double(a[ch]), o.maxBounces + 1)) / (1.0 - a[ch]);
     double var = 0.0, sum = 0.0, worst = 0.0;
-    for (size_t t = 0; t < texels; ++t) var += double(c.radianceStdError[t * 3 + size_t(ch)]) * c.radianceStdError[t * 3 + size_t(ch)];
+    for (size_t t = 0; t < texels; ++t)
+      var += double(c.radianceStdError[t * 3 + size_t(ch)]) * c.radianceStdError[t * 3 + size_t(ch)];
     const double sigma = std::sqrt(var / double(texels));
     for (size_t t = 0; t < texels; ++t) {
       const double v = c.radiance[t * 3 + size_t(ch)];
@@ -142,10 +144,11 @@ TEST(ProbeCapture, FurnaceInAClosedSpherePerChannel) {
     }
     const double mean = sum / double(texels);
     EXPECT_LT(std::abs(mean - truth), 4.0 * sigma / std::sqrt(double(texels)));
-    std::printf("sphere furnace channel %d: truth %.6f, mean %.6f (%.2f sigma of the mean), texel sigma %.2f %%, "
-                "worst texel %.2f sigma\n",
-                ch, truth, mean, std::abs(mean - truth) / (sigma / std::sqrt(double(texels))), 100.0 * sigma / truth,
-                worst);
+    std::printf(
+        "sphere furnace channel %d: truth %.6f, mean %.6f (%.2f sigma of the mean), texel sigma %.2f %%, "
+        "worst texel %.2f sigma\n",
+        ch, truth, mean, std::abs(mean - truth) / (sigma / std::sqrt(double(texels))), 100.0 * sigma / truth,
+        worst);
   }
 }
 
@@ -241,7 +244,8 @@ TEST(ProbeCapture, OpenSkyMatchesTheAnalyticSkyPerTexelAndItsIrradiance) {
       const size_t t = size_t(j * o.irradianceResolution + i) * 3;
       const glm::vec3 got(c.irradiance[t], c.irradiance[t + 1], c.irradiance[t + 2]);
       const glm::vec3 truth = bruteForceIrradiance(skyOnly, refN, nrm) + sky.sun.irradiance(nrm);
-      for (int ch = 0; ch < 3; ++ch) worstIrr = std::max(worstIrr, double(std::abs(got[ch] - truth[ch]) / truth[ch]));
+      for (int ch = 0; ch < 3; ++ch)
+        worstIrr = std::max(worstIrr, double(std::abs(got[ch] - truth[ch]) / truth[ch]));
       if (std::abs(glm::dot(nrm, sky.sun.direction)) >= 0.15f) {
         const glm::vec3 e = bruteForceIrradiance(withSun, refN, nrm);
         worstIrrMap = std::max(worstIrrMap, double(std::abs(lum(got) - lum(e)) / lum(e)));
@@ -250,10 +254,11 @@ TEST(ProbeCapture, OpenSkyMatchesTheAnalyticSkyPerTexelAndItsIrradiance) {
   }
   EXPECT_LT(worstIrr, 0.01);
   EXPECT_LT(worstIrrMap, 0.02);
-  std::printf("open sky: worst relative texel error vs the same sample directions %.2e, vs the exact texel "
-              "mean %.4f; worst irradiance error vs sky map + analytic sun %.4f (per channel), vs "
-              "skyOctahedralMap with sun %.4f (luminance)\n",
-              worstSame, worstExact, worstIrr, worstIrrMap);
+  std::printf(
+      "open sky: worst relative texel error vs the same sample directions %.2e, vs the exact texel "
+      "mean %.4f; worst irradiance error vs sky map + analytic sun %.4f (per channel), vs "
+      "skyOctahedralMap with sun %.4f (luminance)\n",
+      worstSame, worstExact, worstIrr, worstIrrMap);
 }
 
 TEST(ProbeCapture, DistanceMomentsMatchTheAnalyticBoxDistance) {
@@ -344,12 +349,16 @@ TEST(ProbeCapture, ThinWalledSealedRoomStaysExactlyDarkNearItsWalls) {
   o.resolution = 16;
   o.samplesPerTexel = 16;
   o.maxBounces = 4;
-  const std::vector<glm::vec3> probes = {{3.98f, 1.5f, 2.0f}, {0.02f, 1.5f, 2.0f}, {0.01f, 0.01f, 0.01f},
-                                         {3.99f, 2.99f, 3.99f}, {2.0f, 1.5f, 2.0f}};
+  const std::vector<glm::vec3> probes = {{3.98f, 1.5f, 2.0f},
+                                         {0.02f, 1.5f, 2.0f},
+                                         {0.01f, 0.01f, 0.01f},
+                                         {3.99f, 2.99f, 3.99f},
+                                         {2.0f, 1.5f, 2.0f}};
   const CaptureResult r = captureProbes(scene, sky, probes, o);
   ASSERT_EQ(r.probesDone, probes.size());
   for (const ProbeCapture& c : r.probes) {
-    for (float v : c.radiance) ASSERT_EQ(v, 0.0f) << "probe at " << c.position.x << "," << c.position.y << "," << c.position.z;
+    for (float v : c.radiance)
+      ASSERT_EQ(v, 0.0f) << "probe at " << c.position.x << "," << c.position.y << "," << c.position.z;
     for (float v : c.irradiance) ASSERT_EQ(v, 0.0f);
   }
 }
@@ -433,7 +442,8 @@ TEST(ProbeCapture, BadOptionsAndPositionsAreErrors) {
   bad([&](CaptureOptions& o) { o.maxDistance = nan; });
   bad([](CaptureOptions& o) { o.maxDistance = 0.0f; });
   EXPECT_THROW(captureProbe(scene, sky, glm::vec3(nan, 0.0f, 0.0f), CaptureOptions{}), Error);
-  const std::vector<glm::vec3> list = {glm::vec3(0.0f), glm::vec3(0.0f, std::numeric_limits<float>::infinity(), 0.0f)};
+  const std::vector<glm::vec3> list = {glm::vec3(0.0f),
+                                       glm::vec3(0.0f, std::numeric_limits<float>::infinity(), 0.0f)};
   try {
     captureProbes(scene, sky, list, CaptureOptions{});
     ADD_FAILURE() << "no error";
@@ -473,9 +483,11 @@ TEST(ProbeCapture, ReportsRaysPerSecond) {
   const CaptureResult r = captureProbes(scene, noonSky(), probes, o);
   ASSERT_EQ(r.probesDone, probes.size());
   EXPECT_GT(r.rays, uint64_t(probes.size()) * 256u * 16u);
-  std::printf("capture: %zu probes, 16x16, 16 spp: %.3f s, %.2f M rays/s, %.1f ms/probe (%.1f ms/probe at 64 spp est.)\n",
-              probes.size(), r.seconds, r.raysPerSecond() * 1e-6, 1e3 * r.seconds / double(probes.size()),
-              4e3 * r.seconds / double(probes.size()));
+  std::printf(
+      "capture: %zu probes, 16x16, 16 spp: %.3f s, %.2f M rays/s, %.1f ms/probe (%.1f ms/probe at 64 spp "
+      "est.)\n",
+      probes.size(), r.seconds, r.raysPerSecond() * 1e-6, 1e3 * r.seconds / double(probes.size()),
+      4e3 * r.seconds / double(probes.size()));
   for (const ProbeCapture& c : r.probes) EXPECT_GT(c.meanRelativeStdError, 0.0);
 }
 
@@ -495,7 +507,8 @@ TEST(ProbeCapture, GgxPrefilterKeepsConstantsAndIsTheIdentityWhenSmooth) {
   for (size_t t = 0; t < sharp.size(); ++t) EXPECT_NEAR(sharp[t], skyMap[t], 1e-4f * skyMap[t]);
   const std::vector<float> rough = prefilterRadianceGgx(skyMap, n, 1.0f, n);
   double change = 0.0;
-  for (size_t t = 0; t < rough.size(); ++t) change = std::max(change, double(std::abs(rough[t] - skyMap[t]) / skyMap[t]));
+  for (size_t t = 0; t < rough.size(); ++t)
+    change = std::max(change, double(std::abs(rough[t] - skyMap[t]) / skyMap[t]));
   EXPECT_GT(change, 0.05);
   EXPECT_THROW(prefilterRadianceGgx(skyMap, n, std::numeric_limits<float>::quiet_NaN(), n), Error);
   EXPECT_THROW(prefilterRadianceGgx(skyMap, n + 1, 0.5f, n), Error);
@@ -516,7 +529,8 @@ TEST(ProbeCapture, CityCellCaptureReportsRaysPerSecond) {
   const double buildS = std::chrono::duration<double>(std::chrono::steady_clock::now() - buildStart).count();
   std::vector<glm::vec3> probes;
   for (size_t i = 0; i < cell.probes.flags.size() && probes.size() < 32; i += 3)
-    if (!(cell.probes.flags[i] & worlds::kProbeDisabledSolid)) probes.push_back(cell.probes.position(int64_t(i)));
+    if (!(cell.probes.flags[i] & worlds::kProbeDisabledSolid))
+      probes.push_back(cell.probes.position(int64_t(i)));
   ASSERT_FALSE(probes.empty());
   const size_t triangles = cell.mesh.triangleCount();
   const auto sceneStart = std::chrono::steady_clock::now();
@@ -530,12 +544,14 @@ TEST(ProbeCapture, CityCellCaptureReportsRaysPerSecond) {
     for (float v : c.radiance) ASSERT_TRUE(std::isfinite(v) && v >= 0.0f);
     rel += c.meanRelativeStdError;
   }
-  std::printf("city cell (%d,%d), %d TBB threads: %zu triangles, cell build %.2f s, Embree build %.1f ms; %zu probes at 16x16, "
-              "64 spp, 12 bounces: %.2f s, %.2f M rays/s, %.0f ms/probe, %.1f rays/path, mean rel std error "
-              "%.3f\n",
-              city.x, city.z, tbb::info::default_concurrency(), triangles, buildS, 1e3 * sceneS, probes.size(), r.seconds,
-              r.raysPerSecond() * 1e-6, 1e3 * r.seconds / double(probes.size()),
-              double(r.rays) / (double(probes.size()) * 256.0 * 64.0), rel / double(probes.size()));
+  std::printf(
+      "city cell (%d,%d), %d TBB threads: %zu triangles, cell build %.2f s, Embree build %.1f ms; %zu probes "
+      "at 16x16, "
+      "64 spp, 12 bounces: %.2f s, %.2f M rays/s, %.0f ms/probe, %.1f rays/path, mean rel std error "
+      "%.3f\n",
+      city.x, city.z, tbb::info::default_concurrency(), triangles, buildS, 1e3 * sceneS, probes.size(),
+      r.seconds, r.raysPerSecond() * 1e-6, 1e3 * r.seconds / double(probes.size()),
+      double(r.rays) / (double(probes.size()) * 256.0 * 64.0), rel / double(probes.size()));
 }
 
 }  // namespace

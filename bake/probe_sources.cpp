@@ -55,8 +55,8 @@ ProbeField virProbeField(gpu::Context& ctx, std::span<const worlds::Surfel> surf
 }
 
 ProbeField codecProbeField(const CellFile& cell, const std::string& what, const EmbreeScene& scene,
-                           const worlds::SkyModel& sky, int resolution, int irradianceResolution, float missDistance,
-                           const ResolvedSharedModel* shared) {
+                           const worlds::SkyModel& sky, int resolution, int irradianceResolution,
+                           float missDistance, const ResolvedSharedModel* shared) {
   cell.validate(what);
   if (irradianceResolution < 1 || irradianceResolution > 64)
     fail("{}: irradiance resolution {} outside [1, 64]", what, irradianceResolution);
@@ -91,7 +91,8 @@ ProbeField codecProbeField(const CellFile& cell, const std::string& what, const 
       latents = dequantizeLatents(cell.generator->latents);
     }
     if (latents.size() != activeIndex.size() * L)
-      fail("{}: {} latent floats for {} active probes of dimension {}", what, latents.size(), activeIndex.size(), L);
+      fail("{}: {} latent floats for {} active probes of dimension {}", what, latents.size(),
+           activeIndex.size(), L);
     const auto c = conditioningVector(sky.state.timeOfDayHours, sky.state.overcast);
     std::span<const float> cond;
     if (arch.condDim == kConditioningDim) cond = std::span<const float>(c.data(), c.size());
@@ -107,10 +108,14 @@ ProbeField codecProbeField(const CellFile& cell, const std::string& what, const 
     f.albedo.assign(count * n2 * 3, 0.0f);
     for (size_t k = 0; k < activeIndex.size(); ++k) {
       const size_t i = size_t(activeIndex[k]);
-      std::copy_n(dense.radiance.begin() + ptrdiff_t(k * n2 * 3), n2 * 3, f.radiance.begin() + ptrdiff_t(i * n2 * 3));
-      std::copy_n(dense.distance.begin() + ptrdiff_t(k * n2 * 2), n2 * 2, f.distance.begin() + ptrdiff_t(i * n2 * 2));
-      std::copy_n(dense.normal.begin() + ptrdiff_t(k * n2 * 3), n2 * 3, f.normal.begin() + ptrdiff_t(i * n2 * 3));
-      std::copy_n(dense.albedo.begin() + ptrdiff_t(k * n2 * 3), n2 * 3, f.albedo.begin() + ptrdiff_t(i * n2 * 3));
+      std::copy_n(dense.radiance.begin() + ptrdiff_t(k * n2 * 3), n2 * 3,
+                  f.radiance.begin() + ptrdiff_t(i * n2 * 3));
+      std::copy_n(dense.distance.begin() + ptrdiff_t(k * n2 * 2), n2 * 2,
+                  f.distance.begin() + ptrdiff_t(i * n2 * 2));
+      std::copy_n(dense.normal.begin() + ptrdiff_t(k * n2 * 3), n2 * 3,
+                  f.normal.begin() + ptrdiff_t(i * n2 * 3));
+      std::copy_n(dense.albedo.begin() + ptrdiff_t(k * n2 * 3), n2 * 3,
+                  f.albedo.begin() + ptrdiff_t(i * n2 * 3));
     }
     // Decoded maps may dip below zero or violate r^2 >= r^2 slightly; the shading pass assumes neither.
     for (float& v : f.radiance) v = std::max(v, 0.0f);
@@ -161,7 +166,8 @@ ProbeField codecProbeField(const CellFile& cell, const std::string& what, const 
         for (int dx = -1; dx <= 1; ++dx) {
           const glm::ivec2 t = shared::octWrap(c + glm::ivec2(dx, dy), n);
           const glm::vec3 L = worlds::skyRadiance(sky, octTexelDirection(t.x, t.y, n));
-          for (int ch = 0; ch < 3; ++ch) f.radiance[(size_t(i) * n2 + size_t(t.y * n + t.x)) * 3 + size_t(ch)] = L[ch];
+          for (int ch = 0; ch < 3; ++ch)
+            f.radiance[(size_t(i) * n2 + size_t(t.y * n + t.x)) * 3 + size_t(ch)] = L[ch];
         }
     }
   }
@@ -170,7 +176,8 @@ ProbeField codecProbeField(const CellFile& cell, const std::string& what, const 
   for (int64_t i : activeIndex) {
     const std::span<const float> rad(f.radiance.data() + size_t(i) * n2 * 3, n2 * 3);
     for (size_t t = 0; t < m2; ++t) {
-      const glm::vec3 e = bruteForceIrradiance(rad, n, octTexelDirection(int(t % size_t(m)), int(t / size_t(m)), m), omega);
+      const glm::vec3 e =
+          bruteForceIrradiance(rad, n, octTexelDirection(int(t % size_t(m)), int(t / size_t(m)), m), omega);
       for (int c = 0; c < 3; ++c) f.irradiance[(size_t(i) * m2 + t) * 3 + size_t(c)] = e[c];
     }
   }

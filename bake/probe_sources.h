@@ -39,15 +39,15 @@ namespace lfgi::bake {
 worlds::TriangleMesh meshWithBackFaces(const worlds::TriangleMesh& mesh);
 
 struct VirProbeOptions {
-  int resolution = 16;            // N of the VIR maps, [4, 64]
-  int irradianceResolution = 8;   // M, [1, 64]
-  int frames = 4;                 // relight frames: frame 1 direct light, each further frame one more bounce
-  float maxRange = 64.0f;         // m: surfels farther from a probe are not splatted into it
+  int resolution = 16;           // N of the VIR maps, [4, 64]
+  int irradianceResolution = 8;  // M, [1, 64]
+  int frames = 4;                // relight frames: frame 1 direct light, each further frame one more bounce
+  float maxRange = 64.0f;        // m: surfels farther from a probe are not splatted into it
 };
 
 struct VirProbeStats {
-  double seconds = 0.0;    // wall time of all frames (upload, GPU, readback)
-  double gpuMs = 0.0;      // device time summed over frames (relight + VIR + convolution)
+  double seconds = 0.0;  // wall time of all frames (upload, GPU, readback)
+  double gpuMs = 0.0;    // device time summed over frames (relight + VIR + convolution)
   size_t surfels = 0, probes = 0;
 };
 
@@ -57,7 +57,8 @@ struct VirProbeStats {
 // interrupt between frames (core/progress.h InterruptGuard).
 ProbeField virProbeField(gpu::Context& ctx, std::span<const worlds::Surfel> surfels, const ProbeGrid& grid,
                          std::span<const glm::vec3> offsets, std::span<const uint8_t> active,
-                         const worlds::SkyModel& sky, const VirProbeOptions& options, VirProbeStats* stats = nullptr);
+                         const worlds::SkyModel& sky, const VirProbeOptions& options,
+                         VirProbeStats* stats = nullptr);
 
 // Probe field of a decoded cell file (see the top of this file). resolution: map size for a "no network"
 // cell (a network cell decodes at its model's size). scene: the capture scene of the cell (its mesh and

@@ -18,8 +18,8 @@
 #include "bake/world_bake.h"
 #include "core/cell_file.h"
 #include "core/error.h"
-#include "core/half.h"
 #include "core/generator_cpu.h"
+#include "core/half.h"
 #include "core/metrics.h"
 #include "core/octahedral.h"
 #include "core/quantize.h"
@@ -38,7 +38,8 @@ worlds::TriangleMesh yardWithBox() {
   const uint32_t ground = mesh.addMaterial(m);
   m.albedo = glm::vec3(0.7f, 0.3f, 0.2f);
   const uint32_t box = mesh.addMaterial(m);
-  mesh.addQuad(glm::vec3(-12, 0, 12), glm::vec3(12, 0, 12), glm::vec3(12, 0, -12), glm::vec3(-12, 0, -12), ground);
+  mesh.addQuad(glm::vec3(-12, 0, 12), glm::vec3(12, 0, 12), glm::vec3(12, 0, -12), glm::vec3(-12, 0, -12),
+               ground);
   mesh.addBox(glm::vec3(-1.0f, 0.0f, -1.0f), glm::vec3(1.0f, 2.0f, 1.0f), box);
   return mesh;
 }
@@ -87,11 +88,14 @@ TEST(ProbeSources, VirProbesShadeLikeCapturedProbes) {
   ASSERT_GT(n, size_t(24 * 24 / 3));
   const double indirect = layerRelativeRms(b.image, "indirect_diffuse.", a.image, "indirect_diffuse.", &mask);
   // Probe irradiance itself, texel by texel.
-  std::vector<float> ei(vir.irradiance.begin(), vir.irradiance.end()), ec(captured.irradiance.begin(), captured.irradiance.end());
+  std::vector<float> ei(vir.irradiance.begin(), vir.irradiance.end()),
+      ec(captured.irradiance.begin(), captured.irradiance.end());
   const double irr = relativeRms(ei, ec);
-  std::printf("[ measure  ] yard + box at 15:00, 4x2x4 probes: VIR (%zu surfels, %d frames, %.2f s) vs capture (%d spp): "
-              "probe irradiance rel RMS %.4f, shaded indirect diffuse rel RMS %.4f over %zu pixels\n",
-              st.surfels, vo.frames, st.seconds, co.samplesPerTexel, irr, indirect, n);
+  std::printf(
+      "[ measure  ] yard + box at 15:00, 4x2x4 probes: VIR (%zu surfels, %d frames, %.2f s) vs capture (%d "
+      "spp): "
+      "probe irradiance rel RMS %.4f, shaded indirect diffuse rel RMS %.4f over %zu pixels\n",
+      st.surfels, vo.frames, st.seconds, co.samplesPerTexel, irr, indirect, n);
   // Measured 0.018 / 0.013 (4 frames, N = 16); the bounds leave ~2x.
   EXPECT_LE(irr, 0.04);
   EXPECT_LE(indirect, 0.03);
@@ -142,19 +146,23 @@ TEST(ProbeSources, CodecProbesMatchTheCaptureWithinTheBakedError) {
   // The bake's own capture (same options, same per-probe seeds), disc light taken out the same way.
   CaptureOptions co = worldBakeCaptureOptions(world, s);
   co.irradianceResolution = decoded.irradianceResolution;
-  const ProbeField truth = captureGridField(scene, sky, built.probes.grid, built.probes.offsets, cf.active, co);
+  const ProbeField truth =
+      captureGridField(scene, sky, built.probes.grid, built.probes.offsets, cf.active, co);
   ASSERT_EQ(decoded.irradiance.size(), truth.irradiance.size());
   std::vector<float> a, b;
   for (int64_t i = 0; i < decoded.probeCount(); ++i) {
     if (!decoded.isActive(i)) continue;
     const size_t m2 = size_t(decoded.irradianceResolution * decoded.irradianceResolution) * 3;
-    a.insert(a.end(), decoded.irradiance.begin() + ptrdiff_t(size_t(i) * m2), decoded.irradiance.begin() + ptrdiff_t(size_t(i + 1) * m2));
-    b.insert(b.end(), truth.irradiance.begin() + ptrdiff_t(size_t(i) * m2), truth.irradiance.begin() + ptrdiff_t(size_t(i + 1) * m2));
+    a.insert(a.end(), decoded.irradiance.begin() + ptrdiff_t(size_t(i) * m2),
+             decoded.irradiance.begin() + ptrdiff_t(size_t(i + 1) * m2));
+    b.insert(b.end(), truth.irradiance.begin() + ptrdiff_t(size_t(i) * m2),
+             truth.irradiance.begin() + ptrdiff_t(size_t(i + 1) * m2));
   }
   ASSERT_FALSE(a.empty());
   const double e = relativeRms(a, b);
-  std::printf("[ measure  ] codec cell 1,0 (%s): decoded irradiance vs capture rel RMS %.4f (bake stored %.4f)\n",
-              cf.stats.model.c_str(), e, cf.stats.errorAchieved);
+  std::printf(
+      "[ measure  ] codec cell 1,0 (%s): decoded irradiance vs capture rel RMS %.4f (bake stored %.4f)\n",
+      cf.stats.model.c_str(), e, cf.stats.errorAchieved);
   // Same operator on both sides as the bake's stored error (irradiance of the decoded radiance vs the
   // capture's), so they agree up to FP16 and the clamp of negative radiance. (The tiny bake picks SH L1:
   // the generator path is checked below.)
@@ -186,7 +194,8 @@ TEST(WorldBake, FallbackHasOneShPerKeyAndStreamsWithTheTimeOfDay) {
   auto stored = [&](size_t key) {
     ShL1 sh;
     for (int k = 0; k < 4; ++k)
-      for (int c = 0; c < 3; ++c) sh.c[size_t(k)][c] = halfToFloat(cf.fallback.shHalf[key * 12 + size_t(k) * 3 + size_t(c)]);
+      for (int c = 0; c < 3; ++c)
+        sh.c[size_t(k)][c] = halfToFloat(cf.fallback.shHalf[key * 12 + size_t(k) * 3 + size_t(c)]);
     return sh;
   };
   const glm::ivec2 c{cell.x, cell.z};
@@ -202,8 +211,10 @@ TEST(WorldBake, FallbackHasOneShPerKeyAndStreamsWithTheTimeOfDay) {
     diff += double(glm::dot(d, d));
     norm += double(glm::dot(morning.c[size_t(k)], morning.c[size_t(k)]));
   }
-  std::printf("[ measure  ] baked cell 1,0 fallback: DC red 8 h %.4g, 12 h %.4g, 17.5 h %.4g; |SH 17.5 - SH 8| / |SH 8| = %.3f\n",
-              double(morning.c[0].x), double(stored(1).c[0].x), double(evening.c[0].x), std::sqrt(diff / norm));
+  std::printf(
+      "[ measure  ] baked cell 1,0 fallback: DC red 8 h %.4g, 12 h %.4g, 17.5 h %.4g; |SH 17.5 - SH 8| / |SH "
+      "8| = %.3f\n",
+      double(morning.c[0].x), double(stored(1).c[0].x), double(evening.c[0].x), std::sqrt(diff / norm));
   EXPECT_GT(std::sqrt(diff / norm), 0.05);  // the sun moved from east to west and sank
 }
 
@@ -247,13 +258,15 @@ TEST(ProbeSources, CodecGeneratorCellDecodesLikeTheCpuDecoder) {
       continue;
     }
     for (size_t t = 0; t < t3; ++t)
-      worst = std::max(worst, double(std::abs(f.radiance[i * t3 + t] - std::max(dense.radiance[k * t3 + t], 0.0f))));
+      worst = std::max(worst,
+                       double(std::abs(f.radiance[i * t3 + t] - std::max(dense.radiance[k * t3 + t], 0.0f))));
     ++k;
   }
   EXPECT_EQ(worst, 0.0);
   // Irradiance texel (0, 0) of probe 0 == the exact texel sum of its decoded radiance.
-  const glm::vec3 e = bruteForceIrradiance(std::span(f.radiance).subspan(0, t3), 16,
-                                           octTexelDirection(0, 0, f.irradianceResolution), octTexelSolidAngles(16));
+  const glm::vec3 e =
+      bruteForceIrradiance(std::span(f.radiance).subspan(0, t3), 16,
+                           octTexelDirection(0, 0, f.irradianceResolution), octTexelSolidAngles(16));
   EXPECT_NEAR(f.irradiance[1], e.y, 1e-5 * (1.0 + std::abs(e.y)));
 }
 
@@ -313,9 +326,10 @@ TEST(ShadingAmbientOcclusion, AnalyticCornerAndOpenPlane) {
       EXPECT_EQ(off.specular[i].w, 1.0f);
       worstScale = std::max(worstScale, std::abs(double(on.diffuse[i].y) - ao * double(off.diffuse[i].y)));
     }
-  std::printf("[ measure  ] AO (radius 1 m, %u rays): open plane %.4f, wall foot %.4f [%.3f, %.3f], corner %.4f "
-              "[%.3f, %.3f], 1.5 m from both walls %.4f\n",
-              LFGI_SHADE_AO_RAYS, mean[0], mean[1], lo[1], hi[1], mean[2], lo[2], hi[2], mean[3]);
+  std::printf(
+      "[ measure  ] AO (radius 1 m, %u rays): open plane %.4f, wall foot %.4f [%.3f, %.3f], corner %.4f "
+      "[%.3f, %.3f], 1.5 m from both walls %.4f\n",
+      LFGI_SHADE_AO_RAYS, mean[0], mean[1], lo[1], hi[1], mean[2], lo[2], hi[2], mean[3]);
   EXPECT_EQ(lo[0], 1.0);  // nothing above an open plane
   EXPECT_EQ(lo[3], 1.0);  // the walls are beyond the radius
   // A vertical half-plane through the point hides exactly half of the cosine-weighted hemisphere, two hide
@@ -326,7 +340,7 @@ TEST(ShadingAmbientOcclusion, AnalyticCornerAndOpenPlane) {
   EXPECT_LE(hi[1], 0.5 + 2.0 / 16.0 + 1e-6);
   EXPECT_LE(hi[2], 0.25 + 2.0 / 16.0 + 1e-6);
   EXPECT_NEAR(off.diffuse[0].y, 0.5f, 1e-4f);  // albedo x pi / pi
-  EXPECT_LE(worstScale, 1e-5);                  // AO multiplies indirect diffuse
+  EXPECT_LE(worstScale, 1e-5);                 // AO multiplies indirect diffuse
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
 }
 

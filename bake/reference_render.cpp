@@ -1,6 +1,5 @@
 #include "bake/reference_render.h"
 
-
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -23,8 +22,8 @@ bool finite(glm::vec3 v) {
 constexpr int kTotal = 0, kDirect = 3, kIndirectDiffuse = 6, kIndirectSpecular = 9, kStdError = 12;
 
 void renderTile(const EmbreeScene& scene, const worlds::SkyModel& sky, const detail::Discs& discs,
-                const PinholeCamera& camera, const RenderOptions& o, const detail::PathOptions& po, uint64_t key,
-                int x0, int y0, Image& image, uint64_t& rays) {
+                const PinholeCamera& camera, const RenderOptions& o, const detail::PathOptions& po,
+                uint64_t key, int x0, int y0, Image& image, uint64_t& rays) {
   const int x1 = std::min(x0 + o.tileSize, o.width);
   const int y1 = std::min(y0 + o.tileSize, o.height);
   const int S = o.samplesPerPixel;
@@ -88,7 +87,8 @@ void validateCamera(const PinholeCamera& c) {
          c.position.z, c.target.x, c.target.y, c.target.z);
   const glm::vec3 d = c.target - c.position;
   const float len = glm::length(d);
-  if (!(len > 0.0f)) fail("camera: target equals position ({}, {}, {})", c.position.x, c.position.y, c.position.z);
+  if (!(len > 0.0f))
+    fail("camera: target equals position ({}, {}, {})", c.position.x, c.position.y, c.position.z);
   if (std::abs(d.y) / len > 0.99999f)
     fail("camera: view direction ({}, {}, {}) is parallel to up (+Y); tilt the target off the vertical", d.x,
          d.y, d.z);
@@ -128,13 +128,15 @@ RenderResult renderTiled(const worlds::SkyModel& sky, const PinholeCamera& camer
   const uint64_t key = mix64(o.seed ^ 0x6c666769'63616d65ULL);
 
   std::atomic<uint64_t> rays{0};
-  const ParallelWorkResult run = runParallelInterruptible(result.tiles, "reference", "tiles", showProgress, [&](size_t t) {
-    uint64_t localRays = 0;
-    const int x0 = int(t % size_t(tilesX)) * o.tileSize, y0 = int(t / size_t(tilesX)) * o.tileSize;
-    const TileJob job{po, discs, key, x0, y0, std::min(x0 + o.tileSize, o.width), std::min(y0 + o.tileSize, o.height)};
-    tile(job, result.image, localRays);
-    rays.fetch_add(localRays, std::memory_order_relaxed);
-  });
+  const ParallelWorkResult run =
+      runParallelInterruptible(result.tiles, "reference", "tiles", showProgress, [&](size_t t) {
+        uint64_t localRays = 0;
+        const int x0 = int(t % size_t(tilesX)) * o.tileSize, y0 = int(t / size_t(tilesX)) * o.tileSize;
+        const TileJob job{
+            po, discs, key, x0, y0, std::min(x0 + o.tileSize, o.width), std::min(y0 + o.tileSize, o.height)};
+        tile(job, result.image, localRays);
+        rays.fetch_add(localRays, std::memory_order_relaxed);
+      });
   result.tilesDone = run.done;
   result.interrupted = run.interrupted;
   result.rays = rays.load();
@@ -144,13 +146,13 @@ RenderResult renderTiled(const worlds::SkyModel& sky, const PinholeCamera& camer
 
 }  // namespace detail
 
-RenderResult renderReference(const EmbreeScene& scene, const worlds::SkyModel& sky, const PinholeCamera& camera,
-                             const RenderOptions& o, bool showProgress) {
+RenderResult renderReference(const EmbreeScene& scene, const worlds::SkyModel& sky,
+                             const PinholeCamera& camera, const RenderOptions& o, bool showProgress) {
   return detail::renderTiled(
       sky, camera, o,
       {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect_diffuse.R", "indirect_diffuse.G",
-       "indirect_diffuse.B", "indirect_specular.R", "indirect_specular.G", "indirect_specular.B", "std_error.R",
-       "std_error.G", "std_error.B"},
+       "indirect_diffuse.B", "indirect_specular.R", "indirect_specular.G", "indirect_specular.B",
+       "std_error.R", "std_error.G", "std_error.B"},
       showProgress, [&](const detail::TileJob& job, Image& image, uint64_t& rays) {
         renderTile(scene, sky, job.discs, camera, o, job.path, job.key, job.x0, job.y0, image, rays);
       });

@@ -78,7 +78,8 @@ struct RenderResult {
 };
 
 // Renders the view; prints progress (tiles) to stderr when showProgress. Validates everything first.
-RenderResult renderReference(const EmbreeScene& scene, const worlds::SkyModel& sky, const PinholeCamera& camera,
-                             const RenderOptions& options, bool showProgress = false);
+RenderResult renderReference(const EmbreeScene& scene, const worlds::SkyModel& sky,
+                             const PinholeCamera& camera, const RenderOptions& options,
+                             bool showProgress = false);
 
 }  // namespace lfgi::bake

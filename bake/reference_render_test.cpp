@@ -69,7 +69,8 @@ TEST(ReferenceRender, FurnaceSplitsIntoDirectAndIndirect) {
   const float a = 0.5f;
   const float E = 1.0f;
   worlds::TriangleMesh mesh;
-  mesh.addInwardBox(glm::vec3(-5.0f), glm::vec3(5.0f), mesh.addMaterial(material(glm::vec3(a), glm::vec3(E))));
+  mesh.addInwardBox(glm::vec3(-5.0f), glm::vec3(5.0f),
+                    mesh.addMaterial(material(glm::vec3(a), glm::vec3(E))));
   const EmbreeScene scene(mesh);
   RenderOptions o;
   o.width = 32;
@@ -98,13 +99,15 @@ TEST(ReferenceRender, FurnaceSplitsIntoDirectAndIndirect) {
   EXPECT_NEAR(id.mean, total - direct, 4.0 * m.se);
   int outliers = 0;
   for (int y = 0; y < o.height; ++y) {
-    for (int x = 0; x < o.width; ++x) outliers += std::abs(channel(r.image, x, y, "G") - total) > 5.0 * m.pixelSe;
+    for (int x = 0; x < o.width; ++x)
+      outliers += std::abs(channel(r.image, x, y, "G") - total) > 5.0 * m.pixelSe;
   }
   EXPECT_EQ(outliers, 0);
-  std::printf("furnace (camera): image mean %.5f +- %.5f (expected %.5f; error %.2f sigma), indirect diffuse "
-              "%.5f (expected %.5f), per-pixel sigma %.4f, %.2f M rays/s\n",
-              m.mean, m.se, total, (m.mean - total) / m.se, id.mean, total - direct, m.pixelSe,
-              r.raysPerSecond() * 1e-6);
+  std::printf(
+      "furnace (camera): image mean %.5f +- %.5f (expected %.5f; error %.2f sigma), indirect diffuse "
+      "%.5f (expected %.5f), per-pixel sigma %.4f, %.2f M rays/s\n",
+      m.mean, m.se, total, (m.mean - total) / m.se, id.mean, total - direct, m.pixelSe,
+      r.raysPerSecond() * 1e-6);
 }
 
 // A pure metal has no diffuse lobe (diffuseBrdf = 0): all indirect light goes to the specular layer.
@@ -142,8 +145,8 @@ TEST(ReferenceRender, MetalFurnaceIsAllSpecular) {
   EXPECT_LT(t.mean, o.maxBounces + 1.0 + 4.0 * t.se);
   EXPECT_GT(sp.mean, 0.5 * (t.mean - d.mean));
   EXPECT_NEAR(sp.mean, t.mean - d.mean, 1e-4 * t.mean);
-  std::printf("metal furnace: direct %.4f, indirect specular %.4f, total %.4f +- %.4f\n", d.mean, sp.mean, t.mean,
-              t.se);
+  std::printf("metal furnace: direct %.4f, indirect specular %.4f, total %.4f +- %.4f\n", d.mean, sp.mean,
+              t.mean, t.se);
 }
 
 // A white Lambertian plane under the noon sun, nothing else: every pixel sees the plane, and its radiance
@@ -154,7 +157,8 @@ TEST(ReferenceRender, LambertianPlaneUnderTheSunIsAllDirect) {
   worlds::TriangleMesh mesh;
   const uint32_t m = mesh.addMaterial(material(glm::vec3(albedo), glm::vec3(0.0f)));
   const float h = 1000.0f;
-  mesh.addQuad(glm::vec3(-h, 0.0f, -h), glm::vec3(-h, 0.0f, h), glm::vec3(h, 0.0f, h), glm::vec3(h, 0.0f, -h), m);
+  mesh.addQuad(glm::vec3(-h, 0.0f, -h), glm::vec3(-h, 0.0f, h), glm::vec3(h, 0.0f, h), glm::vec3(h, 0.0f, -h),
+               m);
   const EmbreeScene scene(mesh);
   const worlds::SkyModel sky = worlds::makeSky(worlds::SkyState{});
   PinholeCamera cam;
@@ -177,16 +181,18 @@ TEST(ReferenceRender, LambertianPlaneUnderTheSunIsAllDirect) {
       ASSERT_EQ(channel(r.image, x, y, "indirect_specular.R"), 0.0f);
     }
   }
-  const char* names[3][2] = {{"direct.R", "std_error.R"}, {"direct.G", "std_error.G"}, {"direct.B", "std_error.B"}};
+  const char* names[3][2] = {
+      {"direct.R", "std_error.R"}, {"direct.G", "std_error.G"}, {"direct.B", "std_error.B"}};
   for (int ch = 0; ch < 3; ++ch) {
     const double expected = albedo / std::numbers::pi * (sunE[ch] + skyE[ch]);
     const ImageMean d = imageMean(r.image, names[ch][0], names[ch][1]);
     // Noise from the sky's variation over the bounce directions, plus the 64 x 64 brute-force sum's own
     // discretisation (well under 0.5 % for a smooth sky).
     EXPECT_NEAR(d.mean, expected, 4.0 * d.se + 0.005 * expected) << names[ch][0];
-    std::printf("plane under the noon sun, %s: %.4f +- %.4f, expected %.4f (sun %.4f + sky %.4f); error %.3f %%\n",
-                names[ch][0], d.mean, d.se, expected, albedo / std::numbers::pi * sunE[ch],
-                albedo / std::numbers::pi * skyE[ch], 100.0 * (d.mean - expected) / expected);
+    std::printf(
+        "plane under the noon sun, %s: %.4f +- %.4f, expected %.4f (sun %.4f + sky %.4f); error %.3f %%\n",
+        names[ch][0], d.mean, d.se, expected, albedo / std::numbers::pi * sunE[ch],
+        albedo / std::numbers::pi * skyE[ch], 100.0 * (d.mean - expected) / expected);
   }
 }
 

@@ -69,7 +69,8 @@ std::vector<uint8_t> surfaceMask(const Image& shaded, bool noEmitters = true) {
   const int w = shaded.channelIndex("weight"), d = shaded.channelIndex("direct.G");
   for (int y = 0; y < shaded.height; ++y)
     for (int x = 0; x < shaded.width; ++x)
-      m[size_t(y) * size_t(shaded.width) + size_t(x)] = shaded.at(x, y, w) > 0.0f && (!noEmitters || shaded.at(x, y, d) < 1.0f);
+      m[size_t(y) * size_t(shaded.width) + size_t(x)] =
+          shaded.at(x, y, w) > 0.0f && (!noEmitters || shaded.at(x, y, d) < 1.0f);
   return m;
 }
 
@@ -90,9 +91,10 @@ double cornellIndirectError(glm::ivec3 dims, int resolution, const gpu::ShadingO
   const int a = v.image.channelIndex("indirect.G"), b = k.reference.image.channelIndex("indirect.G");
   for (int y = 0; y < Cornell::kSize; ++y)
     for (int x = 0; x < Cornell::kSize; ++x)
-      if (mask[size_t(y * Cornell::kSize + x)]) mine += v.image.at(x, y, a), truth += k.reference.image.at(x, y, b);
-  std::printf("cornell %dx%dx%d: mean indirect G over %zu surface pixels: probes %.4g, reference %.4g\n", dims.x,
-              dims.y, dims.z, n, mine / double(n), truth / double(n));
+      if (mask[size_t(y * Cornell::kSize + x)])
+        mine += v.image.at(x, y, a), truth += k.reference.image.at(x, y, b);
+  std::printf("cornell %dx%dx%d: mean indirect G over %zu surface pixels: probes %.4g, reference %.4g\n",
+              dims.x, dims.y, dims.z, n, mine / double(n), truth / double(n));
   return layerRelativeRms(v.image, "indirect.", k.reference.image, "indirect.", &mask);
 }
 
@@ -108,7 +110,7 @@ TEST(ShadingAccuracy, CornellIndirectAtPaperGrid) {
 TEST(ShadingAccuracy, CornellIndirectDenserGrid) {
   const double e = cornellIndirectError(glm::ivec3(4), 16);
   std::printf("cornell 4x4x4, 16x16 maps: indirect relative RMS %.4f\n", e);
-  EXPECT_LT(e, 0.70);  // measured 0.59 (mean 1.3x the reference)
+  EXPECT_LT(e, 0.70);                                            // measured 0.59 (mean 1.3x the reference)
   EXPECT_LT(e, 0.75 * cornellIndirectError(glm::ivec3(2), 16));  // denser probes converge
 }
 
@@ -168,7 +170,8 @@ void planeUnderSky(float overcast) {
   worlds::Material m;
   m.albedo = glm::vec3(0.6f, 0.5f, 0.4f);
   const uint32_t mat = mesh.addMaterial(m);
-  mesh.addQuad(glm::vec3(-500, 0, 500), glm::vec3(500, 0, 500), glm::vec3(500, 0, -500), glm::vec3(-500, 0, -500), mat);
+  mesh.addQuad(glm::vec3(-500, 0, 500), glm::vec3(500, 0, 500), glm::vec3(500, 0, -500),
+               glm::vec3(-500, 0, -500), mat);
   const EmbreeScene scene(mesh);
   const worlds::SkyModel sky = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, overcast});
   PinholeCamera cam;
@@ -192,7 +195,8 @@ void planeUnderSky(float overcast) {
   const std::vector<uint8_t> mask = surfaceMask(v.image, false);
   const double e = layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
   const double t = layerRelativeRms(v.image, "", ref.image, "");
-  std::printf("plane, overcast %.0f: indirect relative RMS %.4f, total (sky pixels included) %.4f\n", double(overcast), e, t);
+  std::printf("plane, overcast %.0f: indirect relative RMS %.4f, total (sky pixels included) %.4f\n",
+              double(overcast), e, t);
   EXPECT_LT(e, 0.05);
   EXPECT_LT(t, 0.05);
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
@@ -207,13 +211,15 @@ TEST(ShadingAccuracy, PlaneUnderSunAndSkyMatchesReference) {
 }
 
 // The reference's direct layer is exactly what the shading pass computes without probes: for a plane
-// under the sun, direct = albedo / pi * E_sun * cos and indirect = the sky's share; total = direct + indirect.
+// under the sun, direct = albedo / pi * E_sun * cos and indirect = the sky's share; total = direct +
+// indirect.
 TEST(ShadingReference, LayersAddUpAndDirectIsTheSunOnAPlane) {
   worlds::TriangleMesh mesh;
   worlds::Material m;
   m.albedo = glm::vec3(0.5f);
   const uint32_t mat = mesh.addMaterial(m);
-  mesh.addQuad(glm::vec3(-50, 0, 50), glm::vec3(50, 0, 50), glm::vec3(50, 0, -50), glm::vec3(-50, 0, -50), mat);
+  mesh.addQuad(glm::vec3(-50, 0, 50), glm::vec3(50, 0, 50), glm::vec3(50, 0, -50), glm::vec3(-50, 0, -50),
+               mat);
   const EmbreeScene scene(mesh);
   const worlds::SkyModel sky = worlds::makeSky(worlds::SkyState{});
   PinholeCamera cam;
@@ -229,7 +235,8 @@ TEST(ShadingReference, LayersAddUpAndDirectIsTheSunOnAPlane) {
     for (int x = 0; x < 8; ++x)
       for (int c = 0; c < 3; ++c) {
         EXPECT_NEAR(r.image.at(x, y, 3 + c), sunDirect[c], 1e-4f * sunDirect[c]);
-        EXPECT_NEAR(r.image.at(x, y, c), r.image.at(x, y, 3 + c) + r.image.at(x, y, 6 + c), 1e-3f * r.image.at(x, y, c));
+        EXPECT_NEAR(r.image.at(x, y, c), r.image.at(x, y, 3 + c) + r.image.at(x, y, 6 + c),
+                    1e-3f * r.image.at(x, y, c));
         EXPECT_NEAR(r.image.at(x, y, c), ref.image.at(x, y, c), 1e-4f * ref.image.at(x, y, c));
       }
 }
@@ -250,8 +257,9 @@ TEST(ShadingAccuracy, SealedRoomStaysDark) {
   co.maxBounces = 6;
   auto ctx = gpu::createContext();
   const LeakTestResult r = measureLeakTest(*ctx, world, {1, 1}, sky, co);
-  std::printf("leak test: %zu probes; sealed / lit floor indirect: Chebyshev on %.5f (%.4g / %.4g), off %.5f\n",
-              r.probes, r.ratioOn(), r.sealedOn, r.litOn, r.ratioOff());
+  std::printf(
+      "leak test: %zu probes; sealed / lit floor indirect: Chebyshev on %.5f (%.4g / %.4g), off %.5f\n",
+      r.probes, r.ratioOn(), r.sealedOn, r.litOn, r.ratioOff());
   EXPECT_GT(r.probes, size_t(8));
   EXPECT_GT(r.litOn, 0.0);
   EXPECT_LE(r.ratioOn(), 0.01);

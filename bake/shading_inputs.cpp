@@ -66,8 +66,8 @@ std::vector<shared::GpuMaterial> gpuMaterials(const worlds::TriangleMesh& mesh) 
       size_t count = 0;
       for (int y = 0; y < t.height; y += step)
         for (int x = 0; x < t.width; x += step, ++count)
-          sum += glm::dvec3(t.sampleLinear(glm::vec2((float(x) + 0.5f) / float(t.width),
-                                                     (float(y) + 0.5f) / float(t.height))));
+          sum += glm::dvec3(t.sampleLinear(
+              glm::vec2((float(x) + 0.5f) / float(t.width), (float(y) + 0.5f) / float(t.height))));
       if (count > 0) albedo *= glm::vec3(sum / double(count));
     }
     shared::GpuMaterial g{};
@@ -79,10 +79,12 @@ std::vector<shared::GpuMaterial> gpuMaterials(const worlds::TriangleMesh& mesh) 
   return out;
 }
 
-ProbeField probeFieldFromCapture(const ProbeGrid& grid, const CaptureResult& r, std::span<const int64_t> gridIndex) {
+ProbeField probeFieldFromCapture(const ProbeGrid& grid, const CaptureResult& r,
+                                 std::span<const int64_t> gridIndex) {
   grid.validate();
   if (gridIndex.size() != r.probes.size())
-    fail("probe field from capture: {} grid indices for {} captured probes", gridIndex.size(), r.probes.size());
+    fail("probe field from capture: {} grid indices for {} captured probes", gridIndex.size(),
+         r.probes.size());
   ProbeField f;
   f.grid = grid;
   const int64_t count = grid.probeCount();
@@ -93,8 +95,8 @@ ProbeField probeFieldFromCapture(const ProbeGrid& grid, const CaptureResult& r, 
       n = r.probes[k].resolution;
       m = r.probes[k].irradianceResolution;
     } else if (r.probes[k].resolution != n || r.probes[k].irradianceResolution != m) {
-      fail("probe field from capture: probe {} has resolutions {}/{}, others {}/{}", k, r.probes[k].resolution,
-           r.probes[k].irradianceResolution, n, m);
+      fail("probe field from capture: probe {} has resolutions {}/{}, others {}/{}", k,
+           r.probes[k].resolution, r.probes[k].irradianceResolution, n, m);
     }
   }
   if (n == 0) fail("probe field from capture: no captured probe");
@@ -117,7 +119,8 @@ ProbeField probeFieldFromCapture(const ProbeGrid& grid, const CaptureResult& r, 
     f.offsets[size_t(i)] = c.position - grid.probePosition(grid.probeCoord(i));
     std::copy(c.radiance.begin(), c.radiance.end(), f.radiance.begin() + std::ptrdiff_t(size_t(i) * n2 * 3));
     std::copy(c.distance.begin(), c.distance.end(), f.distance.begin() + std::ptrdiff_t(size_t(i) * n2 * 2));
-    std::copy(c.irradiance.begin(), c.irradiance.end(), f.irradiance.begin() + std::ptrdiff_t(size_t(i) * m2 * 3));
+    std::copy(c.irradiance.begin(), c.irradiance.end(),
+              f.irradiance.begin() + std::ptrdiff_t(size_t(i) * m2 * 3));
     std::copy(c.normal.begin(), c.normal.end(), f.normal.begin() + std::ptrdiff_t(size_t(i) * n2 * 3));
     std::copy(c.albedo.begin(), c.albedo.end(), f.albedo.begin() + std::ptrdiff_t(size_t(i) * n2 * 3));
   }
@@ -134,7 +137,8 @@ ShL1 fieldFallback(const ProbeField& field) {
   int64_t count = 0;
   for (int64_t i = 0; i < field.probeCount(); ++i) {
     if (!field.isActive(i)) continue;
-    const ShL1 sh = shProject<4>(std::span<const float>(field.radiance).subspan(size_t(i) * n2 * 3, n2 * 3), n, *weights);
+    const ShL1 sh =
+        shProject<4>(std::span<const float>(field.radiance).subspan(size_t(i) * n2 * 3, n2 * 3), n, *weights);
     for (int k = 0; k < 4; ++k) sum[k] += glm::dvec3(sh.c[size_t(k)]);
     ++count;
   }
@@ -144,7 +148,8 @@ ShL1 fieldFallback(const ProbeField& field) {
   return out;
 }
 
-std::vector<uint8_t> fallbackProbeMask(const ProbeGrid& grid, std::span<const uint8_t> disabled, int columns) {
+std::vector<uint8_t> fallbackProbeMask(const ProbeGrid& grid, std::span<const uint8_t> disabled,
+                                       int columns) {
   grid.validate();
   if (columns < 1) fail("fallbackProbeMask: {} columns, expected >= 1", columns);
   if (!disabled.empty() && disabled.size() != size_t(grid.probeCount()))
@@ -187,7 +192,8 @@ RenderResult renderShadingReference(const EmbreeScene& scene, const worlds::SkyM
                                     const PinholeCamera& camera, const RenderOptions& o, bool showProgress) {
   // detail::renderTiled uses renderReference's random key, so the totals agree sample for sample.
   return detail::renderTiled(
-      sky, camera, o, {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect.R", "indirect.G", "indirect.B"},
+      sky, camera, o,
+      {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect.R", "indirect.G", "indirect.B"},
       showProgress, [&](const detail::TileJob& job, Image& image, uint64_t& localRays) {
         for (int y = job.y0; y < job.y1; ++y) {
           for (int x = job.x0; x < job.x1; ++x) {
@@ -197,11 +203,13 @@ RenderResult renderShadingReference(const EmbreeScene& scene, const worlds::SkyM
               detail::PathRng rng(job.key, pixel, s);
               const float jx = rng.nextFloat();
               const float jy = rng.nextFloat();
-              const glm::vec3 dir = cameraRayDirection(camera, o.width, o.height, float(x) + jx, float(y) + jy);
+              const glm::vec3 dir =
+                  cameraRayDirection(camera, o.width, o.height, float(x) + jx, float(y) + jy);
               detail::FirstHit first;
-              total += glm::dvec3(detail::tracePath(scene, sky, job.discs, job.path, camera.position, dir, rng, first,
-                                                    localRays));
-              direct += glm::dvec3(directAtFirstHit(scene, sky, job.discs, job.path, camera.position, dir, localRays));
+              total += glm::dvec3(detail::tracePath(scene, sky, job.discs, job.path, camera.position, dir,
+                                                    rng, first, localRays));
+              direct += glm::dvec3(
+                  directAtFirstHit(scene, sky, job.discs, job.path, camera.position, dir, localRays));
             }
             std::span<float> px = image.pixel(x, y);
             for (int ch = 0; ch < 3; ++ch) {
@@ -225,13 +233,16 @@ ProbeField captureGridField(const EmbreeScene& scene, const worlds::SkyModel& sk
                             const CaptureOptions& options, bool showProgress) {
   grid.validate();
   const int64_t count = grid.probeCount();
-  if ((!offsets.empty() && offsets.size() != size_t(count)) || (!active.empty() && active.size() != size_t(count)))
-    fail("captureGridField: {} offsets / {} active flags for {} probes", offsets.size(), active.size(), count);
+  if ((!offsets.empty() && offsets.size() != size_t(count)) ||
+      (!active.empty() && active.size() != size_t(count)))
+    fail("captureGridField: {} offsets / {} active flags for {} probes", offsets.size(), active.size(),
+         count);
   std::vector<glm::vec3> positions;
   std::vector<int64_t> index;
   for (int64_t i = 0; i < count; ++i) {
     if (!active.empty() && !active[size_t(i)]) continue;
-    positions.push_back(grid.probePosition(grid.probeCoord(i)) + (offsets.empty() ? glm::vec3(0.0f) : offsets[size_t(i)]));
+    positions.push_back(grid.probePosition(grid.probeCoord(i)) +
+                        (offsets.empty() ? glm::vec3(0.0f) : offsets[size_t(i)]));
     index.push_back(i);
   }
   const CaptureResult r = captureProbes(scene, sky, positions, options, showProgress);
@@ -241,7 +252,8 @@ ProbeField captureGridField(const EmbreeScene& scene, const worlds::SkyModel& sk
   return f;
 }
 
-void subtractDiscLight(ProbeField& f, const EmbreeScene& scene, const worlds::SkyModel& sky, float maxDistance) {
+void subtractDiscLight(ProbeField& f, const EmbreeScene& scene, const worlds::SkyModel& sky,
+                       float maxDistance) {
   const detail::Discs discs = detail::activeDiscs(sky);
   if (discs.count == 0) return;
   const int n = f.resolution, m = f.irradianceResolution;

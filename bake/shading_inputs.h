@@ -35,7 +35,8 @@ ShL1 fieldFallback(const ProbeField& field);
 // A sparse subset of a cell's probes for its fallback (fieldFallback of a capture of just these): every
 // layer of about columns x columns evenly spaced xz columns, leaving out probes inside solid (disabled[i]
 // != 0). Returns an active mask over grid.probeCount().
-std::vector<uint8_t> fallbackProbeMask(const ProbeGrid& grid, std::span<const uint8_t> disabled, int columns = 3);
+std::vector<uint8_t> fallbackProbeMask(const ProbeGrid& grid, std::span<const uint8_t> disabled,
+                                       int columns = 3);
 
 // GGX-prefiltered radiance for the shading pass's specular lookups: per probe `levels` n x n x 3 maps,
 // level k = prefilterRadianceGgx(radiance, n, k / (levels - 1), n) (one level: roughness 0). Inactive

@@ -38,10 +38,11 @@ void ShadingRenderer::setCells(std::span<const gpu::ShadingCellInput> cells, int
   shading_.setProbes(gpu::packShadingProbes(in, levels));
 }
 
-ShadedView ShadingRenderer::render(const worlds::SkyModel& sky, const PinholeCamera& camera, int width, int height,
-                                   const gpu::ShadingOptions& options) {
+ShadedView ShadingRenderer::render(const worlds::SkyModel& sky, const PinholeCamera& camera, int width,
+                                   int height, const gpu::ShadingOptions& options) {
   validateCamera(camera);
-  const shared::GpuCamera cam = gpu::makeGpuCamera(camera.position, camera.target, camera.verticalFovDeg, width, height);
+  const shared::GpuCamera cam =
+      gpu::makeGpuCamera(camera.position, camera.target, camera.verticalFovDeg, width, height);
   gbuffer_.setCamera(cam, width, height, buffers_, options.maxDistance);
   shading_.setView(sky.params, cam, width, height, buffers_, options);
   gpu::GBuffer g = gpu::createGBuffer(ctx_, width, height);
@@ -61,10 +62,11 @@ ShadedView ShadingRenderer::render(const worlds::SkyModel& sky, const PinholeCam
   v.gbufferMs = timer.elapsedMs(0, 1);
   v.shadeMs = timer.elapsedMs(1, 2);
   const gpu::ShadeOutputHost h = gpu::readShadeOutput(ctx_, out);
-  v.image = Image(width, height,
-                  {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect_diffuse.R", "indirect_diffuse.G",
-                   "indirect_diffuse.B", "indirect_specular.R", "indirect_specular.G", "indirect_specular.B",
-                   "indirect.R", "indirect.G", "indirect.B", "weight", "ao", "fallback"});
+  v.image =
+      Image(width, height,
+            {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect_diffuse.R", "indirect_diffuse.G",
+             "indirect_diffuse.B", "indirect_specular.R", "indirect_specular.G", "indirect_specular.B",
+             "indirect.R", "indirect.G", "indirect.B", "weight", "ao", "fallback"});
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
       const size_t p = size_t(y) * size_t(width) + size_t(x);
@@ -87,8 +89,8 @@ ShadedView ShadingRenderer::render(const worlds::SkyModel& sky, const PinholeCam
 gpu::ShadeOutputHost ShadingRenderer::shadePoints(const worlds::SkyModel& sky, const gpu::GBufferHost& points,
                                                   glm::vec3 eye, const gpu::ShadingOptions& options) {
   // Any camera basis works: the shader only uses its position (view vector) for shading points.
-  const shared::GpuCamera cam = gpu::makeGpuCamera(eye, eye + glm::vec3(0.0f, 0.0f, -1.0f), 60.0f, points.width,
-                                                   points.height);
+  const shared::GpuCamera cam =
+      gpu::makeGpuCamera(eye, eye + glm::vec3(0.0f, 0.0f, -1.0f), 60.0f, points.width, points.height);
   shading_.setView(sky.params, cam, points.width, points.height, buffers_, options);
   gpu::GBuffer g = gpu::createGBuffer(ctx_, points.width, points.height);
   gpu::writeGBuffer(ctx_, points, g);
@@ -144,11 +146,13 @@ Image errorHeatMap(const Image& a, const std::string& la, const Image& r, const 
   Image out(a.width, a.height, {"R", "G", "B"});
   for (int y = 0; y < a.height; ++y)
     for (int x = 0; x < a.width; ++x) {
-      const float e = std::clamp(float(std::abs(lum(a, x, y, ca) - lum(r, x, y, cr)) / mean) / 0.5f, 0.0f, 1.0f);
+      const float e =
+          std::clamp(float(std::abs(lum(a, x, y, ca) - lum(r, x, y, cr)) / mean) / 0.5f, 0.0f, 1.0f);
       // blue -> green -> yellow -> red
-      const glm::vec3 c = e < 0.33f   ? glm::mix(glm::vec3(0, 0, 0.5f), glm::vec3(0, 0.8f, 0), e / 0.33f)
-                          : e < 0.66f ? glm::mix(glm::vec3(0, 0.8f, 0), glm::vec3(1, 1, 0), (e - 0.33f) / 0.33f)
-                                      : glm::mix(glm::vec3(1, 1, 0), glm::vec3(1, 0, 0), (e - 0.66f) / 0.34f);
+      const glm::vec3 c = e < 0.33f ? glm::mix(glm::vec3(0, 0, 0.5f), glm::vec3(0, 0.8f, 0), e / 0.33f)
+                          : e < 0.66f
+                              ? glm::mix(glm::vec3(0, 0.8f, 0), glm::vec3(1, 1, 0), (e - 0.33f) / 0.33f)
+                              : glm::mix(glm::vec3(1, 1, 0), glm::vec3(1, 0, 0), (e - 0.66f) / 0.34f);
       for (int k = 0; k < 3; ++k) out.at(x, y, k) = c[k];
     }
   return out;
@@ -169,7 +173,8 @@ LeakTestResult measureLeakTest(gpu::Context& ctx, const worlds::SyntheticWorld& 
   for (int64_t i = 0; i < grid.probeCount(); ++i) {
     const glm::vec3 p = cell.probes.position(i);
     if (cell.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid) continue;
-    if (glm::all(glm::greaterThanEqual(p, house.min - margin)) && glm::all(glm::lessThanEqual(p, house.max + margin))) {
+    if (glm::all(glm::greaterThanEqual(p, house.min - margin)) &&
+        glm::all(glm::lessThanEqual(p, house.max + margin))) {
       active[size_t(i)] = 1;
       ++res.probes;
     }

@@ -14,12 +14,12 @@
 #include <span>
 #include <vector>
 
+#include "bake/probe_capture.h"
 #include "bake/reference_render.h"
 #include "core/image.h"
 #include "core/probe_field.h"
 #include "gpu/gbuffer_pass.h"
 #include "gpu/probe_shading_pass.h"
-#include "bake/probe_capture.h"
 #include "worlds/mesh.h"
 #include "worlds/sky.h"
 #include "worlds/synthetic_world.h"
@@ -63,7 +63,8 @@ double layerRelativeRms(const Image& a, const std::string& layerA, const Image& 
 
 // Per-pixel error heat map of luminance |a - ref| / (mean luminance of ref), 0 (black) .. 0.5 (white)
 // through blue-green-yellow-red; channels R/G/B in [0, 1] (write with writePng exposure 0, Reinhard off).
-Image errorHeatMap(const Image& a, const std::string& layerA, const Image& reference, const std::string& layerRef);
+Image errorHeatMap(const Image& a, const std::string& layerA, const Image& reference,
+                   const std::string& layerRef);
 
 // Leak test (DESIGN.md §5, NVIDIA LFP/DDGI style) on the first LeakTestSite of a world cell: captures the
 // cell's own placed probes around the house (within one spacing of its bounds), shades 5 x 5 floor points

@@ -35,11 +35,13 @@ WorldBakeSettings tinySharedSettings() {
 }
 
 // The bake's training set of a cell, captured again (capture is deterministic per probe seed).
-GeneratorTrainingSet recapture(const worlds::SyntheticWorld& world, worlds::CellCoord c, const WorldBakeSettings& s) {
+GeneratorTrainingSet recapture(const worlds::SyntheticWorld& world, worlds::CellCoord c,
+                               const WorldBakeSettings& s) {
   CellBakeInputs in = prepareCellBake(world, c, s);
   std::vector<glm::vec3> positions;
   for (size_t i = 0; i < in.built.probes.flags.size(); ++i)
-    if (!(in.built.probes.flags[i] & worlds::kProbeDisabledSolid)) positions.push_back(in.built.probes.position(int64_t(i)));
+    if (!(in.built.probes.flags[i] & worlds::kProbeDisabledSolid))
+      positions.push_back(in.built.probes.position(int64_t(i)));
   const EmbreeScene scene(std::move(in.sceneMesh), "recapture");
   return captureTrainingSet(scene, positions, in.built.probes.grid.origin, in.built.probes.grid.boxMax(),
                             parseLightingKeys(s.keys), worldBakeCaptureOptions(world, s));
@@ -73,7 +75,8 @@ const SharedWorld& sharedWorld() {
     for (int z = 0; z < world.cellsZ(); ++z)
       for (int x = 0; x < world.cellsX(); ++x) {
         const worlds::CellCoord c{x, z};
-        const CellFile cf = bakeCell(world, prepareCellBake(world, c, s, r.resolved.hash), s, nullptr, &r.resolved);
+        const CellFile cf =
+            bakeCell(world, prepareCellBake(world, c, s, r.resolved.hash), s, nullptr, &r.resolved);
         writeCellFile(cellFilePath(r.dir / "baked", c), cf);
         if (cf.generator) r.networkCells.push_back(c);
       }
@@ -147,7 +150,8 @@ TEST(SharedCodecBake, CellsDecodeThroughCellFileSourceAsTheAdapterFoldedByHand) 
       for (int64_t i = 0; i < streamed.probeCount(); ++i) {
         if (!streamed.isActive(i)) continue;
         for (size_t t = 0; t < tn3; ++t) {
-          const float a = streamed.radiance[size_t(i) * tn3 + t], b = std::max(0.0f, dense.radiance[k * tn3 + t]);
+          const float a = streamed.radiance[size_t(i) * tn3 + t],
+                      b = std::max(0.0f, dense.radiance[k * tn3 + t]);
           maxDiff = std::max(maxDiff, double(std::abs(a - b)));
           maxValue = std::max(maxValue, double(std::abs(b)));
           active.push_back(a);
@@ -158,10 +162,11 @@ TEST(SharedCodecBake, CellsDecodeThroughCellFileSourceAsTheAdapterFoldedByHand) 
       decoded.push_back(std::move(active));
     }
     const double e = codecError(set, decoded).irradianceRelativeRms;
-    std::printf("[ measure  ] cell %d,%d (%s): %zu B (adapter %zu, latents %zu); streamed vs folded by hand max "
-                "|diff| %.3g of %.3g; irradiance rel RMS %.4f (stored %.4f)\n",
-                c.x, c.z, cf.stats.model.c_str(), parts.total, parts.adapter, parts.latents, maxDiff, maxValue, e,
-                cf.stats.errorAchieved);
+    std::printf(
+        "[ measure  ] cell %d,%d (%s): %zu B (adapter %zu, latents %zu); streamed vs folded by hand max "
+        "|diff| %.3g of %.3g; irradiance rel RMS %.4f (stored %.4f)\n",
+        c.x, c.z, cf.stats.model.c_str(), parts.total, parts.adapter, parts.latents, maxDiff, maxValue, e,
+        cf.stats.errorAchieved);
     EXPECT_LE(maxDiff, 1e-5 * maxValue + 1e-7);
     EXPECT_GT(cf.stats.errorAchieved, 0.0);
     EXPECT_LE(e, cf.stats.errorAchieved * 1.02 + 1e-3);
@@ -179,7 +184,8 @@ TEST(SharedCodecBake, MissingOrOtherSharedModelNamesBothFiles) {
   fs::remove(model);
   const worlds::CellCoord c = w.networkCells.front();
   // One cell without a network, so the source has a valid cell (with none it refuses the directory).
-  const worlds::CellCoord plainCell = c.x == 0 && c.z == 0 ? worlds::CellCoord{1, 1} : worlds::CellCoord{0, 0};
+  const worlds::CellCoord plainCell =
+      c.x == 0 && c.z == 0 ? worlds::CellCoord{1, 1} : worlds::CellCoord{0, 0};
   CellFile plain = readCellFile(cellFilePath(dir / "baked", plainCell));
   plain.generator.reset();
   writeCellFile(cellFilePath(dir / "baked", plainCell), plain);

@@ -19,12 +19,13 @@ namespace {
 
 GeneratorTrainingSet tinyCell(int variant) {
   const glm::vec3 ground = glm::vec3(0.3f, 0.25f, 0.2f) + 0.1f * float(variant % 2);
-  const glm::vec3 wall = variant == 1 ? glm::vec3(0.2f, 0.5f, 0.7f) : glm::vec3(0.7f, 0.6f - 0.1f * float(variant), 0.5f);
+  const glm::vec3 wall =
+      variant == 1 ? glm::vec3(0.2f, 0.5f, 0.7f) : glm::vec3(0.7f, 0.6f - 0.1f * float(variant), 0.5f);
   const float half = 1.5f + 0.5f * float(variant), height = 4.0f + 2.0f * float(variant);
   const glm::vec3 c(0.6f * float(variant) - 0.6f, 0.0f, 0.4f * float(variant));
   const LightingKeySpec keys[] = {{12.0f, 0.0f}};  // one time for every cell, as bench/codec
-  return test::boxOnGroundCell(ground, wall, c - glm::vec3(half, 0.0f, half), c + glm::vec3(half, height, half), keys,
-                               "tiny shared cell");
+  return test::boxOnGroundCell(ground, wall, c - glm::vec3(half, 0.0f, half),
+                               c + glm::vec3(half, height, half), keys, "tiny shared cell");
 }
 
 // Cells 0..2 pre-train, cell 3 is held out.
@@ -45,19 +46,22 @@ SharedTrainingOptions tinyOptions(int steps) {
   o.training.evalEvery = 50;
   o.training.irradianceErrorTarget = 0.0;  // never reached: runs all steps
   o.training.threads = 1;
-  o.adapterStages = 2;                     // all stages of the depth-1 network
+  o.adapterStages = 2;  // all stages of the depth-1 network
   return o;
 }
 
 // Pre-trained once for every test (200 steps on 3 cells).
 const SharedGenerator& shared() {
   static const SharedGenerator s = [] {
-    return pretrainSharedGenerator(std::span<const GeneratorTrainingSet>(cells().data(), 3), tinyOptions(200));
+    return pretrainSharedGenerator(std::span<const GeneratorTrainingSet>(cells().data(), 3),
+                                   tinyOptions(200));
   }();
   return s;
 }
 
-const GeneratorTrainingSet& heldOut() { return cells()[3]; }
+const GeneratorTrainingSet& heldOut() {
+  return cells()[3];
+}
 
 std::filesystem::path tmpDir() {
   std::filesystem::path d = std::filesystem::path(LFGI_TEST_TMP_DIR) / "shared_generator";
@@ -99,8 +103,8 @@ TEST(SharedGenerator, FoldedAdapterMatchesLibtorchFilm) {
       maxDiff = std::max(maxDiff, double(std::abs(ref[i] - cpu[i])));
       changed = std::max(changed, double(std::abs(plain[i] - cpu[i])));
     }
-    std::printf("stages %d: max |y| %.3f, max |folded - torch FiLM| %.3g, adapter moves outputs by %.3g\n", stages,
-                maxAbs, maxDiff, changed);
+    std::printf("stages %d: max |y| %.3f, max |folded - torch FiLM| %.3g, adapter moves outputs by %.3g\n",
+                stages, maxAbs, maxDiff, changed);
     EXPECT_LE(maxDiff, 1e-5 * (1.0 + maxAbs));
     if (stages > 0) {
       EXPECT_GT(changed, 1e-2);  // the adapter is not a no-op
@@ -157,10 +161,12 @@ TEST(SharedGenerator, QuantizationInTheLoopLosesNothing) {
     const CellAdaptation qat = fitCellToSharedGenerator(w, heldOut(), o);
     const std::vector<float> back = dequantizeLatents(quantizeLatents(qat.latents, w.arch.latentDim, bits));
     EXPECT_EQ(back, qat.latents) << bits << "-bit latents are not on their grid";
-    const double qatAfter = errorAfterQuantization(qat, bits), plainAfter = errorAfterQuantization(plain, bits);
+    const double qatAfter = errorAfterQuantization(qat, bits),
+                 plainAfter = errorAfterQuantization(plain, bits);
     std::printf("%d-bit: float fit %.4f; quantized after: QAT %.4f, no QAT %.4f\n", bits, before, qatAfter,
                 plainAfter);
-    EXPECT_NEAR(qatAfter, qat.report.irradianceRelativeRms, 1e-3 * qatAfter);  // the report is after quantization
+    EXPECT_NEAR(qatAfter, qat.report.irradianceRelativeRms,
+                1e-3 * qatAfter);  // the report is after quantization
     EXPECT_LE(qatAfter, before * (bits == 8 ? 1.02 : 1.05));
   }
 }
@@ -169,7 +175,8 @@ TEST(SharedGenerator, SameSeedIsBitIdenticalAndOtherSeedsDiffer) {
   const GeneratorWeights& w = shared().weights;
   SharedTrainingOptions o = tinyOptions(60);
   o.training.latentQuantBits = 8;
-  const CellAdaptation a = fitCellToSharedGenerator(w, heldOut(), o), b = fitCellToSharedGenerator(w, heldOut(), o);
+  const CellAdaptation a = fitCellToSharedGenerator(w, heldOut(), o),
+                       b = fitCellToSharedGenerator(w, heldOut(), o);
   EXPECT_EQ(a.latents, b.latents);
   EXPECT_EQ(a.adapter.scale, b.adapter.scale);
   EXPECT_EQ(a.adapter.shift, b.adapter.shift);
@@ -178,7 +185,8 @@ TEST(SharedGenerator, SameSeedIsBitIdenticalAndOtherSeedsDiffer) {
   EXPECT_NE(a.latents, c.latents);
   // Pre-training too.
   const auto pre = std::span<const GeneratorTrainingSet>(cells().data(), 2);
-  const SharedGenerator p = pretrainSharedGenerator(pre, tinyOptions(30)), q = pretrainSharedGenerator(pre, tinyOptions(30));
+  const SharedGenerator p = pretrainSharedGenerator(pre, tinyOptions(30)),
+                        q = pretrainSharedGenerator(pre, tinyOptions(30));
   EXPECT_EQ(weightsContentHash(p.weights), weightsContentHash(q.weights));
   EXPECT_EQ(p.cells[1].latents, q.cells[1].latents);
 }

@@ -9,10 +9,10 @@
 #include <random>
 
 #include "bake/shading_inputs.h"
-#include "gpu/gbuffer_pass.h"
-#include "gpu/probe_shading_pass.h"
 #include "core/error.h"
 #include "core/sh.h"
+#include "gpu/gbuffer_pass.h"
+#include "gpu/probe_shading_pass.h"
 #include "streaming/streaming_manager.h"
 
 namespace lfgi {
@@ -44,7 +44,8 @@ TEST(StreamingShading, GpuMatchesStreamingSampleAcrossFadesAndFallbacks) {
   std::map<std::pair<int, int>, ProbeField> fields;
   manager.onActivate = [&](glm::ivec2 c, const ProbeField& f) { fields[{c.x, c.y}] = f; };
   streaming::FrameInput in;
-  in.position = glm::vec3(80.0f, 10.0f, 80.0f);  // cell 2,2: cells 1..3 resident, the x = 0 and z = 0 rows not
+  in.position =
+      glm::vec3(80.0f, 10.0f, 80.0f);  // cell 2,2: cells 1..3 resident, the x = 0 and z = 0 rows not
   in.dtSeconds = 0.1f;
   for (int f = 0; f < 6; ++f) manager.update(in);
 
@@ -105,7 +106,8 @@ TEST(StreamingShading, GpuMatchesStreamingSampleAcrossFadesAndFallbacks) {
   o.chebyshev = false;
   o.backface = false;
   const glm::vec3 eye(64.0f, 200.0f, 64.0f);
-  pass.setView({}, gpu::makeGpuCamera(eye, eye + glm::vec3(0.0f, 0.0f, -1.0f), 60.0f, g.width, 1), g.width, 1, sb, o);
+  pass.setView({}, gpu::makeGpuCamera(eye, eye + glm::vec3(0.0f, 0.0f, -1.0f), 60.0f, g.width, 1), g.width, 1,
+               sb, o);
   gpu::GBuffer gb = gpu::createGBuffer(*ctx, g.width, 1);
   gpu::writeGBuffer(*ctx, g, gb);
   gpu::ShadeOutput out = gpu::createShadeOutput(*ctx, g.width, 1);
@@ -126,7 +128,8 @@ TEST(StreamingShading, GpuMatchesStreamingSampleAcrossFadesAndFallbacks) {
     for (int k = 0; k < 2; ++k) {
       const float local = (k == 0 ? q.x - lo.x : q.z - lo.y) - last;
       const glm::ivec2 next = a + (k == 0 ? glm::ivec2(1, 0) : glm::ivec2(0, 1));
-      if (!manager.isResident(a) && local > 0.0f && layout.contains(next)) t[k] = std::min(1.0f, local / so.probeSpacing);
+      if (!manager.isResident(a) && local > 0.0f && layout.contains(next))
+        t[k] = std::min(1.0f, local / so.probeSpacing);
     }
     if (t.x == 0.0f && t.y == 0.0f) return manager.sample(q, nn);
     ++blended;

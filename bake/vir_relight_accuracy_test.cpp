@@ -202,14 +202,16 @@ TEST(VirRelightAccuracy, CornellBoxMatchesEmbree) {
   const Comparison c = compare("cornell", mesh, sky, surfels, probes, all, 8, 10.0f, 256, 32);
   // Measured (N = 32, 8 frames, VIR LOD on; before 2026-12-02's lattice surfels and footprint 1.3 in
   // brackets). Without emitter NEE: probe irradiance median rel 0.19 (0.19), rel RMS 0.14 (0.13), median
-  // signed +0.19 (+0.11); surfel E median rel 0.93 (0.60), signed +0.72 (+0.48): the small ceiling light reaches
-  // surfels only through the 8 probes' irradiance, so points away from the probes, e.g. the back wall under
-  // the light, get the probes' much stronger direct term. With emitter NEE (the default: the lamp's surfels
-  // summed at every surfel, shadowed by VIR-splatted depth maps from the lamp's clusters): probe median rel
-  // 0.098 (0.112), rel RMS 0.086 (0.101), signed +0.044 (+0.013); surfel E median 0.45 (0.41), signed +0.10
+  // signed +0.19 (+0.11); surfel E median rel 0.93 (0.60), signed +0.72 (+0.48): the small ceiling light
+  // reaches surfels only through the 8 probes' irradiance, so points away from the probes, e.g. the back wall
+  // under the light, get the probes' much stronger direct term. With emitter NEE (the default: the lamp's
+  // surfels summed at every surfel, shadowed by VIR-splatted depth maps from the lamp's clusters): probe
+  // median rel 0.098 (0.112), rel RMS 0.086 (0.101), signed +0.044 (+0.013); surfel E median 0.45 (0.41),
+  // signed +0.10
   // (+0.03); 0.42, signed +0.063 over the 114 surfels a probe sees, since unseen ones are skipped
-  // (2026-12-03; no-NEE run: 0.93, +0.72 unchanged). At footprint 1.5 with lattice surfels the lamp's discs overhang its edges (+13 % signed: median
-  // 0.147, RMS 0.170, failing these bounds). Bounds leave ~25 % headroom.
+  // (2026-12-03; no-NEE run: 0.93, +0.72 unchanged). At footprint 1.5 with lattice surfels the lamp's discs
+  // overhang its edges (+13 % signed: median 0.147, RMS 0.170, failing these bounds). Bounds leave ~25 %
+  // headroom.
   ASSERT_GT(c.probeTexels, size_t(300));  // two of the 8 preset probes sit inside the boxes (Embree: 0)
   EXPECT_LE(c.probeMedian, 0.14);
   EXPECT_LE(c.probeRelRms, 0.13);

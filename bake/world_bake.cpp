@@ -19,11 +19,13 @@ namespace lfgi::bake {
 namespace fs = std::filesystem;
 
 void WorldBakeSettings::validate() const {
-  if (!(errorTarget >= 0.001 && errorTarget <= 1.0)) fail("bake error target {} outside [0.001, 1]", errorTarget);
-  if (resolution != 8 && resolution != 16 && resolution != 32) fail("bake resolution {}: expected 8, 16 or 32", resolution);
+  if (!(errorTarget >= 0.001 && errorTarget <= 1.0))
+    fail("bake error target {} outside [0.001, 1]", errorTarget);
+  if (resolution != 8 && resolution != 16 && resolution != 32)
+    fail("bake resolution {}: expected 8, 16 or 32", resolution);
   if (spp < 1 || bounces < 0 || maxSteps < 1 || threads < 1)
-    fail("bake settings: spp {} >= 1, bounces {} >= 0, max steps {} >= 1, threads {} >= 1 required", spp, bounces,
-         maxSteps, threads);
+    fail("bake settings: spp {} >= 1, bounces {} >= 0, max steps {} >= 1, threads {} >= 1 required", spp,
+         bounces, maxSteps, threads);
   for (int w : modelWidths)
     if (w != 8 && w != 16 && w != 32 && w != 64) fail("bake model width {}: expected 8, 16, 32 or 64", w);
   for (int z : modelLatents)
@@ -44,14 +46,17 @@ std::vector<LightingKeySpec> parseLightingKeys(const std::string& text) {
     char colon = 0, extra = 0;
     int n = std::sscanf(item.c_str(), "%f%c%f%c", &t, &colon, &w, &extra);
     if (!((n == 1) || (n == 3 && colon == ':')) || !(t >= 0.0f && t <= 24.0f) || !(w >= 0.0f && w <= 1.0f))
-      fail("--keys '{}': expected HOURS[:OVERCAST],... with hours in [0, 24] and overcast in [0, 1], got '{}'", text, item);
+      fail(
+          "--keys '{}': expected HOURS[:OVERCAST],... with hours in [0, 24] and overcast in [0, 1], got '{}'",
+          text, item);
     keys.push_back({t, n == 3 ? w : 0.0f});
     start = end + 1;
   }
   return keys;
 }
 
-CaptureOptions worldBakeCaptureOptions(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings) {
+CaptureOptions worldBakeCaptureOptions(const worlds::SyntheticWorld& world,
+                                       const WorldBakeSettings& settings) {
   CaptureOptions capture;
   capture.resolution = settings.resolution;
   capture.irradianceResolution = std::max(2, settings.resolution / 2);
@@ -70,8 +75,10 @@ fs::path cellFilePath(const fs::path& outDir, worlds::CellCoord c) {
 }
 
 std::vector<worlds::CellCoord> arrayShare(const std::vector<worlds::CellCoord>& cells, int index, int size) {
-  if (size < 1 || index < 0 || index >= size) fail("--array-index {} outside [0, --array-size {})", index, size);
-  const size_t n = cells.size(), a = n * size_t(index) / size_t(size), b = n * size_t(index + 1) / size_t(size);
+  if (size < 1 || index < 0 || index >= size)
+    fail("--array-index {} outside [0, --array-size {})", index, size);
+  const size_t n = cells.size(), a = n * size_t(index) / size_t(size),
+               b = n * size_t(index + 1) / size_t(size);
   return {cells.begin() + ptrdiff_t(a), cells.begin() + ptrdiff_t(b)};
 }
 
@@ -85,10 +92,12 @@ std::vector<size_t> fileKeyOrder(const std::vector<Key>& keys) {
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
   auto less = [&](size_t a, size_t b) {
     const Key &x = keys[a], &y = keys[b];
-    return x.timeOfDayHours < y.timeOfDayHours || (x.timeOfDayHours == y.timeOfDayHours && x.weather < y.weather);
+    return x.timeOfDayHours < y.timeOfDayHours ||
+           (x.timeOfDayHours == y.timeOfDayHours && x.weather < y.weather);
   };
   std::stable_sort(order.begin(), order.end(), less);
-  order.erase(std::unique(order.begin(), order.end(), [&](size_t a, size_t b) { return !less(a, b); }), order.end());
+  order.erase(std::unique(order.begin(), order.end(), [&](size_t a, size_t b) { return !less(a, b); }),
+              order.end());
   return order;
 }
 
@@ -131,7 +140,8 @@ CellFallback darkFallback(const std::vector<LightingKeySpec>& keys) {
 }
 
 uint64_t hashInputs(const worlds::SyntheticWorld& world, worlds::CellCoord c, const worlds::BuiltCell& cell,
-                    const uint64_t (&neighbours)[9], const WorldBakeSettings& settings, uint64_t sharedModelHash) {
+                    const uint64_t (&neighbours)[9], const WorldBakeSettings& settings,
+                    uint64_t sharedModelHash) {
   const CaptureOptions capture = worldBakeCaptureOptions(world, settings);
   ContentHasher hasher;
   // v3: cell file version 2 (one fallback per lighting key), so an incremental bake rewrites v1 cells.
@@ -141,7 +151,10 @@ uint64_t hashInputs(const worlds::SyntheticWorld& world, worlds::CellCoord c, co
   hasher.addValue(cell.probes.grid.dims);
   hasher.add(std::as_bytes(std::span(cell.probes.flags))).add(std::as_bytes(std::span(cell.probes.offsets)));
   hasher.addValue(capture.resolution).addValue(capture.samplesPerTexel).addValue(capture.maxBounces);
-  hasher.addValue(capture.seed).addValue(capture.maxDistance).add(settings.keys).addValue(settings.errorTarget);
+  hasher.addValue(capture.seed)
+      .addValue(capture.maxDistance)
+      .add(settings.keys)
+      .addValue(settings.errorTarget);
   hasher.addValue(settings.maxSteps).addValue(settings.threads);
   hasher.add(std::string("models"));
   for (int w : settings.modelWidths) hasher.addValue(w);
@@ -170,15 +183,17 @@ ActiveProbes activeProbes(const worlds::BuiltCell& cell) {
 }
 
 // The cell's captures under every lighting key (the generator's training set). Consumes in.sceneMesh.
-GeneratorTrainingSet captureCell(const worlds::SyntheticWorld& world, CellBakeInputs& in, const ActiveProbes& probes,
-                                 const WorldBakeSettings& settings) {
+GeneratorTrainingSet captureCell(const worlds::SyntheticWorld& world, CellBakeInputs& in,
+                                 const ActiveProbes& probes, const WorldBakeSettings& settings) {
   const EmbreeScene scene(std::move(in.sceneMesh), fmt::format("cell {},{}", in.cell.x, in.cell.z));
-  return captureTrainingSet(scene, probes.positions, in.built.probes.grid.origin, in.built.probes.grid.boxMax(),
-                            parseLightingKeys(settings.keys), worldBakeCaptureOptions(world, settings), {}, false);
+  return captureTrainingSet(scene, probes.positions, in.built.probes.grid.origin,
+                            in.built.probes.grid.boxMax(), parseLightingKeys(settings.keys),
+                            worldBakeCaptureOptions(world, settings), {}, false);
 }
 
 // Fit options of a cell against the shared model (and, with pre-training steps, the pre-training's).
-SharedTrainingOptions sharedFitOptions(const WorldBakeSettings& settings, int steps, double target, int quantBits) {
+SharedTrainingOptions sharedFitOptions(const WorldBakeSettings& settings, int steps, double target,
+                                       int quantBits) {
   SharedTrainingOptions o;
   o.training.arch = sharedModelArch(settings);
   o.training.maxSteps = steps;
@@ -201,10 +216,11 @@ uint64_t sampleOrderKey(uint64_t seed, worlds::CellCoord c) {
 
 }  // namespace
 
-CellBakeInputs prepareCellBake(const worlds::SyntheticWorld& world, worlds::CellCoord c, const WorldBakeSettings& settings,
-                               uint64_t sharedModelHash) {
+CellBakeInputs prepareCellBake(const worlds::SyntheticWorld& world, worlds::CellCoord c,
+                               const WorldBakeSettings& settings, uint64_t sharedModelHash) {
   settings.validate();
-  if (!world.contains(c)) fail("bake: cell {},{} outside the world ({} x {} cells)", c.x, c.z, world.cellsX(), world.cellsZ());
+  if (!world.contains(c))
+    fail("bake: cell {},{} outside the world ({} x {} cells)", c.x, c.z, world.cellsX(), world.cellsZ());
   CellBakeInputs in;
   in.cell = c;
   in.built = worlds::buildCell(world, c);
@@ -225,8 +241,8 @@ CellBakeInputs prepareCellBake(const worlds::SyntheticWorld& world, worlds::Cell
   return in;
 }
 
-uint64_t cellInputHash(const worlds::SyntheticWorld& world, worlds::CellCoord c, const WorldBakeSettings& settings,
-                       uint64_t sharedModelHash) {
+uint64_t cellInputHash(const worlds::SyntheticWorld& world, worlds::CellCoord c,
+                       const WorldBakeSettings& settings, uint64_t sharedModelHash) {
   return prepareCellBake(world, c, settings, sharedModelHash).inputHash;
 }
 
@@ -234,7 +250,8 @@ CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const 
                   CellBakeReport* report, const ResolvedSharedModel* shared) {
   using Clock = std::chrono::steady_clock;
   const auto t0 = Clock::now();
-  if (settings.sharedCodec() && !shared) fail("bake: cell {},{}: --codec shared needs the world's shared model", in.cell.x, in.cell.z);
+  if (settings.sharedCodec() && !shared)
+    fail("bake: cell {},{}: --codec shared needs the world's shared model", in.cell.x, in.cell.z);
   const std::vector<LightingKeySpec> keys = parseLightingKeys(settings.keys);
   ModelSizingOptions sizing;
   sizing.irradianceErrorTarget = settings.errorTarget;
@@ -244,7 +261,9 @@ CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const 
   sizing.training.threads = settings.threads;
   sizing.training.validate();
   if (!settings.modelWidths.empty() || !settings.modelLatents.empty()) {
-    auto listed = [](const std::vector<int>& v, int x) { return v.empty() || std::find(v.begin(), v.end(), x) != v.end(); };
+    auto listed = [](const std::vector<int>& v, int x) {
+      return v.empty() || std::find(v.begin(), v.end(), x) != v.end();
+    };
     for (const GeneratorArch& a : sizingCandidates(settings.resolution, LatentSource::Stored))
       if (listed(settings.modelWidths, a.convChannels.front()) && listed(settings.modelLatents, a.latentDim))
         sizing.candidates.push_back(a);
@@ -272,7 +291,7 @@ CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const 
     std::optional<CellModelChoice> noNetwork;
     if (settings.sharedCodec()) noNetwork = chooseNoNetworkModel(set, probes.flags, sizing);
     const bool fitShared = settings.sharedCodec() && !noNetwork;
-    CellModelChoice choice = noNetwork    ? std::move(*noNetwork)
+    CellModelChoice choice = noNetwork   ? std::move(*noNetwork)
                              : fitShared ? CellModelChoice{}
                                          : chooseCellModel(set, probes.flags, sizing);
     cf.fallback = fallbackOf(set);
@@ -350,10 +369,12 @@ GeneratorArch sharedModelArch(const WorldBakeSettings& settings) {
   const int latent = settings.modelLatents.empty() ? 8 : settings.modelLatents.front();
   for (const GeneratorArch& a : sizingCandidates(settings.resolution, LatentSource::Stored))
     if (a.convChannels.front() == width && a.latentDim == latent) return a;
-  fail("bake: no shared generator of width {} and latent size {} at resolution {}", width, latent, settings.resolution);
+  fail("bake: no shared generator of width {} and latent size {} at resolution {}", width, latent,
+       settings.resolution);
 }
 
-std::vector<worlds::CellCoord> sharedModelCells(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings) {
+std::vector<worlds::CellCoord> sharedModelCells(const worlds::SyntheticWorld& world,
+                                                const WorldBakeSettings& settings) {
   std::vector<worlds::CellCoord> order;
   for (int z = 0; z < world.cellsZ(); ++z)
     for (int x = 0; x < world.cellsX(); ++x) order.push_back({x, z});
@@ -362,7 +383,8 @@ std::vector<worlds::CellCoord> sharedModelCells(const worlds::SyntheticWorld& wo
   });
   std::vector<worlds::CellKind> present;  // cellKind is cheap, buildCell is not: stop once each kind is found
   for (const worlds::CellCoord c : order)
-    if (std::find(present.begin(), present.end(), world.cellKind(c)) == present.end()) present.push_back(world.cellKind(c));
+    if (std::find(present.begin(), present.end(), world.cellKind(c)) == present.end())
+      present.push_back(world.cellKind(c));
   std::vector<worlds::CellCoord> chosen;
   std::vector<worlds::CellKind> kinds;
   for (const worlds::CellCoord c : order) {
@@ -381,11 +403,13 @@ namespace {
 
 // The sample cells of sharedModelCells prepared with their own (per-cell codec) inputs: their input hashes
 // enter the shared model's, and ensureSharedModel captures them, so each is prepared once.
-std::vector<CellBakeInputs> prepareSharedModelCells(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings) {
+std::vector<CellBakeInputs> prepareSharedModelCells(const worlds::SyntheticWorld& world,
+                                                    const WorldBakeSettings& settings) {
   WorldBakeSettings perCell = settings;  // the sample cells' own inputs, independent of the codec
   perCell.codec = "per-cell";
   std::vector<CellBakeInputs> cells;
-  for (const worlds::CellCoord c : sharedModelCells(world, settings)) cells.push_back(prepareCellBake(world, c, perCell));
+  for (const worlds::CellCoord c : sharedModelCells(world, settings))
+    cells.push_back(prepareCellBake(world, c, perCell));
   return cells;
 }
 
@@ -421,8 +445,8 @@ uint64_t currentSharedModelHash(const worlds::SyntheticWorld& world, const World
   }
 }
 
-SharedModel ensureSharedModel(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings, const fs::path& outDir,
-                              bool* reused) {
+SharedModel ensureSharedModel(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings,
+                              const fs::path& outDir, bool* reused) {
   settings.validate();
   const fs::path path = sharedModelPath(outDir);
   std::vector<CellBakeInputs> cells = prepareSharedModelCells(world, settings);
@@ -436,7 +460,8 @@ SharedModel ensureSharedModel(const worlds::SyntheticWorld& world, const WorldBa
         if (reused) *reused = true;
         return m;
       }
-      std::fprintf(stderr, "%s: pre-training inputs changed, training the shared model again\n", path.string().c_str());
+      std::fprintf(stderr, "%s: pre-training inputs changed, training the shared model again\n",
+                   path.string().c_str());
     } catch (const Error& e) {
       std::fprintf(stderr, "%s; training the shared model again\n", e.what());
     }
@@ -452,7 +477,8 @@ SharedModel ensureSharedModel(const worlds::SyntheticWorld& world, const WorldBa
                  std::string(worlds::cellKindName(world.cellKind(c))).c_str());
     const ActiveProbes probes = activeProbes(in.built);
     sets.push_back(captureCell(world, in, probes, settings));
-    names += fmt::format("{}{},{} {}", names.empty() ? "" : "; ", c.x, c.z, worlds::cellKindName(world.cellKind(c)));
+    names += fmt::format("{}{},{} {}", names.empty() ? "" : "; ", c.x, c.z,
+                         worlds::cellKindName(world.cellKind(c)));
   }
   // A fixed budget (no early stop), as bench/codec's shared model; resumable from the checkpoint.
   SharedTrainingOptions o = sharedFitOptions(settings, settings.sharedSteps, 0.0, 0);

@@ -41,13 +41,13 @@
 namespace lfgi::bake {
 
 struct WorldBakeSettings {
-  double errorTarget = 0.05;          // irradiance relative RMS per cell
-  std::string keys = "8,12,17.5";     // lighting keys: HOURS[:OVERCAST],...
-  int resolution = 16;                // probe map side (8, 16, 32)
+  double errorTarget = 0.05;       // irradiance relative RMS per cell
+  std::string keys = "8,12,17.5";  // lighting keys: HOURS[:OVERCAST],...
+  int resolution = 16;             // probe map side (8, 16, 32)
   int spp = 16;
   int bounces = 4;
-  int maxSteps = 1500;                // training steps per candidate model
-  int threads = 1;                    // training threads (1: bit-identical across processes)
+  int maxSteps = 1500;  // training steps per candidate model
+  int threads = 1;      // training threads (1: bit-identical across processes)
   uint64_t seed = 1;
   // Restrict the generator search to these base widths C0 (of 8, 16, 32, 64) and stored latent sizes (of
   // 4, 8, 16); empty: all (12 candidates). A km-scale path bake fixes one model (--model-widths 32
@@ -58,7 +58,7 @@ struct WorldBakeSettings {
   // latents + a FiLM adapter fitted against it, cell file version 3). Enters the input hash (with the
   // shared model's weights hash), so switching codec rebakes.
   std::string codec = "per-cell";
-  int sharedSteps = 3000;             // --codec shared: pre-training steps of the shared model
+  int sharedSteps = 3000;  // --codec shared: pre-training steps of the shared model
   bool sharedCodec() const { return codec == "shared"; }
   // Throws lfgi::Error naming the bad setting (keys are parsed here too).
   void validate() const;
@@ -68,7 +68,8 @@ struct WorldBakeSettings {
 std::vector<LightingKeySpec> parseLightingKeys(const std::string& text);
 
 // Capture options the bake uses for this world (capture.maxDistance = 4 cells).
-CaptureOptions worldBakeCaptureOptions(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings);
+CaptureOptions worldBakeCaptureOptions(const worlds::SyntheticWorld& world,
+                                       const WorldBakeSettings& settings);
 
 // out/cells/cell_X_Z.vdb
 std::filesystem::path cellFilePath(const std::filesystem::path& outDir, worlds::CellCoord c);
@@ -86,16 +87,16 @@ struct CellBakeInputs {
 };
 // sharedModelHash: with settings.codec "shared", the weights hash of the world's shared model (it enters
 // the input hash; 0 when there is none yet, a hash no baked cell holds).
-CellBakeInputs prepareCellBake(const worlds::SyntheticWorld& world, worlds::CellCoord c, const WorldBakeSettings& settings,
-                               uint64_t sharedModelHash = 0);
+CellBakeInputs prepareCellBake(const worlds::SyntheticWorld& world, worlds::CellCoord c,
+                               const WorldBakeSettings& settings, uint64_t sharedModelHash = 0);
 
 // The input hash alone (builds the cell, generates the neighbours' meshes: cheaper than a bake, not free).
-uint64_t cellInputHash(const worlds::SyntheticWorld& world, worlds::CellCoord c, const WorldBakeSettings& settings,
-                       uint64_t sharedModelHash = 0);
+uint64_t cellInputHash(const worlds::SyntheticWorld& world, worlds::CellCoord c,
+                       const WorldBakeSettings& settings, uint64_t sharedModelHash = 0);
 
 struct CellBakeReport {
-  size_t probes = 0;          // active probes captured
-  bool network = false;       // a generator was stored
+  size_t probes = 0;     // active probes captured
+  bool network = false;  // a generator was stored
   double captureSeconds = 0.0, trainingSeconds = 0.0, totalSeconds = 0.0;
 };
 
@@ -105,15 +106,17 @@ struct CellBakeReport {
 // a 1-stage FiLM adapter against it (fitCellToSharedGenerator, --max-steps, stopping at the error target,
 // int8 latents and adapter quantized in the loop) and refers to it (cell file version 3); a simple cell
 // still stores no network (chooseNoNetworkModel).
-CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs inputs, const WorldBakeSettings& settings,
-                  CellBakeReport* report = nullptr, const ResolvedSharedModel* shared = nullptr);
+CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs inputs,
+                  const WorldBakeSettings& settings, CellBakeReport* report = nullptr,
+                  const ResolvedSharedModel* shared = nullptr);
 
 // ---- the shared codec's world model (core/shared_model.h) ---------------------------------------------
 // Pre-training cells: one of each kind (field, suburb, city, park) that has active probes, the first of
 // its kind in the world's cells ordered by a hash of (seed, x, z): deterministic for a seed, spread over
 // the world. The shared model's input hash covers them (their per-cell input hashes: meshes, probes,
 // capture settings) plus the architecture and training settings.
-std::vector<worlds::CellCoord> sharedModelCells(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings);
+std::vector<worlds::CellCoord> sharedModelCells(const worlds::SyntheticWorld& world,
+                                                const WorldBakeSettings& settings);
 uint64_t sharedModelInputHash(const worlds::SyntheticWorld& world, const WorldBakeSettings& settings);
 // The shared generator's architecture: C0 = the first --model-widths (default 32) halving per stage, z =
 // the first --model-latents (default 8), depth from the resolution.
@@ -133,6 +136,7 @@ uint64_t currentSharedModelHash(const worlds::SyntheticWorld& world, const World
 
 // State of a cell's file against its current input hash.
 enum class CellBakeState : uint8_t { Done, Stale, Missing, Corrupt };
-CellBakeState cellBakeState(const std::filesystem::path& file, uint64_t inputHash, std::string* error = nullptr);
+CellBakeState cellBakeState(const std::filesystem::path& file, uint64_t inputHash,
+                            std::string* error = nullptr);
 
 }  // namespace lfgi::bake

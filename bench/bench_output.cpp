@@ -9,7 +9,9 @@
 
 namespace lfgi::bench {
 
-std::string num(double v) { return fmt::format("{:.6g}", v); }
+std::string num(double v) {
+  return fmt::format("{:.6g}", v);
+}
 
 BenchOutput::BenchOutput(std::filesystem::path dir, bool quick) : dir_(std::move(dir)), quick_(quick) {
   std::error_code ec;
@@ -17,7 +19,9 @@ BenchOutput::BenchOutput(std::filesystem::path dir, bool quick) : dir_(std::move
   if (ec) fail("{}: cannot create benchmark output directory ({})", dir_.string(), ec.message());
 }
 
-void BenchOutput::setColumns(std::vector<std::string> columns) { columns_ = std::move(columns); }
+void BenchOutput::setColumns(std::vector<std::string> columns) {
+  columns_ = std::move(columns);
+}
 
 void BenchOutput::addRow(const std::vector<std::string>& values) {
   if (values.size() != columns_.size())

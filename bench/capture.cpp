@@ -2,8 +2,8 @@
 // Probes: active probes of a city cell of the default world (its mesh + its 8 neighbours' meshes), the
 // same scene `lfgi capture --world` uses. Sweeps samples per texel at the default resolution (cost vs
 // Monte-Carlo noise: the accuracy axis) and resolution at the default sample count.
-#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <thread>
 #include <tuple>
@@ -40,16 +40,17 @@ int main(int argc, char** argv) {
     // Every k-th active probe, so the sample spans the cell's layers and interiors.
     std::vector<glm::vec3> all;
     for (int64_t i = 0; i < built.probes.grid.probeCount(); ++i)
-      if (!(built.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid)) all.push_back(built.probes.position(i));
+      if (!(built.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid))
+        all.push_back(built.probes.position(i));
     const size_t want = quick ? 24 : 96;
     std::vector<glm::vec3> probes;
     for (size_t i = 0; i < all.size() && probes.size() < want; i += std::max<size_t>(1, all.size() / want))
       probes.push_back(all[i]);
-    spdlog::info("capture benchmark: {} probes of cell {},{} ({} triangles incl. neighbours)", probes.size(), cell.x,
-                 cell.z, mesh.triangleCount());
+    spdlog::info("capture benchmark: {} probes of cell {},{} ({} triangles incl. neighbours)", probes.size(),
+                 cell.x, cell.z, mesh.triangleCount());
 
-    o.setColumns({"sweep", "resolution", "samples_per_texel", "probes", "seconds", "ms_per_probe", "rays_per_s",
-                  "mean_rel_std_error"});
+    o.setColumns({"sweep", "resolution", "samples_per_texel", "probes", "seconds", "ms_per_probe",
+                  "rays_per_s", "mean_rel_std_error"});
     auto run = [&](const char* sweep, int res, int spp) {
       bake::CaptureOptions opt;
       opt.resolution = res;
@@ -59,10 +60,11 @@ int main(int argc, char** argv) {
       for (const auto& p : r.probes) err += p.meanRelativeStdError;
       err /= double(r.probes.size());
       const double msPerProbe = r.seconds * 1e3 / double(r.probesDone);
-      spdlog::info("{} {}x{} {} spp: {:.1f} ms/probe, {:.2f} M rays/s, mean rel std error {:.2f} %", sweep, res, res,
-                   spp, msPerProbe, r.raysPerSecond() * 1e-6, 100.0 * err);
-      o.addRow({sweep, std::to_string(res), std::to_string(spp), std::to_string(r.probesDone), bench::num(r.seconds),
-                bench::num(msPerProbe), bench::num(r.raysPerSecond()), bench::num(err)});
+      spdlog::info("{} {}x{} {} spp: {:.1f} ms/probe, {:.2f} M rays/s, mean rel std error {:.2f} %", sweep,
+                   res, res, spp, msPerProbe, r.raysPerSecond() * 1e-6, 100.0 * err);
+      o.addRow({sweep, std::to_string(res), std::to_string(spp), std::to_string(r.probesDone),
+                bench::num(r.seconds), bench::num(msPerProbe), bench::num(r.raysPerSecond()),
+                bench::num(err)});
       return std::make_tuple(msPerProbe, r.raysPerSecond(), err);
     };
     double ms = 0.0, rays = 0.0, err = 0.0;  // headline: the defaults (16x16 maps, 64 samples per texel)

@@ -2,9 +2,9 @@
 // (DESIGN.md §6): register-only FMA rate and the project's best GEMM kernel on the Vulkan device, 64-bit
 // atomicMin rate, device buffer copy bandwidth, OpenBLAS sgemm on all CPU threads and a STREAM-like
 // triad. GPU times come from timestamps; each figure is the best of several repetitions.
-#include <CLI/CLI.hpp>
 #include <cblas.h>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -34,7 +34,9 @@ double fmaGflops(gpu::Context& ctx, bool quick) {
   const uint32_t threads = 1u << 16, iterations = quick ? 2048 : 8192;
   gpu::Buffer out = gpu::createStorageBuffer(ctx, threads * 16);
   shared::FmaParams params{iterations, threads, 0, 0};
-  double ms = bestGpuMs(ctx, 3, [&](VkCommandBuffer cmd) { gpu::dispatch(ctx, cmd, p, {&out}, params, {threads, 1, 1}); });
+  double ms = bestGpuMs(ctx, 3, [&](VkCommandBuffer cmd) {
+    gpu::dispatch(ctx, cmd, p, {&out}, params, {threads, 1, 1});
+  });
   return double(threads) * iterations * 64.0 / (ms * 1e-3) * 1e-9;
 }
 
@@ -45,7 +47,9 @@ double atomicsPerSecond(gpu::Context& ctx, bool quick) {
   gpu::Buffer buf = gpu::createStorageBuffer(ctx, size_t(slots) * 8);
   gpu::fillBuffer(ctx, buf, 0xffffffffu);
   shared::AtomicParams params{slots, updates, threads, 7};
-  double ms = bestGpuMs(ctx, 3, [&](VkCommandBuffer cmd) { gpu::dispatch(ctx, cmd, p, {&buf}, params, {threads, 1, 1}); });
+  double ms = bestGpuMs(ctx, 3, [&](VkCommandBuffer cmd) {
+    gpu::dispatch(ctx, cmd, p, {&buf}, params, {threads, 1, 1});
+  });
   return double(threads) * updates / (ms * 1e-3);
 }
 
@@ -106,8 +110,10 @@ int main(int argc, char** argv) {
     for (int size : quick ? std::vector<int>{128, 256, 512} : std::vector<int>{128, 256, 512, 1024}) {
       bench::GemmResult g = bench::gpuGemm(*ctx, gemmProgram, size);
       spdlog::info("gemm {}^3: {:.2f} GFLOP/s, max rel error {:.2e}", size, g.gflops, g.maxRelError);
-      gemmRows.push_back({"gemm_rowstrip", std::to_string(size), bench::num(g.gflops), "gflops", bench::num(g.maxRelError)});
-      if (g.maxRelError > 1e-4) fail("GPU GEMM {}^3 disagrees with OpenBLAS (max rel error {:.2e})", size, g.maxRelError);
+      gemmRows.push_back(
+          {"gemm_rowstrip", std::to_string(size), bench::num(g.gflops), "gflops", bench::num(g.maxRelError)});
+      if (g.maxRelError > 1e-4)
+        fail("GPU GEMM {}^3 disagrees with OpenBLAS (max rel error {:.2e})", size, g.maxRelError);
       bestGemm = std::max(bestGemm, g.gflops);
     }
     const double atomics = bench::atomicsPerSecond(*ctx, quick);
@@ -116,8 +122,10 @@ int main(int argc, char** argv) {
     spdlog::info("copy: {:.2f} GB/s", copy);
     const int sgemmSize = quick ? 512 : 1024;
     const double sgemm = bench::cpuSgemmGflops(sgemmSize);
-    spdlog::info("OpenBLAS sgemm {}^3: {:.1f} GFLOP/s (kernels: {}; set OPENBLAS_CORETYPE if that is wrong, "
-                 "scripts/env.sh does)", sgemmSize, sgemm, openblas_get_corename());
+    spdlog::info(
+        "OpenBLAS sgemm {}^3: {:.1f} GFLOP/s (kernels: {}; set OPENBLAS_CORETYPE if that is wrong, "
+        "scripts/env.sh does)",
+        sgemmSize, sgemm, openblas_get_corename());
     const double triad = bench::cpuTriadGbPerSecond(quick);
     spdlog::info("CPU triad: {:.1f} GB/s", triad);
 

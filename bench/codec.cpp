@@ -21,10 +21,10 @@
 // (shared rows with the shared model's bytes spread over the default world), else the most accurate row
 // (codec_reached_sh_l2_error false). The best baseline at SH L2's error is reported beside it, and
 // summary.json "shared_generator" holds the shared rows over all scenes and over the synthetic cells alone.
-#include <CLI/CLI.hpp>
 #include <cblas.h>
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -40,14 +40,14 @@
 #include "bench/bench_output.h"
 #include "core/cell_file.h"
 #include "core/error.h"
+#include "core/file_util.h"
 #include "core/generator_cpu.h"
 #include "core/half.h"
-#include "core/file_util.h"
 #include "core/metrics.h"
 #include "core/octahedral.h"
 #include "core/probe_codecs.h"
-#include "core/sh.h"
 #include "core/progress.h"
+#include "core/sh.h"
 #include "worlds/gltf_io.h"
 #include "worlds/world_cells.h"
 
@@ -73,13 +73,15 @@ SceneSpec worldCell(const worlds::SyntheticWorld& world, worlds::CellCoord c, si
   s.name = fmt::format("cell_{}_{}_{}", c.x, c.z, s.kind);
   std::vector<glm::vec3> all;
   for (int64_t i = 0; i < built.probes.grid.probeCount(); ++i)
-    if (!(built.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid)) all.push_back(built.probes.position(i));
+    if (!(built.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid))
+      all.push_back(built.probes.position(i));
   const size_t stride = std::max<size_t>(1, all.size() / want);
   for (size_t i = 0; i < all.size() && s.positions.size() < want; i += stride) s.positions.push_back(all[i]);
   s.mesh = std::move(built.mesh);
   for (int dz = -1; dz <= 1; ++dz)
     for (int dx = -1; dx <= 1; ++dx)
-      if ((dx || dz) && world.contains({c.x + dx, c.z + dz})) s.mesh.append(world.generateCell({c.x + dx, c.z + dz}));
+      if ((dx || dz) && world.contains({c.x + dx, c.z + dz}))
+        s.mesh.append(world.generateCell({c.x + dx, c.z + dz}));
   return s;
 }
 
@@ -91,7 +93,8 @@ SceneSpec presetScene(const std::string& preset, const std::string& scenesDir, g
   s.kind = preset;
   s.mesh = worlds::loadScenePreset(p, scenesDir);
   const ProbeGrid grid = worlds::presetProbeGrid(p, s.mesh.bounds());
-  for (int64_t i = 0; i < grid.probeCount(); ++i) s.positions.push_back(grid.probePosition(grid.probeCoord(i)));
+  for (int64_t i = 0; i < grid.probeCount(); ++i)
+    s.positions.push_back(grid.probePosition(grid.probeCoord(i)));
   return s;
 }
 
@@ -115,7 +118,8 @@ constexpr char kCacheMagic[8] = {'L', 'F', 'G', 'I', 'C', 'C', 'A', '1'};
 uint64_t captureKey(const SceneSpec& s, const bake::CaptureOptions& co, float timeOfDay) {
   uint64_t h = 1469598103934665603ull;
   h = fnv(h, s.name.data(), s.name.size());
-  const int opts[5] = {co.resolution, co.irradianceResolution, co.samplesPerTexel, co.maxBounces, co.rouletteAfter};
+  const int opts[5] = {co.resolution, co.irradianceResolution, co.samplesPerTexel, co.maxBounces,
+                       co.rouletteAfter};
   h = fnv(h, opts, sizeof opts);
   h = fnv(h, &co.seed, sizeof co.seed);
   h = fnv(h, &timeOfDay, sizeof timeOfDay);
@@ -276,19 +280,22 @@ bake::GeneratorTrainingSet trainingSetOf(const ProbeField& f, float timeOfDay) {
   key.timeOfDayHours = timeOfDay;
   for (size_t i = 0; i < P; ++i) {
     const glm::vec3 p = f.probePosition(int64_t(i)), ext = hi - lo;
-    set.positions01.push_back(glm::vec3(ext.x > 0 ? (p.x - lo.x) / ext.x : 0.5f, ext.y > 0 ? (p.y - lo.y) / ext.y : 0.5f,
+    set.positions01.push_back(glm::vec3(ext.x > 0 ? (p.x - lo.x) / ext.x : 0.5f,
+                                        ext.y > 0 ? (p.y - lo.y) / ext.y : 0.5f,
                                         ext.z > 0 ? (p.z - lo.z) / ext.z : 0.5f));
     bake::ProbeCapture c;
     c.position = p;
     c.resolution = n;
     c.irradianceResolution = m;
-    c.radiance.assign(f.radiance.begin() + ptrdiff_t(i * T * 3), f.radiance.begin() + ptrdiff_t((i + 1) * T * 3));
+    c.radiance.assign(f.radiance.begin() + ptrdiff_t(i * T * 3),
+                      f.radiance.begin() + ptrdiff_t((i + 1) * T * 3));
     c.radianceStdError.assign(T * 3, 0.0f);
     c.distance.assign(T * 2, 1.0f);
     c.normal.assign(T * 3, 0.0f);
     c.albedo.assign(T * 3, 0.0f);
     const size_t M = size_t(m) * size_t(m) * 3;
-    c.irradiance.assign(withIrr.irradiance.begin() + ptrdiff_t(i * M), withIrr.irradiance.begin() + ptrdiff_t((i + 1) * M));
+    c.irradiance.assign(withIrr.irradiance.begin() + ptrdiff_t(i * M),
+                        withIrr.irradiance.begin() + ptrdiff_t((i + 1) * M));
     key.probes.push_back(std::move(c));
   }
   set.keys.push_back(std::move(key));
@@ -311,7 +318,8 @@ bake::GeneratorTrainingOptions benchTrainingOptions(int maxSteps) {
 // albedo channels are trained with zero weight (the baselines also store radiance only).
 class GanCodec final : public ProbeCodec {
  public:
-  GanCodec(double target, int maxSteps, float timeOfDay) : target_(target), maxSteps_(maxSteps), timeOfDay_(timeOfDay) {}
+  GanCodec(double target, int maxSteps, float timeOfDay)
+      : target_(target), maxSteps_(maxSteps), timeOfDay_(timeOfDay) {}
   std::string name() const override { return "gan"; }
   std::string setting() const override { return fmt::format("target {}", target_); }
 
@@ -396,13 +404,13 @@ class GanCodec final : public ProbeCodec {
 // measured scene is held out: its encode fits only latents + a FiLM adapter against the frozen, already
 // dequantized int8 shared weights (what every decoder runs), bake::fitCellToSharedGenerator.
 struct SharedModel {
-  GeneratorWeights weights;          // dequantized int8: the decoders' shared model
-  uint64_t hash = 0;                 // weightsContentHash(weights): what a cell refers to
-  size_t bytes = 0;                  // stored once per world: int8 weights + scales + float biases + arch
-  double pretrainSeconds = 0.0;      // 0 when loaded from the cache
+  GeneratorWeights weights;      // dequantized int8: the decoders' shared model
+  uint64_t hash = 0;             // weightsContentHash(weights): what a cell refers to
+  size_t bytes = 0;              // stored once per world: int8 weights + scales + float biases + arch
+  double pretrainSeconds = 0.0;  // 0 when loaded from the cache
   double pretrainIrrRelRms = 0.0;
   int steps = 0;
-  std::vector<std::string> cells;    // pre-training scenes
+  std::vector<std::string> cells;  // pre-training scenes
 };
 
 constexpr int kSharedAdapterStages = 1;  // FiLM on the linear layer's C0 channels only (see bake/OVERVIEW.md)
@@ -438,7 +446,8 @@ class ByteReader {
   explicit ByteReader(std::span<const std::byte> b) : b_(b) {}
   template <typename T>
   T get() {
-    if (pos_ + sizeof(T) > b_.size()) fail("shared_adapter cell: truncated at byte {} of {}", pos_, b_.size());
+    if (pos_ + sizeof(T) > b_.size())
+      fail("shared_adapter cell: truncated at byte {} of {}", pos_, b_.size());
     T v;
     std::memcpy(&v, b_.data() + pos_, sizeof(T));
     pos_ += sizeof(T);
@@ -457,7 +466,8 @@ void putCodes(ByteWriter& w, const std::vector<int8_t>& codes, int bits) {
     return;
   }
   for (size_t i = 0; i < codes.size(); i += 2) {  // 4-bit two's complement, low nibble first
-    const uint8_t lo = uint8_t(codes[i]) & 0xf, hi = i + 1 < codes.size() ? uint8_t(uint8_t(codes[i + 1]) & 0xf) : 0;
+    const uint8_t lo = uint8_t(codes[i]) & 0xf,
+                  hi = i + 1 < codes.size() ? uint8_t(uint8_t(codes[i + 1]) & 0xf) : 0;
     w.put(uint8_t(lo | (hi << 4)));
   }
 }
@@ -485,7 +495,12 @@ class SharedAdapterCodec final : public ProbeCodec {
   // latentBits: stored latent width; qat: train with that quantizer in the loop.
   SharedAdapterCodec(const SharedModel& model, int latentBits, bool qat, int steps, float timeOfDay,
                      std::shared_ptr<SharedFitCache> cache)
-      : model_(model), bits_(latentBits), qat_(qat), steps_(steps), timeOfDay_(timeOfDay), cache_(std::move(cache)) {}
+      : model_(model),
+        bits_(latentBits),
+        qat_(qat),
+        steps_(steps),
+        timeOfDay_(timeOfDay),
+        cache_(std::move(cache)) {}
   std::string name() const override { return "shared_adapter"; }
   std::string setting() const override {
     return fmt::format("z{} int{} qat {}", model_.weights.arch.latentDim, bits_, qat_ ? "on" : "off");
@@ -498,8 +513,9 @@ class SharedAdapterCodec final : public ProbeCodec {
     const std::pair<uint64_t, int> key{set.contentHash(), qatBits};
     auto it = cache_->find(key);
     if (it == cache_->end())
-      it = cache_->emplace(key, bake::fitCellToSharedGenerator(model_.weights, set,
-                                                               sharedOptions(model_.weights.arch, steps_, qatBits)))
+      it = cache_
+               ->emplace(key, bake::fitCellToSharedGenerator(
+                                  model_.weights, set, sharedOptions(model_.weights.arch, steps_, qatBits)))
                .first;
     const bake::CellAdaptation& a = it->second;
     lastFitSeconds_ = a.report.seconds;
@@ -536,8 +552,8 @@ class SharedAdapterCodec final : public ProbeCodec {
     q.dim = r.get<uint8_t>();
     q.bits = r.get<uint8_t>();
     if (q.count != out.probeCount() || q.dim != model_.weights.arch.latentDim || (q.bits != 8 && q.bits != 4))
-      fail("shared_adapter cell: {} latents of {} x {} bits for {} probes of a z{} model", q.count, q.dim, q.bits,
-           out.probeCount(), model_.weights.arch.latentDim);
+      fail("shared_adapter cell: {} latents of {} x {} bits for {} probes of a z{} model", q.count, q.dim,
+           q.bits, out.probeCount(), model_.weights.arch.latentDim);
     GeneratorOutputScale scale;
     scale.exposure = r.get<float>();
     scale.range = r.get<float>();
@@ -558,7 +574,8 @@ class SharedAdapterCodec final : public ProbeCodec {
     const std::vector<float> latents = dequantizeLatents(q);
     const auto c = conditioningVector(timeOfDay_, 0.0f);
     ProbeField tmp = out;
-    decodeProbeField(decoder, latents, std::span<const float>(c.data(), size_t(decoder.arch().condDim)), scale, tmp);
+    decodeProbeField(decoder, latents, std::span<const float>(c.data(), size_t(decoder.arch().condDim)),
+                     scale, tmp);
     out.radiance = std::move(tmp.radiance);
     out.irradiance.clear();
   }
@@ -601,15 +618,17 @@ std::vector<std::unique_ptr<ProbeCodec>> makeBenchCodecs(bool quick, bool skipGa
 
 // The shared model, pre-trained (or read back from the cache: same captures, options and arch give the
 // same key) on `sets`, then stored as int8 per channel and dequantized: the model every fit and decode uses.
-SharedModel makeSharedModel(const std::vector<bake::GeneratorTrainingSet>& sets, const std::vector<std::string>& names,
-                            const GeneratorArch& arch, int steps, const fs::path& cacheDir) {
+SharedModel makeSharedModel(const std::vector<bake::GeneratorTrainingSet>& sets,
+                            const std::vector<std::string>& names, const GeneratorArch& arch, int steps,
+                            const fs::path& cacheDir) {
   const bake::SharedTrainingOptions o = sharedOptions(arch, steps, 0);
   uint64_t key = 1469598103934665603ull;
   for (const auto& set : sets) {
     const uint64_t h = set.contentHash();
     key = fnv(key, &h, sizeof h);
   }
-  const int ints[5] = {arch.latentDim, int(arch.convChannels.size()), arch.convChannels[0], steps, o.adapterStages};
+  const int ints[5] = {arch.latentDim, int(arch.convChannels.size()), arch.convChannels[0], steps,
+                       o.adapterStages};
   key = fnv(key, ints, sizeof ints);
   const fs::path file = cacheDir / fmt::format("shared_generator_{:016x}.bin", key);
   SharedModel m;
@@ -666,8 +685,8 @@ SharedModel makeSharedModel(const std::vector<bake::GeneratorTrainingSet>& sets,
     put(&m.steps, 4);
     fs::create_directories(file.parent_path());
     writeFileAtomic(file, b);
-    spdlog::info("shared generator: {} steps on {} cells in {:.1f} s, mean irradiance rel RMS {:.4f} -> {}", m.steps,
-                 sets.size(), m.pretrainSeconds, m.pretrainIrrRelRms, file.string());
+    spdlog::info("shared generator: {} steps on {} cells in {:.1f} s, mean irradiance rel RMS {:.4f} -> {}",
+                 m.steps, sets.size(), m.pretrainSeconds, m.pretrainIrrRelRms, file.string());
   }
   m.weights.validate();
   m.hash = weightsContentHash(m.weights);
@@ -722,7 +741,8 @@ std::string cpuName() {
 
 int main(int argc, char** argv) {
   CLI::App app{"lfgi benchmark: probe codecs, rate-distortion-speed"};
-  std::string out = "out/bench/codec", cacheDir = "out/cache/codec", scenesDir = worlds::defaultScenesDir().string();
+  std::string out = "out/bench/codec", cacheDir = "out/cache/codec",
+              scenesDir = worlds::defaultScenesDir().string();
   bool quick = false;
   int spp = 0, threads = 0;
   app.add_option("--out", out, "Output directory");
@@ -736,11 +756,14 @@ int main(int argc, char** argv) {
   bool noShared = false;
   int sharedSteps = 0, fitSteps = 0;
   app.add_flag("--no-shared", noShared, "Skip the world-shared generator + per-cell adapter rows");
-  app.add_option("--shared-steps", sharedSteps, "Pre-training steps of the shared generator (default 1000 quick, 3000 full)");
-  app.add_option("--fit-steps", fitSteps, "Steps of each held-out cell's latent + adapter fit (default 400 quick, 800 full)");
+  app.add_option("--shared-steps", sharedSteps,
+                 "Pre-training steps of the shared generator (default 1000 quick, 3000 full)");
+  app.add_option("--fit-steps", fitSteps,
+                 "Steps of each held-out cell's latent + adapter fit (default 400 quick, 800 full)");
   std::string sunMode = "separate";
-  app.add_option("--sun", sunMode, "separate: probes store radiance without the sun disc plus a visibility bit; "
-                                   "in-map: the sun stays in its radiance texel")
+  app.add_option("--sun", sunMode,
+                 "separate: probes store radiance without the sun disc plus a visibility bit; "
+                 "in-map: the sun stays in its radiance texel")
       ->check(CLI::IsMember({"separate", "in-map"}))
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
@@ -765,12 +788,14 @@ int main(int argc, char** argv) {
     // fields, suburbs, a park and the four city block types (leak test, arcade, courtyard, towers).
     const size_t cellProbes = quick ? 48 : 160;
     const worlds::SyntheticWorld world(worlds::WorldParams::smallDefault(1));
-    const std::vector<worlds::CellCoord> cells = {{0, 0}, {1, 0}, {3, 1}, {1, 1}, {2, 1}, {1, 2}, {2, 2}, {3, 2}, {0, 3}};
+    const std::vector<worlds::CellCoord> cells = {{0, 0}, {1, 0}, {3, 1}, {1, 1}, {2, 1},
+                                                  {1, 2}, {2, 2}, {3, 2}, {0, 3}};
     std::vector<std::function<SceneSpec()>> specs;
     specs.push_back([&] { return presetScene("cornell", scenesDir, quick ? glm::ivec3(3) : glm::ivec3(5)); });
     specs.push_back(
         [&] { return presetScene("sponza", scenesDir, quick ? glm::ivec3(6, 3, 4) : glm::ivec3(12, 5, 8)); });
-    for (const worlds::CellCoord c : cells) specs.push_back([&world, c, cellProbes] { return worldCell(world, c, cellProbes); });
+    for (const worlds::CellCoord c : cells)
+      specs.push_back([&world, c, cellProbes] { return worldCell(world, c, cellProbes); });
 
     openblas_set_num_threads(1);
     // World-shared generator: pre-trained on the first cell of each kind (field, suburb, city, park) of
@@ -797,9 +822,11 @@ int main(int argc, char** argv) {
       GeneratorArch arch;
       arch.latentDim = 8;
       arch.convChannels = {32, 16, kGeneratorChannels};
-      shared = makeSharedModel(sets, names, arch, sharedSteps > 0 ? sharedSteps : (quick ? 1000 : 3000), cacheDir);
+      shared =
+          makeSharedModel(sets, names, arch, sharedSteps > 0 ? sharedSteps : (quick ? 1000 : 3000), cacheDir);
       for (int z = 0; z < world.cellsX(); ++z)
-        for (int x = 0; x < world.cellsX(); ++x) worldProbes += worlds::buildCell(world, {x, z}).stats.probesActive;
+        for (int x = 0; x < world.cellsX(); ++x)
+          worldProbes += worlds::buildCell(world, {x, z}).stats.probesActive;
       spdlog::info("shared generator: {} B (int8) on {}; default world {} active probes", shared->bytes,
                    fmt::join(names, ", "), worldProbes);
     }
@@ -846,7 +873,8 @@ int main(int argc, char** argv) {
         r.rad = relativeRms(dec.radiance, cap.radiance);
         r.psnr = psnr(dec.radiance, cap.radiance, double(peak));
         r.encUs = enc * 1e6 / double(P);
-        if (const auto* sa = dynamic_cast<const SharedAdapterCodec*>(codec.get())) r.encUs = sa->lastFitSeconds() * 1e6 / double(P);
+        if (const auto* sa = dynamic_cast<const SharedAdapterCodec*>(codec.get()))
+          r.encUs = sa->lastFitSeconds() * 1e6 / double(P);
         r.decUs = decS * 1e6 / double(P);
         r.direct = codec->decodesIrradiance();
         r.encodeSPerScene = r.encUs * double(P) * 1e-6;
@@ -855,9 +883,10 @@ int main(int argc, char** argv) {
           r.bytesWorld += double(shared->bytes) / double(worldProbes);
           r.bytes16km2 += double(shared->bytes) / (double(worldProbes) * 16.0 / worldKm2);
         }
-        spdlog::info("{:<22} {:<15} {:<16} {:>9.1f} B/probe  irr {:7.4f} (codec {:7.4f})  rad {:7.4f}  {:6.1f} dB  "
-                     "enc {:9.1f} us  dec {:7.2f} us",
-                     sceneName, r.codec, r.setting, r.bytes, r.irr, r.irrCodec, r.rad, r.psnr, r.encUs, r.decUs);
+        spdlog::info(
+            "{:<22} {:<15} {:<16} {:>9.1f} B/probe  irr {:7.4f} (codec {:7.4f})  rad {:7.4f}  {:6.1f} dB  "
+            "enc {:9.1f} us  dec {:7.2f} us",
+            sceneName, r.codec, r.setting, r.bytes, r.irr, r.irrCodec, r.rad, r.psnr, r.encUs, r.decUs);
         results.push_back(r);
       }
     }
@@ -897,7 +926,8 @@ int main(int argc, char** argv) {
         a.decUs = dec / double(probes);
         pooled.push_back(a);
       }
-      std::sort(pooled.begin(), pooled.end(), [](const Result& a, const Result& b) { return a.bytes < b.bytes; });
+      std::sort(pooled.begin(), pooled.end(),
+                [](const Result& a, const Result& b) { return a.bytes < b.bytes; });
       return pooled;
     };
     const std::vector<Result> all = pool("all", "all");
@@ -911,9 +941,9 @@ int main(int argc, char** argv) {
                   "encode_s_per_scene"});
     auto add = [&](const Result& r) {
       o.addRow({r.scene, r.kind, r.codec, r.family, r.setting, std::to_string(r.probes), bench::num(r.bytes),
-                bench::num(r.irr), bench::num(r.rad), bench::num(r.psnr), bench::num(r.encUs), bench::num(r.decUs),
-                r.direct ? "1" : "0", bench::num(r.irrCodec), bench::num(r.bytesWorld), bench::num(r.bytes16km2),
-                bench::num(r.encodeSPerScene)});
+                bench::num(r.irr), bench::num(r.rad), bench::num(r.psnr), bench::num(r.encUs),
+                bench::num(r.decUs), r.direct ? "1" : "0", bench::num(r.irrCodec), bench::num(r.bytesWorld),
+                bench::num(r.bytes16km2), bench::num(r.encodeSPerScene)});
     };
     for (const Result& r : results) add(r);
     for (const std::string& k : kinds)
@@ -947,7 +977,8 @@ int main(int argc, char** argv) {
     std::vector<const Result*> shRows;
     for (const Result& r : all)
       if (r.family == "sh") shRows.push_back(&r);
-    std::sort(shRows.begin(), shRows.end(), [](const Result* a, const Result* b) { return a->bytes < b->bytes; });
+    std::sort(shRows.begin(), shRows.end(),
+              [](const Result* a, const Result* b) { return a->bytes < b->bytes; });
     auto shBytesAt = [&](double err) -> std::optional<double> {
       for (size_t i = 0; i + 1 < shRows.size(); ++i) {
         const Result &a = *shRows[i], &b = *shRows[i + 1];
@@ -1003,14 +1034,17 @@ int main(int argc, char** argv) {
       shRows.clear();
       for (const Result& r : cellRows)
         if (r.family == "sh") shRows.push_back(&r);
-      std::sort(shRows.begin(), shRows.end(), [](const Result* a, const Result* b) { return a->bytes < b->bytes; });
+      std::sort(shRows.begin(), shRows.end(),
+                [](const Result* a, const Result* b) { return a->bytes < b->bytes; });
       const Result* cellSh2 = nullptr;
       for (const Result& r : cellRows)
         if (r.codec == "sh_l2") cellSh2 = &r;
       for (const Result& r : cellRows) {
-        if (r.family == "sh") j["cells"]["sh"][r.codec] = {{"bytes_per_probe", r.bytes}, {"irr_rel_rms", r.irr}};
+        if (r.family == "sh")
+          j["cells"]["sh"][r.codec] = {{"bytes_per_probe", r.bytes}, {"irr_rel_rms", r.irr}};
         if (r.family == "gan")
-          j["cells"]["per_cell_gan"][r.setting] = {{"bytes_per_probe", r.bytes}, {"irr_rel_rms", r.irr},
+          j["cells"]["per_cell_gan"][r.setting] = {{"bytes_per_probe", r.bytes},
+                                                   {"irr_rel_rms", r.irr},
                                                    {"encode_s_per_scene", r.encodeSPerScene}};
         if (r.family != "shared_adapter" || !cellSh2) continue;
         j["cells"]["rows"][r.setting] = {
@@ -1028,24 +1062,26 @@ int main(int argc, char** argv) {
       shRows = allShRows;
       for (const Result& r : all) {
         if (r.family == "gan")
-          j["per_cell_gan"][r.setting] = {{"bytes_per_probe", r.bytes}, {"irr_rel_rms", r.irr},
+          j["per_cell_gan"][r.setting] = {{"bytes_per_probe", r.bytes},
+                                          {"irr_rel_rms", r.irr},
                                           {"encode_s_per_scene", r.encodeSPerScene}};
         if (r.family != "shared_adapter") continue;
-        j["rows"][r.setting] = {{"bytes_per_probe_cell_only", r.bytes},
-                                {"bytes_per_probe_shared_256m", r.bytesWorld},
-                                {"bytes_per_probe_shared_16km2", r.bytes16km2},
-                                {"irr_rel_rms", r.irr},
-                                {"irr_codec_rel_rms", r.irrCodec},
-                                {"fit_s_per_scene", r.encodeSPerScene},
-                                {"bytes_ratio_vs_sh_l2_at_equal_error_256m",
-                                 r.irr <= sh2->irr ? nlohmann::ordered_json(sh2->bytes / r.bytesWorld) : null},
-                                {"bytes_ratio_vs_sh_curve_at_codec_error_256m", shCurveRatio(r, r.bytesWorld)},
-                                {"bytes_ratio_vs_sh_curve_at_codec_error_16km2", shCurveRatio(r, r.bytes16km2)},
-                                {"bytes_ratio_vs_sh_curve_at_codec_error_cell_only", shCurveRatio(r, r.bytes)}};
+        j["rows"][r.setting] = {
+            {"bytes_per_probe_cell_only", r.bytes},
+            {"bytes_per_probe_shared_256m", r.bytesWorld},
+            {"bytes_per_probe_shared_16km2", r.bytes16km2},
+            {"irr_rel_rms", r.irr},
+            {"irr_codec_rel_rms", r.irrCodec},
+            {"fit_s_per_scene", r.encodeSPerScene},
+            {"bytes_ratio_vs_sh_l2_at_equal_error_256m",
+             r.irr <= sh2->irr ? nlohmann::ordered_json(sh2->bytes / r.bytesWorld) : null},
+            {"bytes_ratio_vs_sh_curve_at_codec_error_256m", shCurveRatio(r, r.bytesWorld)},
+            {"bytes_ratio_vs_sh_curve_at_codec_error_16km2", shCurveRatio(r, r.bytes16km2)},
+            {"bytes_ratio_vs_sh_curve_at_codec_error_cell_only", shCurveRatio(r, r.bytes)}};
       }
       s["shared_generator"] = j;
     }
-    s["gpu_decode_probes_per_s"] = null;             // GPU decode: the generator helper's gpu/ kernels
+    s["gpu_decode_probes_per_s"] = null;  // GPU decode: the generator helper's gpu/ kernels
     s["gpu_decode_fraction_of_gemm_ceiling"] = null;
     s["cpu_decode_probes_per_s"] = gan ? nlohmann::ordered_json(1e6 / gan->decUs) : null;
     s["cpu_decode_fraction_of_sgemm"] = null;

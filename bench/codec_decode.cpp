@@ -1,12 +1,12 @@
 // Benchmark `codec_decode`: decode speed of the generator network (core/generator.h) per probe, for the CPU
 // reference (plain loops), the fast CPU decoder (OpenBLAS sgemm + col2im, core/generator_cpu.h) and each GPU
-// kernel (gpu/generator_pass.h: barrier-free rowstrip, shared-memory tiled), for several model sizes and batch
-// sizes, as GFLOP/s and as a fraction of the same device's GEMM ceiling measured in this run (OpenBLAS sgemm
-// for the CPU, shaders/gemm_rowstrip.comp for the Vulkan device: bench/gemm_ceiling.h, as `ceilings` does).
-// Accuracy: every row records its max error against the reference decoder on the same probes.
-// Weights are random (He init): decode cost does not depend on their values.
-#include <CLI/CLI.hpp>
+// kernel (gpu/generator_pass.h: barrier-free rowstrip, shared-memory tiled), for several model sizes and
+// batch sizes, as GFLOP/s and as a fraction of the same device's GEMM ceiling measured in this run (OpenBLAS
+// sgemm for the CPU, shaders/gemm_rowstrip.comp for the Vulkan device: bench/gemm_ceiling.h, as `ceilings`
+// does). Accuracy: every row records its max error against the reference decoder on the same probes. Weights
+// are random (He init): decode cost does not depend on their values.
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -93,7 +93,8 @@ int main(int argc, char** argv) {
     // 256^3 and 512^3 for the GPU, 512^3 for OpenBLAS), re-measured just before each row. Two bases: device
     // (wall) time, the contract on a real GPU; and process CPU time, which on lavapipe (a CPU device) is the
     // work itself and stays meaningful when other processes share the cores (a 7 ms GEMM often gets both
-    // cores while a 300 ms decode gets its fair share, which makes wall-time ratios of a loaded machine noise).
+    // cores while a 300 ms decode gets its fair share, which makes wall-time ratios of a loaded machine
+    // noise).
     const bool cpuDevice = ctx->info.type == "cpu";
     gpu::Program gemmProgram(*ctx, "gemm_rowstrip");
     double gemmCeiling = 0.0, sgemmCeiling = 0.0;
@@ -104,7 +105,8 @@ int main(int argc, char** argv) {
       Ceiling c;
       for (int size : {256, 512}) {
         bench::GemmResult g = bench::gpuGemm(*ctx, gemmProgram, size);
-        if (g.maxRelError > 1e-4) fail("GPU GEMM {}^3 disagrees with OpenBLAS (max rel error {:.2e})", size, g.maxRelError);
+        if (g.maxRelError > 1e-4)
+          fail("GPU GEMM {}^3 disagrees with OpenBLAS (max rel error {:.2e})", size, g.maxRelError);
         c.wall = std::max(c.wall, g.gflops);
         c.cpu = std::max(c.cpu, g.gflopsPerCpuSecond);
       }
@@ -118,14 +120,17 @@ int main(int argc, char** argv) {
     };
     {
       Ceiling g = gpuCeilingNow(), c = cpuCeilingNow();
-      spdlog::info("ceilings now: GPU gemm_rowstrip {:.2f} GFLOP/s ({:.2f} per CPU-s), OpenBLAS sgemm 512^3 {:.1f} "
-                   "GFLOP/s ({:.1f} per CPU-s)", g.wall, g.cpu, c.wall, c.cpu);
+      spdlog::info(
+          "ceilings now: GPU gemm_rowstrip {:.2f} GFLOP/s ({:.2f} per CPU-s), OpenBLAS sgemm 512^3 {:.1f} "
+          "GFLOP/s ({:.1f} per CPU-s)",
+          g.wall, g.cpu, c.wall, c.cpu);
     }
 
     o.setColumns({"model", "out_res", "mflop_per_probe", "method", "batch_probes", "decode_us_per_probe",
                   "probes_per_s", "gflops", "fraction_of_ceiling", "ceiling_gflops", "gflops_per_cpu_s",
                   "fraction_of_ceiling_cpu_time", "ceiling_gflops_per_cpu_s", "max_rel_error_vs_reference"});
-    const std::vector<uint32_t> batches = quick ? std::vector<uint32_t>{64, 256} : std::vector<uint32_t>{64, 256, 1024};
+    const std::vector<uint32_t> batches =
+        quick ? std::vector<uint32_t>{64, 256} : std::vector<uint32_t>{64, 256, 1024};
     const uint32_t refProbes = 16;  // the reference decoder runs on this many probes (it is slow)
     gpu::GeneratorDecodePass pass(*ctx);
     auto condArr = conditioningVector(13.0f, 0.2f);
@@ -150,15 +155,19 @@ int main(int argc, char** argv) {
 
       std::vector<float> ref(refProbes * per);
       // Returns {fraction (wall), fraction (CPU time)}.
-      auto addRow = [&](const std::string& method, uint32_t batch, bench::Seconds t, Ceiling ceil, double err) {
+      auto addRow = [&](const std::string& method, uint32_t batch, bench::Seconds t, Ceiling ceil,
+                        double err) {
         const double us = t.wall / batch * 1e6, gflops = flop * batch / t.wall * 1e-9;
         const double gflopsCpu = flop * batch / t.cpu * 1e-9;
-        o.addRow({m.name, std::to_string(R), bench::num(flop * 1e-6), method, std::to_string(batch), bench::num(us),
-                  bench::num(batch / t.wall), bench::num(gflops), bench::num(gflops / ceil.wall), bench::num(ceil.wall),
-                  bench::num(gflopsCpu), bench::num(gflopsCpu / ceil.cpu), bench::num(ceil.cpu), bench::num(err)});
-        spdlog::info("{:12} {:13} batch {:5}: {:9.2f} us/probe {:6.2f} GFLOP/s = {:5.1f} % of ceiling; per CPU-s "
-                     "{:6.2f} = {:5.1f} %; err {:.1e}", m.name, method, batch, us, gflops, 100.0 * gflops / ceil.wall,
-                     gflopsCpu, 100.0 * gflopsCpu / ceil.cpu, err);
+        o.addRow({m.name, std::to_string(R), bench::num(flop * 1e-6), method, std::to_string(batch),
+                  bench::num(us), bench::num(batch / t.wall), bench::num(gflops),
+                  bench::num(gflops / ceil.wall), bench::num(ceil.wall), bench::num(gflopsCpu),
+                  bench::num(gflopsCpu / ceil.cpu), bench::num(ceil.cpu), bench::num(err)});
+        spdlog::info(
+            "{:12} {:13} batch {:5}: {:9.2f} us/probe {:6.2f} GFLOP/s = {:5.1f} % of ceiling; per CPU-s "
+            "{:6.2f} = {:5.1f} %; err {:.1e}",
+            m.name, method, batch, us, gflops, 100.0 * gflops / ceil.wall, gflopsCpu,
+            100.0 * gflopsCpu / ceil.cpu, err);
         return std::pair{gflops / ceil.wall, gflopsCpu / ceil.cpu};
       };
       {
@@ -197,7 +206,8 @@ int main(int argc, char** argv) {
           std::vector<float> g(ref.size());
           gpu::readback<float>(*ctx, outBuf, g);
           const std::string method = std::string("gpu_") + gpu::generatorKernelName(k);
-          auto [wall, cpu] = addRow(method, batch, {t.ms * 1e-3, t.cpuMs * 1e-3}, gpuCeiling, bench::relMaxError(g, ref));
+          auto [wall, cpu] =
+              addRow(method, batch, {t.ms * 1e-3, t.cpuMs * 1e-3}, gpuCeiling, bench::relMaxError(g, ref));
           mj[method + "_batch_" + std::to_string(batch) + "_fraction"] = wall;
           if (cpuDevice) mj[method + "_batch_" + std::to_string(batch) + "_fraction_cpu_time"] = cpu;
           const double headline = cpuDevice ? cpu : wall;
@@ -205,7 +215,8 @@ int main(int argc, char** argv) {
             hg = {batch / (t.ms * 1e-3), headline, wall, cpu, gpu::generatorKernelName(k)};
           }
         }
-        if (m.name == "medium_16px" && batch == maxBatch) hc = {batch / cpuT.wall, cpuCpu, cpuWall, cpuCpu, "sgemm"};
+        if (m.name == "medium_16px" && batch == maxBatch)
+          hc = {batch / cpuT.wall, cpuCpu, cpuWall, cpuCpu, "sgemm"};
       }
       perModel[m.name] = mj;
     }

@@ -10,8 +10,8 @@
 //   day, fallback = the files' per-key SH L1) along `--path` (the bake's `lfgi bake --path`), frames paced
 //   to real time: what a game sees, decode cost included.
 // Rows: one per speed; frames.csv: every frame of the 50 m/s flight (the profile charts).
-#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <fstream>
 #include <string>
@@ -49,15 +49,26 @@ int main(int argc, char** argv) {
   float seconds = 0.0f, decodeRadius = 0.0f;
   app.add_option("--out", out, "Output directory");
   app.add_flag("--quick", quick, "20 s flights instead of 60 s (baked world: 15 s instead of 30 s)");
-  app.add_option("--loads-per-frame", loadsPerFrame, "Synthetic cells: IO bandwidth, cells per 60 fps frame")->capture_default_str();
-  app.add_option("--budget-mb", budgetMb, "Resident memory budget, MB (default 96; with --world 1024: every slot is the largest decoded cell, ~22.6 MB for a 15k-probe city cell in FP32)");
-  app.add_option("--world", world, "Fly over this world's baked cell files (DIR/baked/cells) instead of synthetic cells");
-  app.add_option("--path", path, "Path: loop or line (default: loop; with --world: line)")->check(CLI::IsMember({"loop", "line"}));
-  app.add_option("--speeds", speeds, "Camera speeds, m/s (default: 2 ... 1600; with --world: 2,10,25,50,100)")->delimiter(',');
-  app.add_option("--seconds", seconds, "Simulated seconds per flight (default: 60 / 20 quick; with --world 30 / 15)");
-  app.add_option("--io-threads", ioThreads, "With --world: IO threads reading + decoding cells")->check(CLI::Range(1, 64))->capture_default_str();
-  app.add_option("--decoder", decoder, "With --world: generator decode cpu, gpu or auto")->capture_default_str();
-  app.add_option("--decode-radius", decodeRadius, "Decode radius, m (default: the manager's 160; with --world 128 = the path bake's radius)");
+  app.add_option("--loads-per-frame", loadsPerFrame, "Synthetic cells: IO bandwidth, cells per 60 fps frame")
+      ->capture_default_str();
+  app.add_option("--budget-mb", budgetMb,
+                 "Resident memory budget, MB (default 96; with --world 1024: every slot is the largest "
+                 "decoded cell, ~22.6 MB for a 15k-probe city cell in FP32)");
+  app.add_option("--world", world,
+                 "Fly over this world's baked cell files (DIR/baked/cells) instead of synthetic cells");
+  app.add_option("--path", path, "Path: loop or line (default: loop; with --world: line)")
+      ->check(CLI::IsMember({"loop", "line"}));
+  app.add_option("--speeds", speeds, "Camera speeds, m/s (default: 2 ... 1600; with --world: 2,10,25,50,100)")
+      ->delimiter(',');
+  app.add_option("--seconds", seconds,
+                 "Simulated seconds per flight (default: 60 / 20 quick; with --world 30 / 15)");
+  app.add_option("--io-threads", ioThreads, "With --world: IO threads reading + decoding cells")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+  app.add_option("--decoder", decoder, "With --world: generator decode cpu, gpu or auto")
+      ->capture_default_str();
+  app.add_option("--decode-radius", decodeRadius,
+                 "Decode radius, m (default: the manager's 160; with --world 128 = the path bake's radius)");
   CLI11_PARSE(app, argc, argv);
   try {
     const bool baked = !world.empty();
@@ -71,7 +82,8 @@ int main(int argc, char** argv) {
       auto f = std::make_unique<streaming::CellFileSource>(fso);
       files = f.get();
       sourcePtr = std::move(f);
-      o.setDevice(fmt::format("{} decode ({}), {} IO threads", files->selection().backend, files->selection().device, ioThreads));
+      o.setDevice(fmt::format("{} decode ({}), {} IO threads", files->selection().backend,
+                              files->selection().device, ioThreads));
       if (path.empty()) path = "line";
       if (speeds.empty()) speeds = {2, 10, 25, 50, 100};
       if (seconds <= 0.0f) seconds = quick ? 15.0f : 30.0f;
@@ -93,10 +105,11 @@ int main(int argc, char** argv) {
     }
     streaming::CellSource& source = *sourcePtr;
     const streaming::WorldLayout layout = source.layout();
-    o.setColumns({"speed_mps", "frames", "frames_missing_gi", "fallback_fraction", "p50_frame_ms", "p95_frame_ms",
-                  "p99_frame_ms", "p99_update_ms", "p99_io_ms", "p99_activate_ms", "p99_shade_ms",
-                  "peak_resident_mb", "cells_loaded", "cells_evicted", "cells_relit", "cells_loaded_per_km",
-                  "p95_relight_io_ms", "cells_failed", "read_ms", "decode_ms"});
+    o.setColumns({"speed_mps",         "frames",          "frames_missing_gi", "fallback_fraction",
+                  "p50_frame_ms",      "p95_frame_ms",    "p99_frame_ms",      "p99_update_ms",
+                  "p99_io_ms",         "p99_activate_ms", "p99_shade_ms",      "peak_resident_mb",
+                  "cells_loaded",      "cells_evicted",   "cells_relit",       "cells_loaded_per_km",
+                  "p95_relight_io_ms", "cells_failed",    "read_ms",           "decode_ms"});
     float maxOk = 0.0f;
     bool stillOk = true;
     nlohmann::ordered_json at50, perSpeed = nlohmann::ordered_json::object();
@@ -121,46 +134,75 @@ int main(int argc, char** argv) {
       const double read0 = files ? files->readMsTotal() : 0.0, decode0 = files ? files->decodeMsTotal() : 0.0;
       std::string csv;
       if (v == 50.0f)
-        csv = "frame,resident_cells,loading_cells,bytes_resident,update_ms,shade_ms,fallback_fraction,io_ms,"
-              "relight_ms,relight_io_ms,time_of_day,read_ms,decode_ms\n";
+        csv =
+            "frame,resident_cells,loading_cells,bytes_resident,update_ms,shade_ms,fallback_fraction,io_ms,"
+            "relight_ms,relight_io_ms,time_of_day,read_ms,decode_ms\n";
       // read_ms / decode_ms: the source's file read + checks and decode time accrued during the frame (IO
       // threads; baked cells only; frame 0 also holds the preload before the first frame).
       double lastRead = read0, lastDecode = decode0;
-      streaming::FlythroughSummary s = streaming::runFlythrough(source, fo, [&](const streaming::FlythroughFrame& f) {
-        const double r = files ? files->readMsTotal() : 0.0, d = files ? files->decodeMsTotal() : 0.0;
-        if (v == 50.0f)
-          csv += fmt::format("{},{},{},{},{:.4f},{:.4f},{:.5f},{:.3f},{:.4f},{:.3f},{:.4f},{:.3f},{:.3f}\n", f.index,
-                             f.stats.resident, f.stats.loading, f.stats.bytesResident, f.stats.updateMs, f.shadeMs,
-                             f.fallbackFraction(), f.stats.ioMs, f.stats.relightMs, f.stats.relightIoMs, f.timeOfDay,
-                             r - lastRead, d - lastDecode);
-        lastRead = r, lastDecode = d;
-      });
+      streaming::FlythroughSummary s =
+          streaming::runFlythrough(source, fo, [&](const streaming::FlythroughFrame& f) {
+            const double r = files ? files->readMsTotal() : 0.0, d = files ? files->decodeMsTotal() : 0.0;
+            if (v == 50.0f)
+              csv += fmt::format(
+                  "{},{},{},{},{:.4f},{:.4f},{:.5f},{:.3f},{:.4f},{:.3f},{:.4f},{:.3f},{:.3f}\n", f.index,
+                  f.stats.resident, f.stats.loading, f.stats.bytesResident, f.stats.updateMs, f.shadeMs,
+                  f.fallbackFraction(), f.stats.ioMs, f.stats.relightMs, f.stats.relightIoMs, f.timeOfDay,
+                  r - lastRead, d - lastDecode);
+            lastRead = r, lastDecode = d;
+          });
       if (s.interrupted) fail("interrupted");
       const double km = double(v) * fo.seconds / 1000.0;
-      o.addRow({bench::num(v), bench::num(s.frames), bench::num(s.framesMissingGi), bench::num(s.fallbackFraction),
-                bench::num(s.p50FrameMs), bench::num(s.p95FrameMs), bench::num(s.p99FrameMs), bench::num(s.p99UpdateMs),
-                bench::num(s.p99IoMs), bench::num(s.p99ActivateMs), bench::num(s.p99ShadeMs),
-                bench::num(double(s.peakBytesResident) / 1e6), bench::num(double(s.cellsRequested)),
-                bench::num(double(s.cellsEvicted)), bench::num(double(s.cellsRelit)),
-                bench::num(km > 0 ? double(s.cellsRequested) / km : 0.0), bench::num(s.p95RelightIoMs),
-                bench::num(double(s.cellsFailed)), bench::num(files ? files->readMsTotal() - read0 : 0.0),
+      o.addRow({bench::num(v),
+                bench::num(s.frames),
+                bench::num(s.framesMissingGi),
+                bench::num(s.fallbackFraction),
+                bench::num(s.p50FrameMs),
+                bench::num(s.p95FrameMs),
+                bench::num(s.p99FrameMs),
+                bench::num(s.p99UpdateMs),
+                bench::num(s.p99IoMs),
+                bench::num(s.p99ActivateMs),
+                bench::num(s.p99ShadeMs),
+                bench::num(double(s.peakBytesResident) / 1e6),
+                bench::num(double(s.cellsRequested)),
+                bench::num(double(s.cellsEvicted)),
+                bench::num(double(s.cellsRelit)),
+                bench::num(km > 0 ? double(s.cellsRequested) / km : 0.0),
+                bench::num(s.p95RelightIoMs),
+                bench::num(double(s.cellsFailed)),
+                bench::num(files ? files->readMsTotal() - read0 : 0.0),
                 bench::num(files ? files->decodeMsTotal() - decode0 : 0.0)});
-      spdlog::info("{:6.0f} m/s: fallback {:.3f} %, missing-GI frames {}, p99 frame {:.2f} ms, peak {:.1f} MB, {} cells",
-                   v, 100.0 * s.fallbackFraction, s.framesMissingGi, s.p99FrameMs, double(s.peakBytesResident) / 1e6,
-                   s.cellsRequested);
+      spdlog::info(
+          "{:6.0f} m/s: fallback {:.3f} %, missing-GI frames {}, p99 frame {:.2f} ms, peak {:.1f} MB, {} "
+          "cells",
+          v, 100.0 * s.fallbackFraction, s.framesMissingGi, s.p99FrameMs, double(s.peakBytesResident) / 1e6,
+          s.cellsRequested);
       perSpeed[fmt::format("{:g}", v)] = {
-          {"frames", s.frames}, {"frames_missing_gi", s.framesMissingGi}, {"fallback_fraction", s.fallbackFraction},
-          {"frame_ms", {s.p50FrameMs, s.p95FrameMs, s.p99FrameMs}}, {"update_ms", {s.p50UpdateMs, s.p95UpdateMs, s.p99UpdateMs}},
-          {"io_ms", {s.p50IoMs, s.p95IoMs, s.p99IoMs}}, {"activate_ms", {s.p50ActivateMs, s.p95ActivateMs, s.p99ActivateMs}},
-          {"relight_ms", {s.p50RelightMs, s.p95RelightMs, s.p99RelightMs}}, {"shade_ms", {s.p50ShadeMs, s.p95ShadeMs, s.p99ShadeMs}},
-          {"relight_io_ms_p50_p95", {s.p50RelightIoMs, s.p95RelightIoMs}}, {"peak_resident_mb", double(s.peakBytesResident) / 1e6},
-          {"cells_loaded", s.cellsRequested}, {"cells_relit", s.cellsRelit}, {"cells_evicted", s.cellsEvicted},
+          {"frames", s.frames},
+          {"frames_missing_gi", s.framesMissingGi},
+          {"fallback_fraction", s.fallbackFraction},
+          {"frame_ms", {s.p50FrameMs, s.p95FrameMs, s.p99FrameMs}},
+          {"update_ms", {s.p50UpdateMs, s.p95UpdateMs, s.p99UpdateMs}},
+          {"io_ms", {s.p50IoMs, s.p95IoMs, s.p99IoMs}},
+          {"activate_ms", {s.p50ActivateMs, s.p95ActivateMs, s.p99ActivateMs}},
+          {"relight_ms", {s.p50RelightMs, s.p95RelightMs, s.p99RelightMs}},
+          {"shade_ms", {s.p50ShadeMs, s.p95ShadeMs, s.p99ShadeMs}},
+          {"relight_io_ms_p50_p95", {s.p50RelightIoMs, s.p95RelightIoMs}},
+          {"peak_resident_mb", double(s.peakBytesResident) / 1e6},
+          {"cells_loaded", s.cellsRequested},
+          {"cells_relit", s.cellsRelit},
+          {"cells_evicted", s.cellsEvicted},
           {"cells_failed", s.cellsFailed}};
-      if (stillOk && s.fallbackFraction <= 0.01 && s.framesMissingGi == 0) maxOk = v;
-      else stillOk = false;
+      if (stillOk && s.fallbackFraction <= 0.01 && s.framesMissingGi == 0)
+        maxOk = v;
+      else
+        stillOk = false;
       if (v == 50.0f) {
         frames50 = csv;
-        at50 = {{"frames", s.frames}, {"frames_missing_gi", s.framesMissingGi}, {"fallback_fraction", s.fallbackFraction},
+        at50 = {{"frames", s.frames},
+                {"frames_missing_gi", s.framesMissingGi},
+                {"fallback_fraction", s.fallbackFraction},
                 {"p99_frame_ms", s.p99FrameMs}};
       }
     }
@@ -170,8 +212,8 @@ int main(int argc, char** argv) {
     j["path"] = path;
     j["path_km"] = streaming::flightPathLength(layout, streaming::FlythroughOptions{.path = path}) / 1000.0;
     j["seconds_per_flight"] = seconds;
-    j["source"] = baked ? fmt::format("baked cell files of {} ({} valid, {} missing, {} corrupt)", world, files->validCells(),
-                                      files->missingCells(), files->corruptCells())
+    j["source"] = baked ? fmt::format("baked cell files of {} ({} valid, {} missing, {} corrupt)", world,
+                                      files->validCells(), files->missingCells(), files->corruptCells())
                         : std::string("synthetic analytic cells");
     j["frames"] = at50["frames"];
     j["frames_missing_gi"] = at50["frames_missing_gi"];
@@ -182,13 +224,17 @@ int main(int argc, char** argv) {
       j["bytes_per_km2_note"] = "synthetic cells in the raw FP32 resident format; codec bytes: bench codec";
     }
     j["p99_frame_ms"] = at50["p99_frame_ms"];
-    j["per_speed_note"] = "stage times are [p50, p95, p99] over the flight's frames (io: IO-thread load time of the loads "
-                          "completed in a frame, read + checks + decode; relight_io: re-decode at the new time of day)";
+    j["per_speed_note"] =
+        "stage times are [p50, p95, p99] over the flight's frames (io: IO-thread load time of the loads "
+        "completed in a frame, read + checks + decode; relight_io: re-decode at the new time of day)";
     j["per_speed"] = perSpeed;
     j["peak_rss_mb"] = peakRssMb();
-    j["io_model"] = baked ? fmt::format("{} IO threads (read + checks + {} decode), frames paced to real time; budget {} MB",
-                                        ioThreads, files->selection().backend, budgetMb)
-                          : fmt::format("inline loads, {} cell(s) per 60 fps frame; budget {} MB", loadsPerFrame, budgetMb);
+    j["io_model"] =
+        baked
+            ? fmt::format(
+                  "{} IO threads (read + checks + {} decode), frames paced to real time; budget {} MB",
+                  ioThreads, files->selection().backend, budgetMb)
+            : fmt::format("inline loads, {} cell(s) per 60 fps frame; budget {} MB", loadsPerFrame, budgetMb);
     o.save();
   } catch (const Error& e) {
     spdlog::error("{}", e.what());

@@ -49,19 +49,24 @@ GemmResult gpuGemm(gpu::Context& ctx, gpu::Program& p, int size) {
   std::vector<float> a(size_t(m) * k), b(size_t(k) * n), c(size_t(m) * n), ref(size_t(m) * n);
   for (float& v : a) v = u(rng);
   for (float& v : b) v = u(rng);
-  gpu::Buffer ba = gpu::createStorageBuffer(ctx, a.size() * 4), bb = gpu::createStorageBuffer(ctx, b.size() * 4),
+  gpu::Buffer ba = gpu::createStorageBuffer(ctx, a.size() * 4),
+              bb = gpu::createStorageBuffer(ctx, b.size() * 4),
               bc = gpu::createStorageBuffer(ctx, c.size() * 4);
   gpu::upload<float>(ctx, ba, a);
   gpu::upload<float>(ctx, bb, b);
   shared::GemmParams params{uint32_t(m), uint32_t(n), uint32_t(k), 0};
   const uint32_t threads = uint32_t(m / 4) * uint32_t(n / 4);
-  GpuTime t = bestGpuTime(ctx, 3, [&](VkCommandBuffer cmd) { gpu::dispatch(ctx, cmd, p, {&ba, &bb, &bc}, params, {threads, 1, 1}); });
+  GpuTime t = bestGpuTime(ctx, 3, [&](VkCommandBuffer cmd) {
+    gpu::dispatch(ctx, cmd, p, {&ba, &bb, &bc}, params, {threads, 1, 1});
+  });
   gpu::readback<float>(ctx, bc, c);
-  cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, m, n, k, 1.0f, a.data(), k, b.data(), n, 0.0f, ref.data(), n);
+  cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, m, n, k, 1.0f, a.data(), k, b.data(), n, 0.0f,
+              ref.data(), n);
   GemmResult r;
   double scale = 0.0;
   for (float v : ref) scale = std::max(scale, double(std::abs(v)));
-  for (size_t i = 0; i < c.size(); ++i) r.maxRelError = std::max(r.maxRelError, std::abs(double(c[i]) - ref[i]) / scale);
+  for (size_t i = 0; i < c.size(); ++i)
+    r.maxRelError = std::max(r.maxRelError, std::abs(double(c[i]) - ref[i]) / scale);
   r.gflops = 2.0 * m * n * k / (t.ms * 1e-3) * 1e-9;
   r.gflopsPerCpuSecond = 2.0 * m * n * k / (t.cpuMs * 1e-3) * 1e-9;
   return r;
@@ -74,8 +79,8 @@ GemmResult cpuSgemm(int size) {
   for (int r = 0; r < 3; ++r) {
     auto t0 = Clock::now();
     const double cpu0 = processCpuSeconds();
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, size, size, size, 1.0f, a.data(), size, b.data(), size,
-                0.0f, c.data(), size);
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, size, size, size, 1.0f, a.data(), size, b.data(),
+                size, 0.0f, c.data(), size);
     bestCpu = std::min(bestCpu, processCpuSeconds() - cpu0);
     best = std::min(best, std::chrono::duration<double>(Clock::now() - t0).count());
   }
@@ -85,6 +90,8 @@ GemmResult cpuSgemm(int size) {
   return g;
 }
 
-double cpuSgemmGflops(int size) { return cpuSgemm(size).gflops; }
+double cpuSgemmGflops(int size) {
+  return cpuSgemm(size).gflops;
+}
 
 }  // namespace lfgi::bench

@@ -18,17 +18,17 @@
 // neighbours full vs fallback comparison: the same world-cell view, indirect rel RMS, shading ms per
 // megapixel (and their ratio, same run), and the border jump: irradiance along a line crossing the
 // x = 32 m border at mid probe height, 5 cm steps (largest step between neighbouring points / mean).
-#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <cmath>
 
 #include "bake/embree_scene.h"
 #include "bake/probe_sources.h"
-#include "bake/world_bake.h"
 #include "bake/shading_inputs.h"
 #include "bake/shading_view.h"
+#include "bake/world_bake.h"
 #include "bench/bench_output.h"
 #include "core/error.h"
 #include "worlds/gltf_io.h"
@@ -42,13 +42,13 @@ struct Row {
   double indirect = 0.0, total = 0.0, shadeMsPerMpix = 0.0;
 };
 
-// Pixels shaded from probes or fallbacks, leaving out those where either image sees an emitter (direct > emitterLevel):
-// at an emitter's edge the reference's jittered samples mix in its radiance, which the total would then
-// compare against a pixel-centre G-buffer.
+// Pixels shaded from probes or fallbacks, leaving out those where either image sees an emitter (direct >
+// emitterLevel): at an emitter's edge the reference's jittered samples mix in its radiance, which the total
+// would then compare against a pixel-centre G-buffer.
 std::vector<uint8_t> surfaceMask(const Image& shaded, const Image& ref, float emitterLevel) {
   std::vector<uint8_t> m(size_t(shaded.width) * size_t(shaded.height), 0);
-  const int w = shaded.channelIndex("weight"), f = shaded.channelIndex("fallback"), d = shaded.channelIndex("direct.G"),
-            rd = ref.channelIndex("direct.G");
+  const int w = shaded.channelIndex("weight"), f = shaded.channelIndex("fallback"),
+            d = shaded.channelIndex("direct.G"), rd = ref.channelIndex("direct.G");
   for (int y = 0; y < shaded.height; ++y)
     for (int x = 0; x < shaded.width; ++x)
       m[size_t(y) * size_t(shaded.width) + size_t(x)] =
@@ -98,14 +98,16 @@ int main(int argc, char** argv) {
   app.add_option("--scenes-dir", scenesDir, "Folder of the scene presets")->capture_default_str();
   app.add_flag("--quick", quick, "Smaller images and sweeps");
   app.add_flag("--sources", sourcesOnly, "Only the probe-source comparison (capture / vir / codec)");
-  app.add_flag("--neighbours", neighboursOnly, "Only the world-cell comparison of neighbours full vs on their SH L1 fallback");
+  app.add_flag("--neighbours", neighboursOnly,
+               "Only the world-cell comparison of neighbours full vs on their SH L1 fallback");
   CLI11_PARSE(app, argc, argv);
   try {
     bench::BenchOutput o(out, quick);
     auto ctx = gpu::createContext();
     o.setDevice(ctx->info.name);
-    o.setColumns({"scene", "grid", "spacing_m", "resolution", "probes", "capture_s", "shade_ms", "shade_ms_per_mpixel",
-                  "gbuffer_ms", "indirect_rel_rms", "total_rel_rms", "probe_source", "neighbour_state"});
+    o.setColumns({"scene", "grid", "spacing_m", "resolution", "probes", "capture_s", "shade_ms",
+                  "shade_ms_per_mpixel", "gbuffer_ms", "indirect_rel_rms", "total_rel_rms", "probe_source",
+                  "neighbour_state"});
     const int refSize = quick ? 32 : 64;
     const int refSpp = quick ? 2048 : 4096;  // the Cornell light is small: the reference needs many samples
     const int timeSize = quick ? 256 : 512;
@@ -113,8 +115,8 @@ int main(int argc, char** argv) {
     // One scene: reference once, then each (grid, resolution) configuration, from each probe source.
     auto sweep = [&](const std::string& name, const worlds::TriangleMesh& mesh, const worlds::SkyModel& sky,
                      const bake::PinholeCamera& cam, int refW, int refH, int spp,
-                     const std::vector<std::pair<glm::ivec3, int>>& configs, int captureSpp, float emitterLevel,
-                     const std::vector<std::string>& sources = {"capture"}) {
+                     const std::vector<std::pair<glm::ivec3, int>>& configs, int captureSpp,
+                     float emitterLevel, const std::vector<std::string>& sources = {"capture"}) {
       const bake::EmbreeScene scene(mesh, name);
       bake::RenderOptions ro;
       ro.width = refW;
@@ -128,56 +130,59 @@ int main(int argc, char** argv) {
       std::vector<worlds::Surfel> surfels;
       const worlds::Aabb box = mesh.bounds();
       if (std::find(sources.begin(), sources.end(), "vir") != sources.end())
-        surfels = worlds::sampleSurfels(bake::meshWithBackFaces(mesh), {glm::length(box.max - box.min) / 64.0f, 1});
+        surfels =
+            worlds::sampleSurfels(bake::meshWithBackFaces(mesh), {glm::length(box.max - box.min) / 64.0f, 1});
       std::vector<Row> rows;
       for (const auto& [dims, res] : configs)
-      for (const std::string& source : sources) {
-        worlds::ScenePreset preset;
-        preset.probeDims = dims;
-        const ProbeGrid grid = worlds::presetProbeGrid(preset, mesh.bounds());
-        bake::CaptureOptions co;
-        co.resolution = res;
-        co.irradianceResolution = std::max(4, res / 2);
-        co.samplesPerTexel = captureSpp;
-        const auto c0 = std::chrono::steady_clock::now();
-        ProbeField f;
-        if (source == "vir") {
-          bake::VirProbeOptions vo;
-          vo.resolution = res;
-          vo.irradianceResolution = co.irradianceResolution;
-          vo.maxRange = 2.0f * glm::length(box.max - box.min);
-          f = bake::virProbeField(*ctx, surfels, grid, {}, {}, sky, vo);
-        } else {
-          f = bake::captureGridField(scene, sky, grid, {}, {}, co);
+        for (const std::string& source : sources) {
+          worlds::ScenePreset preset;
+          preset.probeDims = dims;
+          const ProbeGrid grid = worlds::presetProbeGrid(preset, mesh.bounds());
+          bake::CaptureOptions co;
+          co.resolution = res;
+          co.irradianceResolution = std::max(4, res / 2);
+          co.samplesPerTexel = captureSpp;
+          const auto c0 = std::chrono::steady_clock::now();
+          ProbeField f;
+          if (source == "vir") {
+            bake::VirProbeOptions vo;
+            vo.resolution = res;
+            vo.irradianceResolution = co.irradianceResolution;
+            vo.maxRange = 2.0f * glm::length(box.max - box.min);
+            f = bake::virProbeField(*ctx, surfels, grid, {}, {}, sky, vo);
+          } else {
+            f = bake::captureGridField(scene, sky, grid, {}, {}, co);
+          }
+          const double captureS =
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
+          const ProbeField* fields[] = {&f};
+          renderer.setProbes(fields);
+          const bake::ShadedView v = renderer.render(sky, cam, refW, refH);
+          const std::vector<uint8_t> mask = surfaceMask(v.image, ref.image, emitterLevel);
+          Row row;
+          row.indirect = bake::layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
+          row.total = bake::layerRelativeRms(v.image, "", ref.image, "", &mask);
+          // Timing at a larger size (best of 3 runs, device timestamps).
+          const int tw = timeSize, th = timeSize * refH / refW;
+          double shadeMs = 1e30, gbufMs = 1e30;
+          for (int k = 0; k < 3; ++k) {
+            const bake::ShadedView t = renderer.render(sky, cam, tw, th);
+            shadeMs = std::min(shadeMs, t.shadeMs);
+            gbufMs = std::min(gbufMs, t.gbufferMs);
+          }
+          row.shadeMsPerMpix = shadeMs / (double(tw) * double(th) * 1e-6);
+          const float spacing = std::min({grid.spacing.x, grid.spacing.y, grid.spacing.z});
+          o.addRow({name, fmt::format("{}x{}x{}", dims.x, dims.y, dims.z), bench::num(spacing),
+                    std::to_string(res), std::to_string(grid.probeCount()), bench::num(captureS),
+                    bench::num(shadeMs), bench::num(row.shadeMsPerMpix), bench::num(gbufMs),
+                    bench::num(row.indirect), bench::num(row.total), source, "-"});
+          spdlog::info(
+              "{} grid {}x{}x{} res {} {}: indirect rel RMS {:.4f}, total {:.4f}, probes in {:.2f} s, shade "
+              "{:.2f} ms ({:.1f} ms/Mpixel)",
+              name, dims.x, dims.y, dims.z, res, source, row.indirect, row.total, captureS, shadeMs,
+              row.shadeMsPerMpix);
+          rows.push_back(row);
         }
-        const double captureS = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
-        const ProbeField* fields[] = {&f};
-        renderer.setProbes(fields);
-        const bake::ShadedView v = renderer.render(sky, cam, refW, refH);
-        const std::vector<uint8_t> mask = surfaceMask(v.image, ref.image, emitterLevel);
-        Row row;
-        row.indirect = bake::layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
-        row.total = bake::layerRelativeRms(v.image, "", ref.image, "", &mask);
-        // Timing at a larger size (best of 3 runs, device timestamps).
-        const int tw = timeSize, th = timeSize * refH / refW;
-        double shadeMs = 1e30, gbufMs = 1e30;
-        for (int k = 0; k < 3; ++k) {
-          const bake::ShadedView t = renderer.render(sky, cam, tw, th);
-          shadeMs = std::min(shadeMs, t.shadeMs);
-          gbufMs = std::min(gbufMs, t.gbufferMs);
-        }
-        row.shadeMsPerMpix = shadeMs / (double(tw) * double(th) * 1e-6);
-        const float spacing = std::min({grid.spacing.x, grid.spacing.y, grid.spacing.z});
-        o.addRow({name, fmt::format("{}x{}x{}", dims.x, dims.y, dims.z), bench::num(spacing), std::to_string(res),
-                  std::to_string(grid.probeCount()), bench::num(captureS), bench::num(shadeMs),
-                  bench::num(row.shadeMsPerMpix), bench::num(gbufMs), bench::num(row.indirect), bench::num(row.total),
-                  source, "-"});
-        spdlog::info("{} grid {}x{}x{} res {} {}: indirect rel RMS {:.4f}, total {:.4f}, probes in {:.2f} s, shade "
-                     "{:.2f} ms ({:.1f} ms/Mpixel)",
-                     name, dims.x, dims.y, dims.z, res, source, row.indirect, row.total, captureS, shadeMs,
-                     row.shadeMsPerMpix);
-        rows.push_back(row);
-      }
       return rows;
     };
 
@@ -200,7 +205,8 @@ int main(int argc, char** argv) {
       for (const worlds::CellCoord cc : coords) {
         const worlds::BuiltCell b = worlds::buildCell(world, cc);
         std::vector<uint8_t> active(b.probes.flags.size());
-        for (size_t i = 0; i < active.size(); ++i) active[i] = (b.probes.flags[i] & worlds::kProbeDisabledSolid) ? 0 : 1;
+        for (size_t i = 0; i < active.size(); ++i)
+          active[i] = (b.probes.flags[i] & worlds::kProbeDisabledSolid) ? 0 : 1;
         fields.push_back(bake::captureGridField(scene, noon, b.probes.grid, b.probes.offsets, active, co));
         fallbacks.push_back(bake::fieldFallback(fields.back()));
       }
@@ -267,11 +273,14 @@ int main(int argc, char** argv) {
         o.summary()["neighbours_" + state + "_shade_ms_per_mpixel"] = msPerMpix;
         o.summary()["neighbours_" + state + "_line_max_step_rel"] = jump / std::max(mean, 1e-12);
         o.summary()["neighbours_" + state + "_line_border_step_rel"] = borderStep / std::max(mean, 1e-12);
-        if (state == "full") msFull = msPerMpix;
-        else o.summary()["neighbours_fallback_vs_full_shade_ms_ratio"] = msPerMpix / msFull;
-        spdlog::info("world cell 1,0, neighbours {}: indirect rel RMS {:.4f}, total {:.4f}, shade {:.1f} ms/Mpixel, "
-                     "line y = {:.1f} m: largest 5 cm step {:.4f} of the mean {:.3f}, at the border {:.4f}",
-                     state, indirect, total, msPerMpix, lineY, jump / mean, mean, borderStep / mean);
+        if (state == "full")
+          msFull = msPerMpix;
+        else
+          o.summary()["neighbours_fallback_vs_full_shade_ms_ratio"] = msPerMpix / msFull;
+        spdlog::info(
+            "world cell 1,0, neighbours {}: indirect rel RMS {:.4f}, total {:.4f}, shade {:.1f} ms/Mpixel, "
+            "line y = {:.1f} m: largest 5 cm step {:.4f} of the mean {:.3f}, at the border {:.4f}",
+            state, indirect, total, msPerMpix, lineY, jump / mean, mean, borderStep / mean);
       }
       // The same comparison over the pixels the fallback run shades mostly from fallbacks (the neighbours).
       std::vector<uint8_t> onFallback = surfaceMask(images[1], ref.image, 1e30f);
@@ -284,13 +293,16 @@ int main(int argc, char** argv) {
           count += m;
         }
       if (count > 0) {
-        const double full = bake::layerRelativeRms(images[0], "indirect.", ref.image, "indirect.", &onFallback);
+        const double full =
+            bake::layerRelativeRms(images[0], "indirect.", ref.image, "indirect.", &onFallback);
         const double fb = bake::layerRelativeRms(images[1], "indirect.", ref.image, "indirect.", &onFallback);
         o.summary()["neighbours_pixels_on_fallback"] = double(count);
         o.summary()["neighbours_full_indirect_rel_rms_on_those_pixels"] = full;
         o.summary()["neighbours_fallback_indirect_rel_rms_on_those_pixels"] = fb;
-        spdlog::info("{} of {} pixels mostly on fallback: indirect rel RMS there {:.4f} (neighbours full) vs {:.4f} "
-                     "(on fallback)", count, w * h, full, fb);
+        spdlog::info(
+            "{} of {} pixels mostly on fallback: indirect rel RMS there {:.4f} (neighbours full) vs {:.4f} "
+            "(on fallback)",
+            count, w * h, full, fb);
       }
     };
     if (neighboursOnly) {
@@ -308,8 +320,9 @@ int main(int argc, char** argv) {
     cc.target = glm::vec3(-0.278f, 0.274f, -0.28f);
     cc.verticalFovDeg = 40.0f;
     if (sourcesOnly) {
-      const std::vector<Row> c = sweep("cornell", cornell, night, cc, refSize, refSize, refSpp,
-                                       {{glm::ivec3(2), 16}, {glm::ivec3(4), 16}}, 64, 0.01f, {"capture", "vir"});
+      const std::vector<Row> c =
+          sweep("cornell", cornell, night, cc, refSize, refSize, refSpp,
+                {{glm::ivec3(2), 16}, {glm::ivec3(4), 16}}, 64, 0.01f, {"capture", "vir"});
       o.summary()["cornell_indirect_rel_rms_capture_2x2x2"] = c[0].indirect;
       o.summary()["cornell_indirect_rel_rms_vir_2x2x2"] = c[1].indirect;
       o.summary()["cornell_indirect_rel_rms_capture_4x4x4"] = c[2].indirect;
@@ -321,13 +334,13 @@ int main(int argc, char** argv) {
     for (int g : grids) configs.push_back({glm::ivec3(g), 16});
     for (int r : resolutions) configs.push_back({glm::ivec3(4), r});
     if (!sourcesOnly) {
-    const std::vector<Row> c = sweep("cornell", cornell, night, cc, refSize, refSize, refSpp, configs, 64, 0.01f,
-                                     {"capture", "vir"});
-    // Rows per configuration: capture, vir.
-    o.summary()["cornell_indirect_rel_rms"] = c[0].indirect;  // the paper's 2 x 2 x 2 grid, 16 x 16 maps
-    o.summary()["cornell_indirect_rel_rms_grid"] = "2x2x2, 16x16 maps";
-    o.summary()["cornell_indirect_rel_rms_vir"] = c[1].indirect;
-    o.summary()["shade_ms_per_mpixel"] = c[0].shadeMsPerMpix;
+      const std::vector<Row> c = sweep("cornell", cornell, night, cc, refSize, refSize, refSpp, configs, 64,
+                                       0.01f, {"capture", "vir"});
+      // Rows per configuration: capture, vir.
+      o.summary()["cornell_indirect_rel_rms"] = c[0].indirect;  // the paper's 2 x 2 x 2 grid, 16 x 16 maps
+      o.summary()["cornell_indirect_rel_rms_grid"] = "2x2x2, 16x16 maps";
+      o.summary()["cornell_indirect_rel_rms_vir"] = c[1].indirect;
+      o.summary()["shade_ms_per_mpixel"] = c[0].shadeMsPerMpix;
     }
 
     // A world cell from capture, VIR and codec probes.
@@ -344,8 +357,8 @@ int main(int argc, char** argv) {
       const auto b0 = std::chrono::steady_clock::now();
       const CellFile cf = bake::bakeCell(world, std::move(in), bs);
       const double bakeS = std::chrono::duration<double>(std::chrono::steady_clock::now() - b0).count();
-      spdlog::info("world cell 1,0: baked ({}) in {:.1f} s, stored irradiance error {:.4f}", cf.stats.model, bakeS,
-                   cf.stats.errorAchieved);
+      spdlog::info("world cell 1,0: baked ({}) in {:.1f} s, stored irradiance error {:.4f}", cf.stats.model,
+                   bakeS, cf.stats.errorAchieved);
       o.summary()["world_cell_bake_s"] = bakeS;
       o.summary()["world_cell_model"] = cf.stats.model;
       const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
@@ -356,7 +369,8 @@ int main(int argc, char** argv) {
       bake::ShadingRenderer renderer(*ctx, mesh);
       const ProbeGrid& grid = built.probes.grid;
       std::vector<uint8_t> active(built.probes.flags.size());
-      for (size_t i = 0; i < active.size(); ++i) active[i] = (built.probes.flags[i] & worlds::kProbeDisabledSolid) ? 0 : 1;
+      for (size_t i = 0; i < active.size(); ++i)
+        active[i] = (built.probes.flags[i] & worlds::kProbeDisabledSolid) ? 0 : 1;
       for (const std::string source : {"capture", "vir", "codec"}) {
         const auto c0 = std::chrono::steady_clock::now();
         ProbeField f;
@@ -380,13 +394,14 @@ int main(int argc, char** argv) {
         const double indirect = bake::layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
         const double total = bake::layerRelativeRms(v.image, "", ref.image, "", &mask);
         const float spacing = std::min({grid.spacing.x, grid.spacing.y, grid.spacing.z});
-        o.addRow({"world_cell", fmt::format("{}x{}x{}", grid.dims.x, grid.dims.y, grid.dims.z), bench::num(spacing),
-                  std::to_string(f.resolution), std::to_string(grid.probeCount()), bench::num(sourceS),
-                  bench::num(v.shadeMs), bench::num(v.shadeMs / (double(w) * double(h) * 1e-6)),
-                  bench::num(v.gbufferMs), bench::num(indirect), bench::num(total), source, "absent"});
+        o.addRow({"world_cell", fmt::format("{}x{}x{}", grid.dims.x, grid.dims.y, grid.dims.z),
+                  bench::num(spacing), std::to_string(f.resolution), std::to_string(grid.probeCount()),
+                  bench::num(sourceS), bench::num(v.shadeMs),
+                  bench::num(v.shadeMs / (double(w) * double(h) * 1e-6)), bench::num(v.gbufferMs),
+                  bench::num(indirect), bench::num(total), source, "absent"});
         o.summary()["world_cell_indirect_rel_rms_" + source] = indirect;
-        spdlog::info("world cell 1,0 {}: indirect rel RMS {:.4f}, total {:.4f}, probes in {:.2f} s", source, indirect,
-                     total, sourceS);
+        spdlog::info("world cell 1,0 {}: indirect rel RMS {:.4f}, total {:.4f}, probes in {:.2f} s", source,
+                     indirect, total, sourceS);
       }
     }
     if (sourcesOnly) {
@@ -421,7 +436,8 @@ int main(int argc, char** argv) {
       const bake::LeakTestResult l = bake::measureLeakTest(*ctx, world, {1, 1}, noon, co);
       o.summary()["leak_ratio"] = l.ratioOn();
       o.summary()["leak_ratio_without_chebyshev"] = l.ratioOff();
-      spdlog::info("leak test: sealed / lit indirect {:.5f} with Chebyshev, {:.5f} without", l.ratioOn(), l.ratioOff());
+      spdlog::info("leak test: sealed / lit indirect {:.5f} with Chebyshev, {:.5f} without", l.ratioOn(),
+                   l.ratioOff());
     }
     o.save();
   } catch (const Error& e) {

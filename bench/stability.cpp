@@ -3,16 +3,17 @@
 // Sections (column `section` of results.csv; one row = one measured figure, `metric` names it with its
 // unit, `value` holds it):
 //   leak        a sunlit room | wall of thickness wall_m | sealed dark room (procedural, bench-only scene).
-//               leak_ratio = mean indirect diffuse luminance of 6 x 6 floor points in the dark room / the same
-//               in the sunlit room, shaded by the probe shading pass (bake::ShadingRenderer::shadePoints)
-//               from probes of each method: raw_fp16 (capture through the raw FP16 codec), sh_l2 (SH L2
-//               irradiance), generator (the per-cell network trained on this cell with few steps; its decoded
-//               distance moments drive Chebyshev), vir_relight (gpu relight -> VIR -> convolution, 6 frames;
-//               its own moments), vir_relight_dense (surfels at half the spacing, no sky in fill-only texels).
-//               raw_fp16 and sh_l2 keep the captured distance moments (the baseline codecs store radiance
-//               only). Chebyshev on and off. probe_setup: "straddle+relocation" (lattice planes at x = +-s/2
-//               around the wall, worlds::placeProbes: what a bake ships; every method), "in_wall+relocation"
-//               and "in_wall" (a lattice plane in the wall's mid-plane, relocation on / off; baselines only).
+//               leak_ratio = mean indirect diffuse luminance of 6 x 6 floor points in the dark room / the
+//               same in the sunlit room, shaded by the probe shading pass
+//               (bake::ShadingRenderer::shadePoints) from probes of each method: raw_fp16 (capture through
+//               the raw FP16 codec), sh_l2 (SH L2 irradiance), generator (the per-cell network trained on
+//               this cell with few steps; its decoded distance moments drive Chebyshev), vir_relight (gpu
+//               relight -> VIR -> convolution, 6 frames; its own moments), vir_relight_dense (surfels at half
+//               the spacing, no sky in fill-only texels). raw_fp16 and sh_l2 keep the captured distance
+//               moments (the baseline codecs store radiance only). Chebyshev on and off. probe_setup:
+//               "straddle+relocation" (lattice planes at x = +-s/2 around the wall, worlds::placeProbes: what
+//               a bake ships; every method), "in_wall+relocation" and "in_wall" (a lattice plane in the
+//               wall's mid-plane, relocation on / off; baselines only).
 //   unseen      the generator trained on keys {8, 12, 17.5} h decoded at other times and overcast 1.0,
 //               against captures at those times (irradiance relative RMS, bake::codecError); baselines: the
 //               nearest training key's capture and a linear blend of the two adjacent keys. The dark room
@@ -44,8 +45,8 @@
 #include "bench/bench_output.h"
 #include "core/error.h"
 #include "core/generator.h"
-#include "core/probe_codecs.h"
 #include "core/octahedral.h"
+#include "core/probe_codecs.h"
 #include "gpu/relight_pass.h"
 #include "gpu/vir_probe_field.h"
 #include "streaming/flythrough.h"
@@ -267,8 +268,8 @@ struct VirRelight {
   gpu::CellLighting state;
   // surfelScale: surfel spacing relative to worlds' default for the probe spacing; filledSeeSky:
   // RelightOptions::filledTexelsSeeSky.
-  VirRelight(gpu::Context& ctx, const worlds::TriangleMesh& mesh, const ProbeField& f, float surfelScale = 1.0f,
-             bool filledSeeSky = gpu::RelightOptions{}.filledTexelsSeeSky)
+  VirRelight(gpu::Context& ctx, const worlds::TriangleMesh& mesh, const ProbeField& f,
+             float surfelScale = 1.0f, bool filledSeeSky = gpu::RelightOptions{}.filledTexelsSeeSky)
       : relight(ctx), vir(ctx) {
     worlds::SurfelOptions so;
     so.spacing = surfelScale * worlds::surfelSpacingForProbeSpacing(f.grid.spacing.x);
@@ -493,8 +494,8 @@ ProbeField decodeTarget(const CellSetup& cs, const bake::CaptureOptions& co) {
 // streaming::VirRelightSource runs it from a codec field: 3 frames, no seed) of the cell's surfels at
 // (tod, weather): radiance maps of probes cs.idx in the capture layout, the disc energy deposited over
 // three texels as the capture does (worlds::skyOctahedralMap) where the probe sees the disc.
-std::vector<float> virRelightRadiance(Ctx& c, CellSetup& cs, const bake::CaptureOptions& co, float tod, float weather,
-                                      double* ms) {
+std::vector<float> virRelightRadiance(Ctx& c, CellSetup& cs, const bake::CaptureOptions& co, float tod,
+                                      float weather, double* ms) {
   worlds::SurfelOptions so;
   so.spacing = worlds::surfelSpacingForProbeSpacing(cs.grid.spacing.x);
   const std::vector<worlds::Surfel> surfels = worlds::sampleSurfels(cs.scene.mesh, so);
@@ -598,10 +599,11 @@ UnseenSummary unseenSection(Ctx& c, CellSetup& cs, const bake::EmbreeScene& scen
     std::vector<std::vector<float>> blend = {ra};
     const double blendErr = bake::codecError(one, blend).irradianceRelativeRms;
     double virMs = 0.0;
-    std::vector<std::vector<float>> virMaps = {virRelightRadiance(c, cs, co, evals[e].tod, evals[e].weather, &virMs)};
+    std::vector<std::vector<float>> virMaps = {
+        virRelightRadiance(c, cs, co, evals[e].tod, evals[e].weather, &virMs)};
     const double virErr = bake::codecError(one, virMaps).irradianceRelativeRms;
-    c.row("unseen", "vir_relight", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather, "irr_rel_rms",
-          virErr);
+    c.row("unseen", "vir_relight", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather,
+          "irr_rel_rms", virErr);
     c.row("unseen", "vir_relight", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather, "relight_ms",
           virMs);
     c.row("unseen", "generator", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather, "irr_rel_rms",
@@ -691,7 +693,8 @@ void fallbackSection(Ctx& c, const CellSetup& cs) {
   };
   // tiny_steps misses the target; lr 1e3 kills the outputs (all radiance 0: error exactly 1, finite, so
   // not a divergence: rejected on error); lr 1e6 (weights and latents) overflows: detected as divergence.
-  for (const Case& k : {Case{"tiny_steps", 20, 3e-3f}, Case{"collapse_lr1e3", 60, 1e3f}, Case{"diverge_lr1e6", 60, 1e6f}}) {
+  for (const Case& k :
+       {Case{"tiny_steps", 20, 3e-3f}, Case{"collapse_lr1e3", 60, 1e3f}, Case{"diverge_lr1e6", 60, 1e6f}}) {
     bake::ModelSizingOptions so;
     so.irradianceErrorTarget = 0.01;
     so.noNetworkKinds = {bake::CellModelKind::kShL1};
@@ -970,7 +973,8 @@ int main(int argc, char** argv) {
   std::vector<float> walls, spacings;
   app.add_option("--leak-walls", walls, "Wall thicknesses of the leak sweep (m; default 0.05,0.1,0.2,0.5)")
       ->delimiter(',');
-  app.add_option("--leak-spacings", spacings, "Probe spacings of the leak sweep (m; default 0.5,1,2; --quick 1,2)")
+  app.add_option("--leak-spacings", spacings,
+                 "Probe spacings of the leak sweep (m; default 0.5,1,2; --quick 1,2)")
       ->delimiter(',');
   CLI11_PARSE(app, argc, argv);
   try {
@@ -978,8 +982,8 @@ int main(int argc, char** argv) {
     bench::BenchOutput o(out, quick);
     auto gpuCtx = gpu::createContext();
     o.setDevice(gpuCtx->info.name);
-    o.setColumns({"section", "method", "wall_m", "spacing_m", "probe_setup", "chebyshev", "time_h", "overcast",
-                  "metric", "value"});
+    o.setColumns({"section", "method", "wall_m", "spacing_m", "probe_setup", "chebyshev", "time_h",
+                  "overcast", "metric", "value"});
     Ctx c{o, *gpuCtx, quick, 8, quick ? 4 : 16};
     auto& s = o.summary();
     // Keys of the bad-input and interruption parts (issue 10 parts 2, 3) are measured by their own tests.
@@ -1004,7 +1008,8 @@ int main(int argc, char** argv) {
 
     if (want("leak")) {
       if (walls.empty()) walls = {0.05f, 0.1f, 0.2f, 0.5f};
-      if (spacings.empty()) spacings = quick ? std::vector<float>{1.0f, 2.0f} : std::vector<float>{0.5f, 1.0f, 2.0f};
+      if (spacings.empty())
+        spacings = quick ? std::vector<float>{1.0f, 2.0f} : std::vector<float>{0.5f, 1.0f, 2.0f};
       const LeakSummary l = leakSection(c, walls, spacings);
       for (const auto& [m, v] : l.worst) s["leak_ratio_worst_" + m] = v;
       for (const auto& [m, v] : l.worstOff) s["leak_ratio_worst_without_chebyshev_" + m] = v;

@@ -36,19 +36,19 @@
 // Atomics: vir_lod counts its atomicMin calls on the device (ProbeAtlas::splatAtomics). vir: the
 // splat's 64-bit atomicMin count is replayed on the CPU (the same footprint test as
 // vir_splat.comp) for the accuracy probes and scaled to the probe count; achieved atomics/s = count /
-// VIR's whole device time (a lower bound for the splat's own rate), against the ceiling measured in this run by shaders/atomic_min64.comp with the parameters
-// of bench/ceilings.cpp.
-#include <CLI/CLI.hpp>
+// VIR's whole device time (a lower bound for the splat's own rate), against the ceiling measured in this run
+// by shaders/atomic_min64.comp with the parameters of bench/ceilings.cpp.
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <map>
-#include <tuple>
 #include <numbers>
 #include <optional>
+#include <tuple>
 
 #include "bake/embree_scene.h"
 #include "bake/path_trace.h"
@@ -149,8 +149,9 @@ struct Accuracy {
 };
 
 // Per texel of the first `probes` maps vs the Embree closest hit along the texel-centre ray.
-Accuracy accuracy(const gpu::ProbeAtlas& atlas, const std::vector<std::vector<std::optional<bake::RayHit>>>& ref,
-                  size_t probes, const worlds::TriangleMesh& mesh) {
+Accuracy accuracy(const gpu::ProbeAtlas& atlas,
+                  const std::vector<std::vector<std::optional<bake::RayHit>>>& ref, size_t probes,
+                  const worlds::TriangleMesh& mesh) {
   const size_t n2 = size_t(atlas.resolution) * size_t(atlas.resolution);
   std::vector<double> rel, angle;
   double albedoSum = 0.0;
@@ -188,8 +189,10 @@ Accuracy accuracy(const gpu::ProbeAtlas& atlas, const std::vector<std::vector<st
   a.distP90Rel = quantile(rel, 0.9);
   a.normalMedianDeg = quantile(angle, 0.5);
   a.normalP90Deg = quantile(angle, 0.9);
-  a.fracOff5pct = rel.empty() ? 0.0 : double(std::count_if(rel.begin(), rel.end(), [](double e) { return e > 0.05; })) /
-                                          double(rel.size());
+  a.fracOff5pct = rel.empty()
+                      ? 0.0
+                      : double(std::count_if(rel.begin(), rel.end(), [](double e) { return e > 0.05; })) /
+                            double(rel.size());
   a.holeFractionOfHits = hits ? double(holes) / double(hits) : 0.0;
   a.skyCoveredFraction = sky ? double(skyCovered) / double(sky) : 0.0;
   a.skyFilledFraction = sky ? double(skyFilled) / double(sky) : 0.0;
@@ -211,7 +214,8 @@ void accuracyVsCapture(const gpu::ProbeAtlas& atlas, const bake::CaptureResult& 
       const float r = cap.probes[p].distance[2 * t];
       if (atlas.normal[i].w == 0.0f || !(r > 0.0f && r < 0.01f * maxDistance)) continue;
       rel.push_back(std::abs(double(atlas.distance[i].x) - r) / double(r));
-      const glm::vec3 cn(cap.probes[p].normal[3 * t], cap.probes[p].normal[3 * t + 1], cap.probes[p].normal[3 * t + 2]);
+      const glm::vec3 cn(cap.probes[p].normal[3 * t], cap.probes[p].normal[3 * t + 1],
+                         cap.probes[p].normal[3 * t + 2]);
       if (glm::length(cn) > 0.5f) {
         const float c = std::clamp(glm::dot(glm::vec3(atlas.normal[i]), glm::normalize(cn)), -1.0f, 1.0f);
         angle.push_back(double(std::acos(c)) * 180.0 / std::numbers::pi);
@@ -233,10 +237,13 @@ int main(int argc, char** argv) {
   double budgetS = 0.0;
   size_t accuracyProbes = 0;
   app.add_option("--out", out, "Output directory");
-  app.add_flag("--quick", quick, "Probe counts up to 1024 and a 12 s budget per configuration (lavapipe: minutes)");
+  app.add_flag("--quick", quick,
+               "Probe counts up to 1024 and a 12 s budget per configuration (lavapipe: minutes)");
   app.add_option("--cell", cellArg, "Cell X,Z of the default world (2,1: the arcade block)");
-  app.add_option("--budget-s", budgetS, "Skip a configuration projected to take longer (default 12 quick, 90 full)");
-  app.add_option("--accuracy-probes", accuracyProbes, "Probes compared with Embree (default 8 quick, 16 full)");
+  app.add_option("--budget-s", budgetS,
+                 "Skip a configuration projected to take longer (default 12 quick, 90 full)");
+  app.add_option("--accuracy-probes", accuracyProbes,
+                 "Probes compared with Embree (default 8 quick, 16 full)");
   float lodTexels = gpu::VirOptions{}.lodTexels;
   float lodElongation = gpu::VirOptions{}.lodElongation;
   app.add_option("--lod-elongation", lodElongation,
@@ -245,7 +252,8 @@ int main(int argc, char** argv) {
   app.add_option("--lod-texels", lodTexels, "vir_lod: VirOptions::lodTexels");
   app.add_option("--lod-block-probes", lodBlockProbes, "vir_lod: VirOptions::lodBlockProbes");
   float lodOcclusionRange = gpu::VirOptions{}.lodOcclusionRange;
-  app.add_option("--lod-occlusion-range", lodOcclusionRange, "vir_lod: VirOptions::lodOcclusionRange (m; 0: off)");
+  app.add_option("--lod-occlusion-range", lodOcclusionRange,
+                 "vir_lod: VirOptions::lodOcclusionRange (m; 0: off)");
   std::string methodsArg = "all";
   bool lodStats = false;
   float statCone = gpu::VirLodBuildOptions{}.coherentConeDeg;
@@ -253,12 +261,15 @@ int main(int argc, char** argv) {
   bool keepBuried = false;
   app.add_flag("--keep-buried", keepBuried,
                "Keep the cell's buried triangles and surfels (worlds::CellBuildOptions::dropBuried = false)");
-  app.add_flag("--lod-stats", lodStats, "Print the surfel LOD tree's statistics and one probe's cut, then exit");
-  app.add_option("--methods", methodsArg, "Comma-separated subset of vir_lod,vir_lod_relight,vir,cubemap (default all; the "
-                                          "summary's ratios need vir_lod and cubemap)");
+  app.add_flag("--lod-stats", lodStats,
+               "Print the surfel LOD tree's statistics and one probe's cut, then exit");
+  app.add_option("--methods", methodsArg,
+                 "Comma-separated subset of vir_lod,vir_lod_relight,vir,cubemap (default all; the "
+                 "summary's ratios need vir_lod and cubemap)");
   int repeat = 1;
   app.add_option("--repeat", repeat,
-                 "Run each configuration this many times and keep the fastest (device time; shared machines are noisy)")
+                 "Run each configuration this many times and keep the fastest (device time; shared machines "
+                 "are noisy)")
       ->check(CLI::Range(1, 20));
   double lodBuildMs = 0.0;
   uint64_t lodNodes = 0;
@@ -281,7 +292,8 @@ int main(int argc, char** argv) {
     const gpu::CubemapScene scene = bench::toCubemapScene(built.mesh);
     std::vector<glm::vec3> active;
     for (int64_t i = 0; i < built.probes.grid.probeCount(); ++i)
-      if (!(built.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid)) active.push_back(built.probes.position(i));
+      if (!(built.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid))
+        active.push_back(built.probes.position(i));
     if (active.empty()) fail("cell {},{} has no active probes", cx, cz);
     const std::vector<int> resolutions = {8, 16, 32, 64};
     const std::vector<size_t> counts =
@@ -289,9 +301,10 @@ int main(int argc, char** argv) {
     std::vector<glm::vec3> probes(counts.back());
     for (size_t i = 0; i < probes.size(); ++i) probes[i] = active[i % active.size()];
     accuracyProbes = std::min({accuracyProbes, active.size(), counts.front()});
-    spdlog::info("vir bench on {} ({}): cell {},{}: {} surfels, {} triangles, {} active probes; budget {} s/config",
-                 ctx->info.name, quick ? "quick" : "full", cx, cz, built.surfels.size(), scene.triangleCount(),
-                 active.size(), budgetS);
+    spdlog::info(
+        "vir bench on {} ({}): cell {},{}: {} surfels, {} triangles, {} active probes; budget {} s/config",
+        ctx->info.name, quick ? "quick" : "full", cx, cz, built.surfels.size(), scene.triangleCount(),
+        active.size(), budgetS);
 
     if (lodStats) {  // tree diagnostics: per depth-from-leaves level, how many nodes may be splatted
       gpu::VirLodBuildOptions bo;
@@ -333,22 +346,24 @@ int main(int argc, char** argv) {
           if (const uint32_t par = tree.up[i].x; par != ~0u) {
             const shared::Surfel& pn = tree.nodes[par];
             const float pd = glm::length(glm::vec3(pn.positionRadius) - eye);
-            ++parentWhy[!(tree.links[par].flags & LFGI_VIR_LOD_COHERENT)    ? 0
-                        : pn.emission.w > lp.depthTolerance * pd ? 2
-                                                                 : 1];
+            ++parentWhy[!(tree.links[par].flags & LFGI_VIR_LOD_COHERENT) ? 0
+                        : pn.emission.w > lp.depthTolerance * pd         ? 2
+                                                                         : 1];
           }
           if (i >= tree.leafCount) {
             ++inner;
             continue;
           }
           ++leaves;
-          leavesUnderIncoherent += (tree.up[i].x != ~0u && !(tree.links[tree.up[i].x].flags & LFGI_VIR_LOD_COHERENT));
+          leavesUnderIncoherent +=
+              (tree.up[i].x != ~0u && !(tree.links[tree.up[i].x].flags & LFGI_VIR_LOD_COHERENT));
         }
-        spdlog::info("N={} cut for one probe: {} leaves ({} with an incoherent parent), {} merged nodes", n, leaves,
-                     leavesUnderIncoherent, inner);
-        spdlog::info("N={} cut nodes by width: {} < 0.5 texel, {} < 1, {} < 2, {} >= 2; parent refined as incoherent "
-                     "{}, too wide {}, too thick {}",
-                     n, width[0], width[1], width[2], width[3], parentWhy[0], parentWhy[1], parentWhy[2]);
+        spdlog::info("N={} cut for one probe: {} leaves ({} with an incoherent parent), {} merged nodes", n,
+                     leaves, leavesUnderIncoherent, inner);
+        spdlog::info(
+            "N={} cut nodes by width: {} < 0.5 texel, {} < 1, {} < 2, {} >= 2; parent refined as incoherent "
+            "{}, too wide {}, too thick {}",
+            n, width[0], width[1], width[2], width[3], parentWhy[0], parentWhy[1], parentWhy[2]);
       }
       return 0;
     }
@@ -385,18 +400,43 @@ int main(int argc, char** argv) {
       const gpu::ProbeAtlas first = vir.run(built.surfels, std::span(probes).first(1), vlod);
       lodBuildMs = first.lodBuildMs;
       lodNodes = first.lodNodes;
-      spdlog::info("surfel LOD tree: {} nodes for {} surfels, built + uploaded in {:.0f} ms (once per cell)", lodNodes,
-                   built.surfels.size(), lodBuildMs);
+      spdlog::info("surfel LOD tree: {} nodes for {} surfels, built + uploaded in {:.0f} ms (once per cell)",
+                   lodNodes, built.surfels.size(), lodBuildMs);
       cubemap.run(scene, std::span(probes).first(1), co);
     }
 
-    o.setColumns({"method", "resolution", "probes", "surfels", "triangles", "gpu_ms", "ms_per_probe", "probes_per_s",
-                  "surfel_probes_per_s", "splat_or_raster_ms", "resolve_or_resample_ms", "wall_ms", "atomics_per_s",
-                  "dist_median_rel_error", "dist_p90_rel_error", "dist_frac_off_5pct", "normal_median_deg",
-                  "normal_p90_deg", "hole_fraction", "dist_median_rel_error_vs_capture",
-                  "normal_median_deg_vs_capture", "splat_pairs_per_s", "lod_nodes", "lod_build_ms", "splat_pairs_per_probe",
-                  "texel_tests_per_probe", "atomics_per_probe", "window_pair_fraction", "sky_covered_fraction",
-                  "sky_filled_fraction", "albedo_mean_abs_error", "albedo_frac_off_0_05"});
+    o.setColumns({"method",
+                  "resolution",
+                  "probes",
+                  "surfels",
+                  "triangles",
+                  "gpu_ms",
+                  "ms_per_probe",
+                  "probes_per_s",
+                  "surfel_probes_per_s",
+                  "splat_or_raster_ms",
+                  "resolve_or_resample_ms",
+                  "wall_ms",
+                  "atomics_per_s",
+                  "dist_median_rel_error",
+                  "dist_p90_rel_error",
+                  "dist_frac_off_5pct",
+                  "normal_median_deg",
+                  "normal_p90_deg",
+                  "hole_fraction",
+                  "dist_median_rel_error_vs_capture",
+                  "normal_median_deg_vs_capture",
+                  "splat_pairs_per_s",
+                  "lod_nodes",
+                  "lod_build_ms",
+                  "splat_pairs_per_probe",
+                  "texel_tests_per_probe",
+                  "atomics_per_probe",
+                  "window_pair_fraction",
+                  "sky_covered_fraction",
+                  "sky_filled_fraction",
+                  "albedo_mean_abs_error",
+                  "albedo_frac_off_0_05"});
     nlohmann::ordered_json skipped = nlohmann::ordered_json::array();
     struct Measured {
       double probesPerS = 0.0, msPerProbe = 0.0;
@@ -404,7 +444,8 @@ int main(int argc, char** argv) {
       bench::Accuracy acc;
       double atomicsPerS = 0.0, splatPairsPerS = 0.0;
     };
-    nlohmann::ordered_json table = nlohmann::ordered_json::array();  // every (N, probes) both methods measured
+    nlohmann::ordered_json table =
+        nlohmann::ordered_json::array();                   // every (N, probes) both methods measured
     std::map<std::pair<std::string, int>, Measured> best;  // (method, N) -> largest probe count measured
     std::map<std::tuple<std::string, int, size_t>, double> perCount;  // (method, N, probes) -> probes/s
     InterruptGuard guard;
@@ -412,7 +453,8 @@ int main(int argc, char** argv) {
     for (const std::string m : {"vir_lod", "vir_lod_relight", "vir", "cubemap"})
       if (methodsArg.find(m + ",") != std::string::npos || methodsArg.ends_with(m) || methodsArg == "all")
         methods.push_back(m);
-    Progress progress("vir bench configurations", resolutions.size() * counts.size() * methods.size(), "configs");
+    Progress progress("vir bench configurations", resolutions.size() * counts.size() * methods.size(),
+                      "configs");
     size_t done = 0;
     for (int n : resolutions) {
       vo.resolution = co.resolution = vlod.resolution = n;
@@ -421,9 +463,11 @@ int main(int argc, char** argv) {
       for (size_t p = 0; p < accuracyProbes; ++p)
         for (uint32_t j = 0; j < uint32_t(n); ++j)
           for (uint32_t i = 0; i < uint32_t(n); ++i)
-            ref[p].push_back(embree.intersect(probes[p], shared::octTexelDirection(glm::uvec2(i, j), uint32_t(n))));
+            ref[p].push_back(
+                embree.intersect(probes[p], shared::octTexelDirection(glm::uvec2(i, j), uint32_t(n))));
       uint64_t atomicsSubset = 0;
-      for (size_t p = 0; p < accuracyProbes; ++p) atomicsSubset += bench::splatAtomics(built.surfels, probes[p], vo);
+      for (size_t p = 0; p < accuracyProbes; ++p)
+        atomicsSubset += bench::splatAtomics(built.surfels, probes[p], vo);
       const double atomicsPerProbe = double(atomicsSubset) / double(accuracyProbes);
       // Embree capture of the accuracy probes at low spp, direct only: its distance and normal maps are
       // texel means, so it measures texel-mean vs point-sample differences as well as method error.
@@ -432,7 +476,8 @@ int main(int argc, char** argv) {
       copt.irradianceResolution = 4;
       copt.samplesPerTexel = 4;
       copt.maxBounces = 0;
-      const bake::CaptureResult capture = bake::captureProbes(embree, sky, std::span(probes).first(accuracyProbes), copt);
+      const bake::CaptureResult capture =
+          bake::captureProbes(embree, sky, std::span(probes).first(accuracyProbes), copt);
 
       for (const std::string& method : methods) {
         double lastMsPerProbe = 0.0;
@@ -443,9 +488,10 @@ int main(int argc, char** argv) {
           const double projectedS = lastMsPerProbe * double(count) * 1e-3;
           const double texelBytes = double(count) * n * n * 64.0;
           if (projectedS > budgetS || texelBytes > 2.0e9) {
-            spdlog::info("skip {} N={} probes={}: projected {:.0f} s (budget {} s), {:.1f} GB of maps", method, n,
-                         count, projectedS, budgetS, texelBytes * 1e-9);
-            skipped.push_back({{"method", method}, {"resolution", n}, {"probes", count}, {"projected_s", projectedS}});
+            spdlog::info("skip {} N={} probes={}: projected {:.0f} s (budget {} s), {:.1f} GB of maps",
+                         method, n, count, projectedS, budgetS, texelBytes * 1e-9);
+            skipped.push_back(
+                {{"method", method}, {"resolution", n}, {"probes", count}, {"projected_s", projectedS}});
             continue;
           }
           const std::span<const glm::vec3> ps = std::span(probes).first(count);
@@ -465,7 +511,8 @@ int main(int argc, char** argv) {
               vir.run(built.surfels, ps, reuse);  // the splat to keep (untimed)
               t0 = std::chrono::steady_clock::now();
               r.atlas = vir.run(built.surfels, ps, reuse, relightIrradiance);
-              if (!r.atlas.splatReused) fail("vir_lod_relight N={} probes={}: the splat was not reused", n, count);
+              if (!r.atlas.splatReused)
+                fail("vir_lod_relight N={} probes={}: the splat was not reused", n, count);
             } else if (method == "vir") {
               r.atlas = vir.run(built.surfels, ps, vo);
             } else {
@@ -478,7 +525,8 @@ int main(int argc, char** argv) {
               r.splat = r.atlas.splatMs;
               r.resolve = r.atlas.resolveMs + r.atlas.fillMs;
             }
-            r.wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+            r.wallMs =
+                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
             return r;
           };
           Run fastest = runOnce();
@@ -507,38 +555,59 @@ int main(int argc, char** argv) {
           best[{method, n}] = m;
           const auto perProbe = [&](uint64_t total) { return double(total) / double(count); };
           if (method == "vir_lod")
-            spdlog::info("vir_lod N={} probes={}: per probe {:.0f} cut pairs ({:.0f} dropped as occluded, {:.1f} "
-                         "nodes per block culled), {:.0f} texel tests, {:.0f} atomics; "
-                         "{:.1f} % of pairs through the wrapped window; device ms: node radiance {:.1f}, cut + "
-                         "splat {:.1f}, resolve {:.1f}, fill {:.1f}",
-                         n, count, perProbe(atlas.splatPairs), perProbe(atlas.occludedPairs),
-                         double(atlas.occludedNodes) * double(vlod.lodBlockProbes) / double(count),
-                         perProbe(atlas.splatTexelTests), perProbe(atlas.splatAtomics),
-                         atlas.splatPairs ? 100.0 * double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0,
-                         atlas.lodRadianceMs, atlas.splatMs, atlas.resolveMs, atlas.fillMs);
-          spdlog::info("{} N={} probes={}: {:.1f} ms device, {:.1f} ms wall ({:.3f} ms/probe, {:.0f} probes/s); dist "
-                       "median {:.2e} p90 {:.4f} off>5% {:.4f}, normal median {:.2f} p90 {:.2f} deg, holes {:.4f}, sky texels "
-                       "covered {:.4f} filled {:.4f}, albedo mean abs {:.4f} off>0.05 {:.4f}{}",
-                       method, n, count, atlas.gpuMs, wallMs, m.msPerProbe, m.probesPerS, acc->distMedianRel,
-                       acc->distP90Rel, acc->fracOff5pct, acc->normalMedianDeg, acc->normalP90Deg,
-                       acc->holeFractionOfHits, acc->skyCoveredFraction, acc->skyFilledFraction,
-                       acc->albedoMeanAbs, acc->albedoFracOff,
-                       m.atomicsPerS > 0 ? fmt::format(", {:.1f} M atomics/s", m.atomicsPerS * 1e-6) : "");
-          o.addRow({method, std::to_string(n), std::to_string(count), std::to_string(built.surfels.size()),
-                    std::to_string(scene.triangleCount()), bench::num(atlas.gpuMs), bench::num(m.msPerProbe),
-                    bench::num(m.probesPerS), bench::num(m.probesPerS * double(built.surfels.size())),
-                    bench::num(splat), bench::num(resolve), bench::num(wallMs), bench::num(m.atomicsPerS),
-                    bench::num(acc->distMedianRel), bench::num(acc->distP90Rel), bench::num(acc->fracOff5pct),
-                    bench::num(acc->normalMedianDeg), bench::num(acc->normalP90Deg),
-                    bench::num(acc->holeFractionOfHits), bench::num(acc->captureDistMedianRel),
-                    bench::num(acc->captureNormalMedianDeg),
-                    method == "cubemap" ? "0" : bench::num(m.splatPairsPerS),
-                    method.starts_with("vir_lod") ? std::to_string(lodNodes) : "0",
-                    method.starts_with("vir_lod") ? bench::num(lodBuildMs) : "0", bench::num(perProbe(atlas.splatPairs)),
-                    bench::num(perProbe(atlas.splatTexelTests)), bench::num(perProbe(atlas.splatAtomics)),
-                    bench::num(atlas.splatPairs ? double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0),
-                    bench::num(acc->skyCoveredFraction), bench::num(acc->skyFilledFraction),
-                    bench::num(acc->albedoMeanAbs), bench::num(acc->albedoFracOff)});
+            spdlog::info(
+                "vir_lod N={} probes={}: per probe {:.0f} cut pairs ({:.0f} dropped as occluded, {:.1f} "
+                "nodes per block culled), {:.0f} texel tests, {:.0f} atomics; "
+                "{:.1f} % of pairs through the wrapped window; device ms: node radiance {:.1f}, cut + "
+                "splat {:.1f}, resolve {:.1f}, fill {:.1f}",
+                n, count, perProbe(atlas.splatPairs), perProbe(atlas.occludedPairs),
+                double(atlas.occludedNodes) * double(vlod.lodBlockProbes) / double(count),
+                perProbe(atlas.splatTexelTests), perProbe(atlas.splatAtomics),
+                atlas.splatPairs ? 100.0 * double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0,
+                atlas.lodRadianceMs, atlas.splatMs, atlas.resolveMs, atlas.fillMs);
+          spdlog::info(
+              "{} N={} probes={}: {:.1f} ms device, {:.1f} ms wall ({:.3f} ms/probe, {:.0f} probes/s); dist "
+              "median {:.2e} p90 {:.4f} off>5% {:.4f}, normal median {:.2f} p90 {:.2f} deg, holes {:.4f}, "
+              "sky texels "
+              "covered {:.4f} filled {:.4f}, albedo mean abs {:.4f} off>0.05 {:.4f}{}",
+              method, n, count, atlas.gpuMs, wallMs, m.msPerProbe, m.probesPerS, acc->distMedianRel,
+              acc->distP90Rel, acc->fracOff5pct, acc->normalMedianDeg, acc->normalP90Deg,
+              acc->holeFractionOfHits, acc->skyCoveredFraction, acc->skyFilledFraction, acc->albedoMeanAbs,
+              acc->albedoFracOff,
+              m.atomicsPerS > 0 ? fmt::format(", {:.1f} M atomics/s", m.atomicsPerS * 1e-6) : "");
+          o.addRow(
+              {method,
+               std::to_string(n),
+               std::to_string(count),
+               std::to_string(built.surfels.size()),
+               std::to_string(scene.triangleCount()),
+               bench::num(atlas.gpuMs),
+               bench::num(m.msPerProbe),
+               bench::num(m.probesPerS),
+               bench::num(m.probesPerS * double(built.surfels.size())),
+               bench::num(splat),
+               bench::num(resolve),
+               bench::num(wallMs),
+               bench::num(m.atomicsPerS),
+               bench::num(acc->distMedianRel),
+               bench::num(acc->distP90Rel),
+               bench::num(acc->fracOff5pct),
+               bench::num(acc->normalMedianDeg),
+               bench::num(acc->normalP90Deg),
+               bench::num(acc->holeFractionOfHits),
+               bench::num(acc->captureDistMedianRel),
+               bench::num(acc->captureNormalMedianDeg),
+               method == "cubemap" ? "0" : bench::num(m.splatPairsPerS),
+               method.starts_with("vir_lod") ? std::to_string(lodNodes) : "0",
+               method.starts_with("vir_lod") ? bench::num(lodBuildMs) : "0",
+               bench::num(perProbe(atlas.splatPairs)),
+               bench::num(perProbe(atlas.splatTexelTests)),
+               bench::num(perProbe(atlas.splatAtomics)),
+               bench::num(atlas.splatPairs ? double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0),
+               bench::num(acc->skyCoveredFraction),
+               bench::num(acc->skyFilledFraction),
+               bench::num(acc->albedoMeanAbs),
+               bench::num(acc->albedoFracOff)});
           perCount[{method, n, count}] = m.probesPerS;
         }
       }
@@ -548,7 +617,8 @@ int main(int argc, char** argv) {
     // Headline: N = 16 (the default resolution), VirPass's default (LOD) path; each method at its largest
     // measured probe count. The full splat's figures follow as vir_full_*.
     auto& s = o.summary();
-    const auto v16 = best.find({"vir_lod", 16}), c16 = best.find({"cubemap", 16}), f16 = best.find({"vir", 16});
+    const auto v16 = best.find({"vir_lod", 16}), c16 = best.find({"cubemap", 16}),
+               f16 = best.find({"vir", 16});
     if (v16 == best.end() || c16 == best.end()) {
       spdlog::warn("N = 16 was not measured for both vir_lod and cubemap: no summary");
       o.save();
@@ -609,16 +679,18 @@ int main(int argc, char** argv) {
     for (int n : resolutions) {
       const auto v = best.find({"vir_lod", n}), c = best.find({"cubemap", n}), f = best.find({"vir", n});
       if (v != best.end() && c != best.end()) {
-        byRes[std::to_string(n)] = {{"ratio", v->second.probesPerS / c->second.probesPerS},
-                                    {"vir_probes_per_s", v->second.probesPerS},
-                                    {"cubemap_probes_per_s", c->second.probesPerS},
-                                    {"vir_probes", v->second.probes},
-                                    {"cubemap_probes", c->second.probes},
-                                    {"vir_dist_p90_rel_error", v->second.acc.distP90Rel},
-                                    {"cubemap_dist_p90_rel_error", c->second.acc.distP90Rel},
-                                    {"vir_hole_fraction", v->second.acc.holeFractionOfHits},
-                                    {"vir_atomics_fraction_of_ceiling", ceiling > 0.0 ? v->second.atomicsPerS / ceiling : 0.0}};
-        if (f != best.end()) byRes[std::to_string(n)]["vir_full_ratio"] = f->second.probesPerS / c->second.probesPerS;
+        byRes[std::to_string(n)] = {
+            {"ratio", v->second.probesPerS / c->second.probesPerS},
+            {"vir_probes_per_s", v->second.probesPerS},
+            {"cubemap_probes_per_s", c->second.probesPerS},
+            {"vir_probes", v->second.probes},
+            {"cubemap_probes", c->second.probes},
+            {"vir_dist_p90_rel_error", v->second.acc.distP90Rel},
+            {"cubemap_dist_p90_rel_error", c->second.acc.distP90Rel},
+            {"vir_hole_fraction", v->second.acc.holeFractionOfHits},
+            {"vir_atomics_fraction_of_ceiling", ceiling > 0.0 ? v->second.atomicsPerS / ceiling : 0.0}};
+        if (f != best.end())
+          byRes[std::to_string(n)]["vir_full_ratio"] = f->second.probesPerS / c->second.probesPerS;
         const auto r = best.find({"vir_lod_relight", n});
         if (r != best.end()) {
           byRes[std::to_string(n)]["relight_probes_per_s"] = r->second.probesPerS;
@@ -628,8 +700,11 @@ int main(int argc, char** argv) {
       for (size_t count : counts) {
         const auto vc = perCount.find({"vir_lod", n, count}), cc = perCount.find({"cubemap", n, count});
         if (vc != perCount.end() && cc != perCount.end())
-          table.push_back({{"resolution", n}, {"probes", count}, {"vir_probes_per_s", vc->second},
-                           {"cubemap_probes_per_s", cc->second}, {"ratio", vc->second / cc->second}});
+          table.push_back({{"resolution", n},
+                           {"probes", count},
+                           {"vir_probes_per_s", vc->second},
+                           {"cubemap_probes_per_s", cc->second},
+                           {"ratio", vc->second / cc->second}});
       }
     }
     s["ratio_by_resolution_and_probes"] = table;
@@ -637,7 +712,8 @@ int main(int argc, char** argv) {
     s["cell"] = {cx, cz};
     s["surfels"] = built.surfels.size();
     s["triangles"] = scene.triangleCount();
-    s["buried_dropped"] = {{"triangles", built.stats.trianglesBuried}, {"surfels", built.stats.surfelsBuried}};
+    s["buried_dropped"] = {{"triangles", built.stats.trianglesBuried},
+                           {"surfels", built.stats.surfelsBuried}};
     s["accuracy_probes"] = accuracyProbes;
     s["accuracy_reference"] = "Embree closest hit along each texel-centre ray (deterministic)";
     s["budget_s_per_config"] = budgetS;
@@ -645,8 +721,8 @@ int main(int argc, char** argv) {
     s["skipped"] = skipped;
     o.save();
     spdlog::info("VIR / cubemap at N=16: {:.1f}x ({:.0f} vs {:.0f} probes/s); {} configurations skipped",
-                 s["vir_over_cubemap_probes_per_s"].get<double>(), v16->second.probesPerS, c16->second.probesPerS,
-                 skipped.size());
+                 s["vir_over_cubemap_probes_per_s"].get<double>(), v16->second.probesPerS,
+                 c16->second.probesPerS, skipped.size());
   } catch (const Error& e) {
     spdlog::error("{}", e.what());
     return 1;

@@ -4,8 +4,8 @@
 //   phase "build":    the full per-cell bake input (probe placement + surfels + Draco) on a seeded random
 //                     sample of cells: cells/s, surfels/s, probes/s, and the surfel-area error vs the mesh
 //                     area (the accuracy twin of the speed figures).
-#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -69,12 +69,14 @@ int main(int argc, char** argv) {
       if (z == 0) rssFirstRow = rss;
       rssMax = std::max(rssMax, rss);
       double el = std::chrono::duration<double>(Clock::now() - t0).count();
-      o.addRow({"generate", std::to_string(cells), bench::num(el), bench::num(rss), std::to_string(triangles), "0",
-                "0", "0"});
+      o.addRow({"generate", std::to_string(cells), bench::num(el), bench::num(rss), std::to_string(triangles),
+                "0", "0", "0"});
     }
     const double genSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
-    spdlog::info("generate: {} cells, {} triangles in {:.1f} s ({:.0f} cells/s); RSS first row {:.1f} MB, max {:.1f} MB",
-                 cells, triangles, genSeconds, double(cells) / genSeconds, rssFirstRow, rssMax);
+    spdlog::info(
+        "generate: {} cells, {} triangles in {:.1f} s ({:.0f} cells/s); RSS first row {:.1f} MB, max {:.1f} "
+        "MB",
+        cells, triangles, genSeconds, double(cells) / genSeconds, rssFirstRow, rssMax);
 
     // Phase 2: full bake input on a random sample (seeded: the same cells every run).
     std::mt19937 rng(42);
@@ -94,8 +96,8 @@ int main(int argc, char** argv) {
       o.addRow({"build", std::to_string(built), bench::num(el), bench::num(rssMb("VmRSS:")),
                 std::to_string(b.stats.triangles), std::to_string(b.stats.surfels),
                 std::to_string(b.stats.probesActive), bench::num(err)});
-      spdlog::info("build {}/{}: cell {},{} {} - {} surfels, {} probes, {:.0f} ms", built, picks.size(), c.x, c.z,
-                   worlds::cellKindName(b.stats.kind), b.stats.surfels, b.stats.probesActive,
+      spdlog::info("build {}/{}: cell {},{} {} - {} surfels, {} probes, {:.0f} ms", built, picks.size(), c.x,
+                   c.z, worlds::cellKindName(b.stats.kind), b.stats.surfels, b.stats.probesActive,
                    b.stats.generateMs + b.stats.placeMs + b.stats.surfelMs);
     }
     const double buildSeconds = std::chrono::duration<double>(Clock::now() - t0).count();

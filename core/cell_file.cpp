@@ -54,8 +54,8 @@ std::vector<uint8_t> encodeAdapter(const QuantizedAdapter& a) {
   return out;
 }
 
-QuantizedAdapter decodeAdapter(const std::vector<uint8_t>& blob, const GeneratorArch& arch, int stages, int bits,
-                               int64_t channels, const std::string& what) {
+QuantizedAdapter decodeAdapter(const std::vector<uint8_t>& blob, const GeneratorArch& arch, int stages,
+                               int bits, int64_t channels, const std::string& what) {
   QuantizedAdapter a;
   a.stages = stages;
   a.bits = bits;
@@ -69,7 +69,9 @@ QuantizedAdapter decodeAdapter(const std::vector<uint8_t>& blob, const Generator
   return a;
 }
 
-openvdb::Vec3s toVdb(glm::vec3 v) { return {v.x, v.y, v.z}; }
+openvdb::Vec3s toVdb(glm::vec3 v) {
+  return {v.x, v.y, v.z};
+}
 
 // ---- encode ---------------------------------------------------------------------------------------------
 
@@ -86,7 +88,8 @@ std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::Cell
   m.insertMeta("input_hash", openvdb::StringMetadata(hex64(cell.inputHash)));
   m.insertMeta("probe_origin", openvdb::Vec3SMetadata(toVdb(cell.grid.origin)));
   m.insertMeta("probe_spacing", openvdb::Vec3SMetadata(toVdb(cell.grid.spacing)));
-  m.insertMeta("probe_dims", openvdb::Vec3IMetadata(openvdb::Vec3i(cell.grid.dims.x, cell.grid.dims.y, cell.grid.dims.z)));
+  m.insertMeta("probe_dims",
+               openvdb::Vec3IMetadata(openvdb::Vec3i(cell.grid.dims.x, cell.grid.dims.y, cell.grid.dims.z)));
   const int64_t active = cell.activeProbeCount();
   m.insertMeta("probe_count", openvdb::Int64Metadata(active));
   m.insertMeta("exposure", openvdb::FloatMetadata(cell.outputScale.exposure));
@@ -114,8 +117,9 @@ std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::Cell
   } else {
     m.insertMeta("model", openvdb::StringMetadata("none"));
   }
-  m.insertMeta("fallback_kind",
-               openvdb::StringMetadata(cell.fallback.kind == CellFallback::Kind::PerCell ? "sh_l1_per_cell" : "sh_l1_per_probe"));
+  m.insertMeta("fallback_kind", openvdb::StringMetadata(cell.fallback.kind == CellFallback::Kind::PerCell
+                                                            ? "sh_l1_per_cell"
+                                                            : "sh_l1_per_probe"));
   {
     std::vector<uint8_t> sh, hours, overcast;
     appendPod<uint16_t>(sh, cell.fallback.shHalf);
@@ -201,7 +205,8 @@ void CellFile::validate(const std::string& what) const {
     if (a.latentSource == LatentSource::Stored) {
       l.validate(what + ": latents");
       if (l.count != n) fail("{}: {} latents for {} active probes", what, l.count, n);
-      if (l.dim != a.latentDim) fail("{}: latents have {} dimensions, the generator takes {}", what, l.dim, a.latentDim);
+      if (l.dim != a.latentDim)
+        fail("{}: latents have {} dimensions, the generator takes {}", what, l.dim, a.latentDim);
     } else if (l.count != 0 || !l.codes.empty() || !l.scales.empty()) {
       fail("{}: a position-derived latent model stores no latents, this one holds {}", what, l.count);
     }
@@ -223,9 +228,11 @@ void CellFile::validate(const std::string& what) const {
     if (k > 0) {
       const float ph = fallback.keyHours[k - 1], pw = fallback.keyOvercast[k - 1];
       if (!(ph < h || (ph == h && pw < w)))
-        fail("{}: fallback keys not sorted strictly ascending by (hours, overcast): key {} ({} h, overcast {}) after "
-             "key {} ({} h, overcast {})",
-             what, k, h, w, k - 1, ph, pw);
+        fail(
+            "{}: fallback keys not sorted strictly ascending by (hours, overcast): key {} ({} h, overcast "
+            "{}) after "
+            "key {} ({} h, overcast {})",
+            what, k, h, w, k - 1, ph, pw);
     }
   }
   if (fallback.shHalf.size() != keys * entries * kShHalves)
@@ -239,17 +246,21 @@ void CellFile::validate(const std::string& what) const {
   nonNegative(stats.errorAchieved, "errorAchieved");
   nonNegative(stats.errorTarget, "errorTarget");
   nonNegative(stats.trainingSeconds, "trainingSeconds");
-  if (stats.model.size() > 4096) fail("{}: model description is {} characters (limit 4096)", what, stats.model.size());
+  if (stats.model.size() > 4096)
+    fail("{}: model description is {} characters (limit 4096)", what, stats.model.size());
 }
 
-std::vector<std::byte> encodeCellFile(const CellFile& cell) { return encode(cell, {}); }
+std::vector<std::byte> encodeCellFile(const CellFile& cell) {
+  return encode(cell, {});
+}
 
 std::vector<std::byte> detail::encodeCellFileWithOverrides(const CellFile& cell,
                                                            std::span<const CellFileOverride> overrides) {
   return encode(cell, overrides);
 }
 
-CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& name, CellFileBytes* bytesByPart) {
+CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& name,
+                        CellFileBytes* bytesByPart) {
   // 1. Envelope (size, trailer, checksum), then 2. the OpenVDB parse of bytes our writer produced.
   const OpenedStream opened = vdbfile::open(bytes, name, kTrailerMagic, kCellFileMaxBytes, "cell file");
   const openvdb::MetaMap::Ptr& meta = opened.meta;
@@ -261,8 +272,8 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
   if (magic != kMagic) fail("{}: lfgi_magic is '{}', expected '{}' (not a cell file)", name, magic, kMagic);
   int64_t version = r.get<int32_t>("lfgi_format_version");
   if (version < 1 || version > kCellFileVersion)
-    fail("{}: cell file format version {}, this build reads versions 1 to {} (rebake the cell)", name, version,
-         kCellFileVersion);
+    fail("{}: cell file format version {}, this build reads versions 1 to {} (rebake the cell)", name,
+         version, kCellFileVersion);
 
   CellFile c;
   c.worldSeed = parseHex64(r.get<std::string>("world_seed"), name + ": world_seed");
@@ -287,22 +298,26 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
   c.outputScale.range = r.getFinite("range");
 
   // The probe topology.
-  if (grids->size() != 1) fail("{}: {} grids, a cell file holds exactly one ('{}')", name, grids->size(), kGridName);
+  if (grids->size() != 1)
+    fail("{}: {} grids, a cell file holds exactly one ('{}')", name, grids->size(), kGridName);
   openvdb::MaskGrid::Ptr mask = openvdb::gridPtrCast<openvdb::MaskGrid>((*grids)[0]);
   if (!mask || mask->getName() != kGridName)
-    fail("{}: the grid is '{}' of type {}, expected '{}' of type {}", name, (*grids)[0]->getName(), (*grids)[0]->type(),
-         kGridName, openvdb::MaskGrid::gridType());
-  if (mask->tree().activeTileCount() != 0) fail("{}: grid '{}' has active tiles (probes are voxels)", name, kGridName);
+    fail("{}: the grid is '{}' of type {}, expected '{}' of type {}", name, (*grids)[0]->getName(),
+         (*grids)[0]->type(), kGridName, openvdb::MaskGrid::gridType());
+  if (mask->tree().activeTileCount() != 0)
+    fail("{}: grid '{}' has active tiles (probes are voxels)", name, kGridName);
   const openvdb::Index64 voxels = mask->activeVoxelCount();
   if (int64_t(voxels) != probeCount)
     fail("{}: probe_count = {}, but grid '{}' has {} active voxels", name, probeCount, kGridName, voxels);
   {
     const openvdb::math::Transform& xf = mask->transform();
-    openvdb::Vec3d w0 = xf.indexToWorld(openvdb::Coord(0, 0, 0)), w1 = xf.indexToWorld(openvdb::Coord(1, 1, 1));
+    openvdb::Vec3d w0 = xf.indexToWorld(openvdb::Coord(0, 0, 0)),
+                   w1 = xf.indexToWorld(openvdb::Coord(1, 1, 1));
     for (int k = 0; k < 3; ++k) {
       double so = double(c.grid.origin[k]), ss = double(c.grid.spacing[k]);
       if (std::fabs(w0[k] - so) > 1e-5 * (1.0 + std::fabs(so)) || std::fabs((w1[k] - w0[k]) - ss) > 1e-5 * ss)
-        fail("{}: grid '{}' transform disagrees with probe_origin/probe_spacing on axis {}", name, kGridName, k);
+        fail("{}: grid '{}' transform disagrees with probe_origin/probe_spacing on axis {}", name, kGridName,
+             k);
     }
   }
   std::vector<uint8_t> active(size_t(c.grid.probeCount()), 0);
@@ -310,7 +325,8 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
     openvdb::Coord q = it.getCoord();
     glm::ivec3 g(q.x(), q.y(), q.z());
     if (glm::any(glm::lessThan(g, glm::ivec3(0))) || glm::any(glm::greaterThanEqual(g, c.grid.dims)))
-      fail("{}: probe voxel ({}, {}, {}) lies outside the probe grid {}x{}x{}", name, g.x, g.y, g.z, d.x(), d.y(), d.z());
+      fail("{}: probe voxel ({}, {}, {}) lies outside the probe grid {}x{}x{}", name, g.x, g.y, g.z, d.x(),
+           d.y(), d.z());
     active[size_t(c.grid.linearIndex(g))] = 1;
   }
   if (probeCount != c.grid.probeCount()) c.active = std::move(active);
@@ -344,7 +360,8 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
       g.shared = std::move(ref);
     } else {
       for (const char* f : {"shared_model_hash", "adapter"})
-        if (r.has(f)) fail("{}: a cell with its own weights holds field '{}' (shared-model cells only)", name, f);
+        if (r.has(f))
+          fail("{}: a cell with its own weights holds field '{}' (shared-model cells only)", name, f);
       std::vector<uint8_t> wb = r.blob("generator_weights");
       try {
         g.weights = decodeWeights(wb, a, p, "generator_weights");
@@ -367,7 +384,8 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
       }
       parts.latents = lb.size();
     } else if (r.has("latents")) {
-      fail("{}: a position-derived latent model stores no latents, but the file holds a 'latents' blob", name);
+      fail("{}: a position-derived latent model stores no latents, but the file holds a 'latents' blob",
+           name);
     }
     c.generator = std::move(g);
   } else if (model != "none") {
@@ -375,9 +393,12 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
   }
 
   std::string fk = r.get<std::string>("fallback_kind");
-  if (fk == "sh_l1_per_cell") c.fallback.kind = CellFallback::Kind::PerCell;
-  else if (fk == "sh_l1_per_probe") c.fallback.kind = CellFallback::Kind::PerProbe;
-  else fail("{}: fallback_kind '{}' is unknown (sh_l1_per_cell, sh_l1_per_probe)", name, fk);
+  if (fk == "sh_l1_per_cell")
+    c.fallback.kind = CellFallback::Kind::PerCell;
+  else if (fk == "sh_l1_per_probe")
+    c.fallback.kind = CellFallback::Kind::PerProbe;
+  else
+    fail("{}: fallback_kind '{}' is unknown (sh_l1_per_cell, sh_l1_per_probe)", name, fk);
   // Lighting keys of the fallback: version 1 has none (one key, read as 12 h overcast 0).
   size_t keys = 1;
   if (version >= 2) {
@@ -444,7 +465,9 @@ ContentHasher::ContentHasher() : state_(XXH3_createState()) {
   if (!state_) throw std::bad_alloc();
   XXH3_64bits_reset(static_cast<XXH3_state_t*>(state_));
 }
-ContentHasher::~ContentHasher() { XXH3_freeState(static_cast<XXH3_state_t*>(state_)); }
+ContentHasher::~ContentHasher() {
+  XXH3_freeState(static_cast<XXH3_state_t*>(state_));
+}
 ContentHasher& ContentHasher::add(std::span<const std::byte> bytes) {
   XXH3_64bits_update(static_cast<XXH3_state_t*>(state_), bytes.data(), bytes.size());
   return *this;
@@ -454,6 +477,8 @@ ContentHasher& ContentHasher::add(const std::string& text) {
   addValue(n);
   return add(std::as_bytes(std::span<const char>(text)));
 }
-uint64_t ContentHasher::digest() const { return XXH3_64bits_digest(static_cast<XXH3_state_t*>(state_)); }
+uint64_t ContentHasher::digest() const {
+  return XXH3_64bits_digest(static_cast<XXH3_state_t*>(state_));
+}
 
 }  // namespace lfgi

@@ -58,10 +58,10 @@
 
 namespace lfgi {
 
-inline constexpr int kCellFileVersion = 3;        // newest written; versions 1 .. kCellFileVersion are read
+inline constexpr int kCellFileVersion = 3;  // newest written; versions 1 .. kCellFileVersion are read
 inline constexpr int kCellFileMaxFallbackKeys = 64;
-inline constexpr int64_t kCellFileMaxProbes = int64_t(1) << 22;     // per cell (~4 M)
-inline constexpr size_t kCellFileMaxBytes = size_t(1) << 30;         // 1 GiB
+inline constexpr int64_t kCellFileMaxProbes = int64_t(1) << 22;  // per cell (~4 M)
+inline constexpr size_t kCellFileMaxBytes = size_t(1) << 30;     // 1 GiB
 
 // SH L1 radiance (core/sh.h ShL1 order: coefficient k = l(l+1)+m, then rgb) in FP16: 12 halves per entry,
 // one set of entries per lighting key of the bake (time of day, overcast). Entries per key: PerCell 1,
@@ -74,9 +74,9 @@ inline constexpr size_t kCellFileMaxBytes = size_t(1) << 30;         // 1 GiB
 struct CellFallback {
   enum class Kind : uint8_t { PerCell = 0, PerProbe = 1 };
   Kind kind = Kind::PerCell;
-  std::vector<float> keyHours{12.0f};     // time of day of each key
-  std::vector<float> keyOvercast{0.0f};   // weather of each key (same size as keyHours)
-  std::vector<uint16_t> shHalf;           // keys x entries x 12 (layout above)
+  std::vector<float> keyHours{12.0f};    // time of day of each key
+  std::vector<float> keyOvercast{0.0f};  // weather of each key (same size as keyHours)
+  std::vector<uint16_t> shHalf;          // keys x entries x 12 (layout above)
 
   size_t keyCount() const { return keyHours.size(); }
 };
@@ -93,8 +93,8 @@ struct CellBakeStats {
 // Version 3: the cell's network is the world's shared model (core/shared_model.h, found by its weights
 // hash) with this cell's FiLM adapter folded in (core/generator.h applyAdapter).
 struct CellSharedModelRef {
-  uint64_t modelHash = 0;      // SharedModel::weightsHash() of the model the cell was fitted to; nonzero
-  QuantizedAdapter adapter;    // sizes checked against the cell's (= the shared model's) architecture
+  uint64_t modelHash = 0;    // SharedModel::weightsHash() of the model the cell was fitted to; nonzero
+  QuantizedAdapter adapter;  // sizes checked against the cell's (= the shared model's) architecture
 };
 
 struct CellGenerator {
@@ -109,10 +109,10 @@ struct CellGenerator {
 
 struct CellFile {
   uint64_t worldSeed = 0;
-  int cellX = 0, cellZ = 0;         // streaming cell index
-  uint64_t inputHash = 0;           // XXH3-64 of the bake inputs (incremental rebake compares it)
+  int cellX = 0, cellZ = 0;  // streaming cell index
+  uint64_t inputHash = 0;    // XXH3-64 of the bake inputs (incremental rebake compares it)
   ProbeGrid grid;
-  std::vector<uint8_t> active;      // probeCount(): 1 probe exists; empty = all exist
+  std::vector<uint8_t> active;  // probeCount(): 1 probe exists; empty = all exist
   std::optional<CellGenerator> generator;
   GeneratorOutputScale outputScale;
   CellFallback fallback;
@@ -132,7 +132,9 @@ struct CellFileBytes {
   size_t fallback = 0;  // SH halves + the keys' hours and overcast
   size_t total = 0;     // whole file
   int version = 0;      // the file's format version
-  size_t metadata() const { return total - weights - adapter - latents - fallback; }  // header, topology, fields
+  size_t metadata() const {
+    return total - weights - adapter - latents - fallback;
+  }  // header, topology, fields
 };
 
 // Encodes / decodes the file bytes. decodeCellFile's errors start with `name` (the path, usually).
@@ -177,7 +179,8 @@ struct CellFileOverride {
   std::string text;
   bool erase = false;
 };
-std::vector<std::byte> encodeCellFileWithOverrides(const CellFile& cell, std::span<const CellFileOverride> overrides);
+std::vector<std::byte> encodeCellFileWithOverrides(const CellFile& cell,
+                                                   std::span<const CellFileOverride> overrides);
 }  // namespace detail
 
 }  // namespace lfgi

@@ -54,8 +54,9 @@ CellFile makeCell(Variant v, uint32_t seed = 1) {
       a.latentDim = 12;
     }
     CellGenerator g;
-    g.weights = quantizeWeights(test::uniformRandomWeights(a, rng),
-                                v == Variant::Fp16Latents4 ? WeightPrecision::Float16 : WeightPrecision::Int8);
+    g.weights =
+        quantizeWeights(test::uniformRandomWeights(a, rng),
+                        v == Variant::Fp16Latents4 ? WeightPrecision::Float16 : WeightPrecision::Int8);
     if (a.latentSource == LatentSource::Stored) {
       std::vector<float> lat(size_t(n * a.latentDim));
       for (float& x : lat) x = std::normal_distribution<float>(0.0f, 1.0f)(rng);
@@ -65,9 +66,10 @@ CellFile makeCell(Variant v, uint32_t seed = 1) {
   }
   c.outputScale = {3.5f, 96.0f};
   c.fallback.kind = v == Variant::Int8Latents8 || v == Variant::NoNetwork ? CellFallback::Kind::PerProbe
-                                                                         : CellFallback::Kind::PerCell;
+                                                                          : CellFallback::Kind::PerCell;
   size_t entries = c.fallback.kind == CellFallback::Kind::PerCell ? 1 : size_t(n);
-  // Int8Latents8: one lighting key (as a version-1 file); the others: 3 keys (NoNetwork with an overcast key).
+  // Int8Latents8: one lighting key (as a version-1 file); the others: 3 keys (NoNetwork with an overcast
+  // key).
   if (v == Variant::Fp16Latents4 || v == Variant::PositionLatents) {
     c.fallback.keyHours = {8.0f, 12.0f, 17.5f};
     c.fallback.keyOvercast = {0.0f, 0.0f, 0.0f};
@@ -76,7 +78,8 @@ CellFile makeCell(Variant v, uint32_t seed = 1) {
     c.fallback.keyOvercast = {0.0f, 0.0f, 1.0f};
   }
   for (size_t i = 0; i < c.fallback.keyCount() * entries * 12; ++i)
-    c.fallback.shHalf.push_back(floatToHalfClamped(0.25f * float(i % 7) - 0.5f + 0.125f * float(i / (entries * 12))));
+    c.fallback.shHalf.push_back(
+        floatToHalfClamped(0.25f * float(i % 7) - 0.5f + 0.125f * float(i / (entries * 12))));
   c.stats.errorAchieved = 0.0423;
   c.stats.errorTarget = 0.05;
   c.stats.trainingSeconds = 12.75;
@@ -121,7 +124,8 @@ void expectSameCell(const CellFile& a, const CellFile& b) {
     EXPECT_EQ(ga.weights.arch.fourierOctaves, gb.weights.arch.fourierOctaves);
     EXPECT_EQ(ga.weights.precision, gb.weights.precision);
     ASSERT_EQ(ga.weights.tensors.size(), gb.weights.tensors.size());
-    for (size_t k = 0; k < ga.weights.tensors.size(); ++k) expectSameTensor(ga.weights.tensors[k], gb.weights.tensors[k]);
+    for (size_t k = 0; k < ga.weights.tensors.size(); ++k)
+      expectSameTensor(ga.weights.tensors[k], gb.weights.tensors[k]);
     EXPECT_EQ(ga.latents.dim, gb.latents.dim);
     EXPECT_EQ(ga.latents.bits, gb.latents.bits);
     EXPECT_EQ(ga.latents.count, gb.latents.count);
@@ -150,7 +154,8 @@ std::string errorOf(std::span<const std::byte> bytes, const std::string& name = 
 }
 
 TEST(CellFile, RoundTripIsBitExactForEveryVariant) {
-  for (Variant v : {Variant::Int8Latents8, Variant::Fp16Latents4, Variant::PositionLatents, Variant::NoNetwork}) {
+  for (Variant v :
+       {Variant::Int8Latents8, Variant::Fp16Latents4, Variant::PositionLatents, Variant::NoNetwork}) {
     SCOPED_TRACE(int(v));
     CellFile c = makeCell(v);
     std::vector<std::byte> bytes = encodeCellFile(c);
@@ -164,8 +169,8 @@ TEST(CellFile, RoundTripIsBitExactForEveryVariant) {
     EXPECT_EQ(parts.weights, c.generator ? c.generator->weights.bytes() : 0u);
     EXPECT_EQ(parts.latents, c.generator ? c.generator->latents.bytes() : 0u);
     EXPECT_EQ(parts.fallback, c.fallback.shHalf.size() * 2 + c.fallback.keyCount() * 8);
-    std::printf("variant %d: %zu bytes = weights %zu + latents %zu + fallback %zu + metadata/topology %zu\n", int(v),
-                parts.total, parts.weights, parts.latents, parts.fallback, parts.metadata());
+    std::printf("variant %d: %zu bytes = weights %zu + latents %zu + fallback %zu + metadata/topology %zu\n",
+                int(v), parts.total, parts.weights, parts.latents, parts.fallback, parts.metadata());
   }
   // All-active masks read back as the empty "all exist" form.
   CellFile c = makeCell(Variant::NoNetwork);
@@ -292,7 +297,8 @@ TEST(CellFile, IntactButWrongFilesNameTheProblem) {
       {{{"latent_count", 9, ""}}, "latent_count = 9, but the file has 10 probes"},
       {{{"probe_count", 11, ""}}, "probe_count = 11, but grid 'probes' has 10 active voxels"},
       {{{"probe_dims", 0, "100000,100000,100000"}}, "probe grid: ProbeGrid: 1000000000000000 probes"},
-      {{{"probe_dims", 0, "1000,1000,1000"}}, "probe_dims 1000x1000x1000 = 1000000000 probes, more than the cell limit"},
+      {{{"probe_dims", 0, "1000,1000,1000"}},
+       "probe_dims 1000x1000x1000 = 1000000000 probes, more than the cell limit"},
       {{{"probe_dims", 0, "2,2,2"}}, "outside [0, 8]"},
       {{{"probe_dims", 0, "0,2,2"}}, "probe grid:"},
       {{{"generator_latent_dim", 100000, ""}}, "generator_latent_dim' = 100000 outside [1, 256]"},
@@ -316,11 +322,13 @@ TEST(CellFile, IntactButWrongFilesNameTheProblem) {
   // A removed field.
   {
     std::vector<detail::CellFileOverride> o = {{"fallback_kind", 0, "sh_l3"}};
-    EXPECT_NE(errorOf(detail::encodeCellFileWithOverrides(c, o)).find("fallback_kind 'sh_l3' is unknown"), std::string::npos);
+    EXPECT_NE(errorOf(detail::encodeCellFileWithOverrides(c, o)).find("fallback_kind 'sh_l3' is unknown"),
+              std::string::npos);
   }
   // Not OpenVDB at all, and an OpenVDB file without our trailer.
   std::string text = "hello, this is not a cell file at all, just some text";
-  EXPECT_NE(errorOf(std::as_bytes(std::span(text))).find("not a cell file (no OpenVDB magic"), std::string::npos);
+  EXPECT_NE(errorOf(std::as_bytes(std::span(text))).find("not a cell file (no OpenVDB magic"),
+            std::string::npos);
   std::vector<std::byte> bytes = encodeCellFile(c);
   bytes.resize(bytes.size() - 24);
   EXPECT_NE(errorOf(bytes).find("trailer is missing"), std::string::npos) << errorOf(bytes);
@@ -361,20 +369,24 @@ TEST(CellFile, NonFiniteValuesAreRejectedByName) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   // The unmodified rebuilt blob is accepted: the layout above is the writer's.
   ASSERT_EQ(errorOf(detail::encodeCellFileWithOverrides(
-                c, std::vector<detail::CellFileOverride>{{"generator_weights", 0, weightsBlob(c.generator->weights)}})),
+                c, std::vector<detail::CellFileOverride>{{"generator_weights", 0,
+                                                          weightsBlob(c.generator->weights)}})),
             "");
   QuantizedWeights w = c.generator->weights;
   ASSERT_EQ(w.tensors[1].encoding, TensorEncoding::Float32);  // linear bias
   w.tensors[1].f32[2] = nan;
-  std::string e = errorOf(detail::encodeCellFileWithOverrides(
-      c, std::vector<detail::CellFileOverride>{{"generator_weights", 0, weightsBlob(w)}}), "nan.vdb");
+  std::string e =
+      errorOf(detail::encodeCellFileWithOverrides(
+                  c, std::vector<detail::CellFileOverride>{{"generator_weights", 0, weightsBlob(w)}}),
+              "nan.vdb");
   EXPECT_EQ(e.rfind("nan.vdb: ", 0), 0u) << e;
   EXPECT_NE(e.find("finite"), std::string::npos) << e;
   w = c.generator->weights;
   ASSERT_EQ(w.tensors[0].encoding, TensorEncoding::Int8PerChannel);
   w.tensors[0].scales[1] = std::numeric_limits<float>::infinity();
   e = errorOf(detail::encodeCellFileWithOverrides(
-      c, std::vector<detail::CellFileOverride>{{"generator_weights", 0, weightsBlob(w)}}), "nan.vdb");
+                  c, std::vector<detail::CellFileOverride>{{"generator_weights", 0, weightsBlob(w)}}),
+              "nan.vdb");
   EXPECT_NE(e.find("scale 1 is inf"), std::string::npos) << e;
   // FP16 elements: the Fp16Latents4 variant stores FP16 weights.
   const CellFile h = makeCell(Variant::Fp16Latents4);
@@ -382,7 +394,8 @@ TEST(CellFile, NonFiniteValuesAreRejectedByName) {
   ASSERT_EQ(w.tensors[0].encoding, TensorEncoding::Float16);
   w.tensors[0].f16[3] = 0x7e00;  // NaN
   e = errorOf(detail::encodeCellFileWithOverrides(
-      h, std::vector<detail::CellFileOverride>{{"generator_weights", 0, weightsBlob(w)}}), "nan.vdb");
+                  h, std::vector<detail::CellFileOverride>{{"generator_weights", 0, weightsBlob(w)}}),
+              "nan.vdb");
   EXPECT_NE(e.find("FP16 element 3 is Inf or NaN"), std::string::npos) << e;
   // Latent scales: 8-bit latents are scales then one code per value.
   QuantizedLatents l = c.generator->latents;
@@ -390,8 +403,9 @@ TEST(CellFile, NonFiniteValuesAreRejectedByName) {
   std::string latents;
   append(latents, l.scales);
   append(latents, l.codes);
-  e = errorOf(detail::encodeCellFileWithOverrides(c, std::vector<detail::CellFileOverride>{{"latents", 0, latents}}),
-              "nan.vdb");
+  e = errorOf(
+      detail::encodeCellFileWithOverrides(c, std::vector<detail::CellFileOverride>{{"latents", 0, latents}}),
+      "nan.vdb");
   EXPECT_EQ(e.rfind("nan.vdb: ", 0), 0u) << e;
   EXPECT_NE(e.find("scale 0 is nan"), std::string::npos) << e;
 }
@@ -438,9 +452,12 @@ TEST(CellFile, BytesOfADefaultSizedCell) {
   std::printf("encode %.2f ms, decode (checksum + OpenVDB parse + checks) %.2f ms\n",
               std::chrono::duration<double, std::milli>(t1 - t0).count(),
               std::chrono::duration<double, std::milli>(t2 - t1).count());
-  std::printf("2048 probes, L16 C32-16-11 int8: total %zu B = weights %zu + latents %zu + fallback %zu + metadata %zu "
-              "(%.1f B/probe)\n", parts.total, parts.weights, parts.latents, parts.fallback, parts.metadata(),
-              double(parts.total) / 2048.0);
+  std::printf(
+      "2048 probes, L16 C32-16-11 int8: total %zu B = weights %zu + latents %zu + fallback %zu + metadata "
+      "%zu "
+      "(%.1f B/probe)\n",
+      parts.total, parts.weights, parts.latents, parts.fallback, parts.metadata(),
+      double(parts.total) / 2048.0);
   EXPECT_EQ(parts.latents, 2048u * 16u + 16u * 4u);
   EXPECT_LT(parts.metadata(), 12000u);
 }
@@ -452,7 +469,8 @@ TEST(CellFile, ConcurrentDecodesAgree) {
   std::atomic<int> mismatches{0};
   auto work = [&](const std::vector<std::byte>& bytes, const CellFile& want) {
     for (int i = 0; i < 20; ++i)
-      if (encodeCellFile(decodeCellFile(bytes, "mem")) != bytes || decodeCellFile(bytes, "mem").inputHash != want.inputHash)
+      if (encodeCellFile(decodeCellFile(bytes, "mem")) != bytes ||
+          decodeCellFile(bytes, "mem").inputHash != want.inputHash)
         ++mismatches;
   };
   CellFile ca = makeCell(Variant::Int8Latents8, 1), cb = makeCell(Variant::Fp16Latents4, 2);
@@ -477,7 +495,8 @@ TEST(CellFile, FallbackKeysRoundTripBitExact) {
   c.fallback.keyOvercast = {0.0f, 0.25f, 0.0f};
   c.fallback.shHalf.clear();
   for (int k = 0; k < 3; ++k)
-    for (int i = 0; i < 12; ++i) c.fallback.shHalf.push_back(floatToHalfClamped(0.1f * float(k + 1) + 0.01f * float(i)));
+    for (int i = 0; i < 12; ++i)
+      c.fallback.shHalf.push_back(floatToHalfClamped(0.1f * float(k + 1) + 0.01f * float(i)));
   const std::vector<std::byte> bytes = encodeCellFile(c);
   CellFileBytes parts;
   const CellFile back = decodeCellFile(bytes, "keys.vdb", &parts);
@@ -516,7 +535,9 @@ TEST(CellFile, VersionOneFilesStillRead) {
   EXPECT_EQ(back.fallback.shHalf, c.fallback.shHalf);
   // A version-1 file cannot hold several keys' SH, nor version-2 key fields.
   std::string e = errorOf(detail::encodeCellFileWithOverrides(makeCell(Variant::Fp16Latents4), v1), "v1.vdb");
-  EXPECT_NE(e.find("v1.vdb: fallback_sh holds 72 bytes, 24 expected (1 keys x 1 x 12 halves)"), std::string::npos) << e;
+  EXPECT_NE(e.find("v1.vdb: fallback_sh holds 72 bytes, 24 expected (1 keys x 1 x 12 halves)"),
+            std::string::npos)
+      << e;
   const std::vector<detail::CellFileOverride> v1WithKeys = {{"lfgi_format_version", 1, ""}};
   e = errorOf(detail::encodeCellFileWithOverrides(c, v1WithKeys), "v1.vdb");
   EXPECT_NE(e.find("v1.vdb: a version-1 cell file holds field 'fallback_key_count'"), std::string::npos) << e;
@@ -526,19 +547,25 @@ TEST(CellFile, BadFallbackKeysAreRejectedByName) {
   const CellFile c = makeCell(Variant::Fp16Latents4);  // keys 8, 12, 17.5 h
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const std::vector<BadFileCase> cases = {
-      {{{"fallback_key_hours", 0, floatBytes({8.0f, nan, 17.5f})}}, "fallback key 1 hours = nan (must be finite, in [0, 24])"},
-      {{{"fallback_key_hours", 0, floatBytes({8.0f, 12.0f, 24.5f})}}, "fallback key 2 hours = 24.5 (must be finite, in [0, 24])"},
+      {{{"fallback_key_hours", 0, floatBytes({8.0f, nan, 17.5f})}},
+       "fallback key 1 hours = nan (must be finite, in [0, 24])"},
+      {{{"fallback_key_hours", 0, floatBytes({8.0f, 12.0f, 24.5f})}},
+       "fallback key 2 hours = 24.5 (must be finite, in [0, 24])"},
       {{{"fallback_key_hours", 0, floatBytes({-1.0f, 12.0f, 17.5f})}}, "fallback key 0 hours = -1"},
       {{{"fallback_key_hours", 0, floatBytes({12.0f, 8.0f, 17.5f})}},
-       "fallback keys not sorted strictly ascending by (hours, overcast): key 1 (8 h, overcast 0) after key 0 (12 h"},
+       "fallback keys not sorted strictly ascending by (hours, overcast): key 1 (8 h, overcast 0) after key "
+       "0 (12 h"},
       {{{"fallback_key_hours", 0, floatBytes({8.0f, 12.0f, 12.0f})}}, "not sorted strictly ascending"},
       {{{"fallback_key_overcast", 0, floatBytes({0.0f, 2.0f, 0.0f})}}, "fallback key 1 overcast = 2"},
-      {{{"fallback_key_hours", 0, floatBytes({8.0f, 12.0f})}}, "fallback_key_hours holds 8 bytes, 12 expected (3 keys x float32)"},
-      {{{"fallback_key_overcast", 0, floatBytes({0.0f})}}, "fallback_key_overcast holds 4 bytes, 12 expected"},
+      {{{"fallback_key_hours", 0, floatBytes({8.0f, 12.0f})}},
+       "fallback_key_hours holds 8 bytes, 12 expected (3 keys x float32)"},
+      {{{"fallback_key_overcast", 0, floatBytes({0.0f})}},
+       "fallback_key_overcast holds 4 bytes, 12 expected"},
       {{{"fallback_key_count", 2, ""}}, "fallback_key_hours holds 12 bytes, 8 expected (2 keys x float32)"},
       {{{"fallback_key_count", 0, ""}}, "field 'fallback_key_count' = 0 outside [1, 64]"},
       {{{"fallback_key_count", 1000, ""}}, "field 'fallback_key_count' = 1000 outside [1, 64]"},
-      {{{"fallback_key_count", 2, ""}, {"fallback_key_hours", 0, floatBytes({8.0f, 12.0f})},
+      {{{"fallback_key_count", 2, ""},
+        {"fallback_key_hours", 0, floatBytes({8.0f, 12.0f})},
         {"fallback_key_overcast", 0, floatBytes({0.0f, 0.0f})}},
        "fallback_sh holds 72 bytes, 48 expected (2 keys x 1 x 12 halves)"},
       {{{"fallback_key_hours", 0, "", true}}, "field 'fallback_key_hours' is missing"},

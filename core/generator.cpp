@@ -103,7 +103,8 @@ uint64_t weightsContentHash(const GeneratorWeights& w) {
 
 size_t adapterChannels(const GeneratorArch& arch, int stages) {
   size_t n = 0;
-  for (int s = 0; s < stages && s < int(arch.convChannels.size()); ++s) n += size_t(arch.convChannels[size_t(s)]);
+  for (int s = 0; s < stages && s < int(arch.convChannels.size()); ++s)
+    n += size_t(arch.convChannels[size_t(s)]);
   return n;
 }
 
@@ -118,11 +119,12 @@ GeneratorAdapter identityAdapter(const GeneratorArch& arch, int stages) {
 
 void GeneratorAdapter::validate(const GeneratorArch& arch) const {
   if (stages < 0 || stages > arch.layers() + 1)
-    fail("GeneratorAdapter.stages = {} outside [0, {}] (layers + 1) of the shared model", stages, arch.layers() + 1);
+    fail("GeneratorAdapter.stages = {} outside [0, {}] (layers + 1) of the shared model", stages,
+         arch.layers() + 1);
   const size_t want = adapterChannels(arch, stages);
   if (scale.size() != want || shift.size() != want)
-    fail("GeneratorAdapter holds {} scale and {} shift floats, {} stages of the shared model need {}", scale.size(),
-         shift.size(), stages, want);
+    fail("GeneratorAdapter holds {} scale and {} shift floats, {} stages of the shared model need {}",
+         scale.size(), shift.size(), stages, want);
   if (!allFinite(scale) || !allFinite(shift)) fail("GeneratorAdapter holds a non-finite value");
 }
 
@@ -162,7 +164,8 @@ std::array<float, kConditioningDim> conditioningVector(float timeOfDayHours, flo
 }
 
 void positionLatent(glm::vec3 p01, int octaves, std::span<float> out) {
-  if (out.size() < size_t(6 * octaves)) fail("positionLatent: output holds {} floats, need {}", out.size(), 6 * octaves);
+  if (out.size() < size_t(6 * octaves))
+    fail("positionLatent: output holds {} floats, need {}", out.size(), 6 * octaves);
   size_t k = 0;
   for (int o = 0; o < octaves; ++o) {
     double f = std::ldexp(std::numbers::pi, o);
@@ -180,7 +183,8 @@ void generatorForward(const GeneratorWeights& w, std::span<const float> latents,
   const GeneratorArch& a = w.arch;
   const size_t L = size_t(a.latentDim), C = size_t(a.condDim), in = L + C;
   const size_t R = size_t(a.outputResolution()), outC = size_t(a.outChannels());
-  if (latents.size() != count * L) fail("generatorForward: {} latent floats for {} probes of {}", latents.size(), count, L);
+  if (latents.size() != count * L)
+    fail("generatorForward: {} latent floats for {} probes of {}", latents.size(), count, L);
   if (cond.size() != C) fail("generatorForward: {} conditioning floats, the model takes {}", cond.size(), C);
   if (out.size() != count * outC * R * R)
     fail("generatorForward: output holds {} floats, need {}", out.size(), count * outC * R * R);
@@ -237,7 +241,8 @@ void decodeChannels(std::span<const float> raw, int resolution, const GeneratorO
   if (raw.size() != size_t(kGeneratorChannels) * T)
     fail("decodeChannels: {} raw floats, need {} channels of {} texels", raw.size(), kGeneratorChannels, T);
   auto need = [T](std::span<float> s, size_t per, const char* name) {
-    if (!s.empty() && s.size() != T * per) fail("decodeChannels: {} holds {} floats, need {}", name, s.size(), T * per);
+    if (!s.empty() && s.size() != T * per)
+      fail("decodeChannels: {} holds {} floats, need {}", name, s.size(), T * per);
   };
   need(radiance, 3, "radiance");
   need(distance, 2, "distance");

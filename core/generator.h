@@ -15,8 +15,8 @@
 //   w[i][o][ky][kx] over oy = 2*iy - 1 + ky, ox = 2*ix - 1 + kx (terms outside the output are dropped).
 //
 // Output channels (kGeneratorChannels = 11) and their encodings (decodeChannels() inverts them):
-//   0..2  radiance rgb        y = log1p(L / exposure)      ->  L = exposure * expm1(clamp(y, 0, 20)) (NaN -> 0)
-//   3..4  distance moments    y = (r / range, r^2 / range^2) -> r = y * range, r^2 = max(y, 0) * range^2
+//   0..2  radiance rgb        y = log1p(L / exposure)      ->  L = exposure * expm1(clamp(y, 0, 20)) (NaN ->
+//   0) 3..4  distance moments    y = (r / range, r^2 / range^2) -> r = y * range, r^2 = max(y, 0) * range^2
 //   5..7  normal xyz          y = n                         ->  n = normalize(y) (0 if |y| ~ 0)
 //   8..10 albedo rgb          y = a                         ->  a = clamp(y, 0, 1)
 //
@@ -42,13 +42,13 @@ inline constexpr int kConditioningDim = 3;
 enum class LatentSource : uint8_t { Stored = 0, PositionFourier = 1 };
 
 struct GeneratorArch {
-  int latentDim = 16;                 // [1, 256]; for PositionFourier: 6 * fourierOctaves
-  int condDim = kConditioningDim;     // 0 (no conditioning) or kConditioningDim
+  int latentDim = 16;              // [1, 256]; for PositionFourier: 6 * fourierOctaves
+  int condDim = kConditioningDim;  // 0 (no conditioning) or kConditioningDim
   // Channels of each stage: convChannels[0] = C0 (the 4x4 base), ..., convChannels[k] = outChannels.
   // k = convChannels.size() - 1 transposed-conv layers, output resolution 4 << k (k in [1, 5]).
   std::vector<int> convChannels = {32, 16, kGeneratorChannels};
   LatentSource latentSource = LatentSource::Stored;
-  int fourierOctaves = 0;             // PositionFourier only
+  int fourierOctaves = 0;  // PositionFourier only
 
   int layers() const { return int(convChannels.size()) - 1; }
   int outputResolution() const { return 4 << layers(); }
@@ -65,10 +65,10 @@ struct GeneratorArch {
 // Float weights (what every decoder runs on; quantized storage dequantizes into this).
 struct GeneratorWeights {
   GeneratorArch arch;
-  std::vector<float> linearWeight;               // [16*C0][inputDim]
-  std::vector<float> linearBias;                 // [16*C0]
-  std::vector<std::vector<float>> convWeight;    // layer i: [C(i)][C(i+1)][4][4]
-  std::vector<std::vector<float>> convBias;      // layer i: [C(i+1)]
+  std::vector<float> linearWeight;             // [16*C0][inputDim]
+  std::vector<float> linearBias;               // [16*C0]
+  std::vector<std::vector<float>> convWeight;  // layer i: [C(i)][C(i+1)][4][4]
+  std::vector<std::vector<float>> convBias;    // layer i: [C(i+1)]
   // Throws lfgi::Error unless every array has the size the arch implies and every value is finite.
   void validate() const;
 };
@@ -79,8 +79,8 @@ uint64_t weightsContentHash(const GeneratorWeights& weights);
 
 // Decoding constants of one cell (stored in the cell file next to the weights).
 struct GeneratorOutputScale {
-  float exposure = 1.0f;   // radiance unit of channel 0..2 (> 0)
-  float range = 64.0f;     // metres; distance normaliser of channels 3..4 (> 0)
+  float exposure = 1.0f;  // radiance unit of channel 0..2 (> 0)
+  float range = 64.0f;    // metres; distance normaliser of channels 3..4 (> 0)
 };
 
 // Per-cell adapter of a world-shared generator (bake/generator_training.h, "shared generator"): FiLM
@@ -92,8 +92,8 @@ struct GeneratorOutputScale {
 // identity. Because FiLM is affine per output channel it folds exactly into that layer's weights and bias
 // (applyAdapter), so every decoder (CPU, GPU) runs a shared model + adapter as a plain GeneratorWeights.
 struct GeneratorAdapter {
-  int stages = 0;                     // [0, layers() + 1]
-  std::vector<float> scale, shift;    // adapterChannels(arch, stages) each
+  int stages = 0;                   // [0, layers() + 1]
+  std::vector<float> scale, shift;  // adapterChannels(arch, stages) each
   // Throws lfgi::Error unless stages is in range for arch, both arrays have adapterChannels() floats and
   // every value is finite.
   void validate(const GeneratorArch& arch) const;

@@ -37,7 +37,8 @@ void parallelFor(size_t n, F f) {
     return;
   }
   std::vector<std::thread> pool;
-  for (size_t t = 1; t < threads; ++t) pool.emplace_back([&, t] { f(n * t / threads, n * (t + 1) / threads); });
+  for (size_t t = 1; t < threads; ++t)
+    pool.emplace_back([&, t] { f(n * t / threads, n * (t + 1) / threads); });
   f(size_t(0), n / threads);
   for (std::thread& th : pool) th.join();
 }
@@ -64,8 +65,10 @@ void GeneratorCpu::forward(std::span<const float> latents, std::span<const float
   const GeneratorArch& a = weights_.arch;
   const size_t L = size_t(a.latentDim), C = size_t(a.condDim), in = L + C;
   const size_t R = size_t(a.outputResolution()), outC = size_t(a.outChannels());
-  if (latents.size() != count * L) fail("GeneratorCpu::forward: {} latent floats for {} probes of {}", latents.size(), count, L);
-  if (cond.size() != C) fail("GeneratorCpu::forward: {} conditioning floats, the model takes {}", cond.size(), C);
+  if (latents.size() != count * L)
+    fail("GeneratorCpu::forward: {} latent floats for {} probes of {}", latents.size(), count, L);
+  if (cond.size() != C)
+    fail("GeneratorCpu::forward: {} conditioning floats, the model takes {}", cond.size(), C);
   if (out.size() != count * outC * R * R)
     fail("GeneratorCpu::forward: output holds {} floats, need {}", out.size(), count * outC * R * R);
   const size_t rows0 = size_t(a.convChannels.front()) * kBase * kBase;
@@ -129,7 +132,8 @@ void GeneratorCpu::forwardChunk(const float* latents, size_t P, float* out) {
             if (nsrc == 4) {
               const float *s0 = src[0], *s1 = src[1], *s2 = src[2], *s3 = src[3];
               if (hidden)
-                for (size_t p = 0; p < P; ++p) dst[p] = std::max(b + ((s0[p] + s1[p]) + (s2[p] + s3[p])), 0.0f);
+                for (size_t p = 0; p < P; ++p)
+                  dst[p] = std::max(b + ((s0[p] + s1[p]) + (s2[p] + s3[p])), 0.0f);
               else
                 for (size_t p = 0; p < P; ++p) dst[p] = b + ((s0[p] + s1[p]) + (s2[p] + s3[p]));
             } else {
@@ -162,7 +166,8 @@ void decodeProbeField(GeneratorCpu& decoder, std::span<const float> latents, std
                       const GeneratorOutputScale& scale, ProbeField& field) {
   const GeneratorArch& a = decoder.arch();
   if (a.outChannels() != kGeneratorChannels)
-    fail("decodeProbeField: the model emits {} channels, a probe field needs {}", a.outChannels(), kGeneratorChannels);
+    fail("decodeProbeField: the model emits {} channels, a probe field needs {}", a.outChannels(),
+         kGeneratorChannels);
   if (field.resolution != a.outputResolution())
     fail("decodeProbeField: ProbeField.resolution = {} but the model decodes {}x{} maps", field.resolution,
          a.outputResolution(), a.outputResolution());

@@ -32,10 +32,10 @@ GeneratorArch makeArch(int latent, int cond, std::vector<int> channels) {
 // measured error is printed).
 TEST(GeneratorCpu, MatchesReferenceOnRandomWeights) {
   const Case cases[] = {
-      {makeArch(16, 3, {32, kGeneratorChannels}), 37, 0},                      // 8x8
-      {makeArch(8, 0, {24, 12, kGeneratorChannels}), 50, 16},                  // 16x16, several chunks
-      {makeArch(16, 3, {32, 16, 8, kGeneratorChannels}), 9, 0},                // 32x32
-      {makeArch(5, 3, {7, 5, 3}), 21, 8},                                      // odd sizes everywhere
+      {makeArch(16, 3, {32, kGeneratorChannels}), 37, 0},        // 8x8
+      {makeArch(8, 0, {24, 12, kGeneratorChannels}), 50, 16},    // 16x16, several chunks
+      {makeArch(16, 3, {32, 16, 8, kGeneratorChannels}), 9, 0},  // 32x32
+      {makeArch(5, 3, {7, 5, 3}), 21, 8},                        // odd sizes everywhere
   };
   unsigned seed = 1;
   for (const Case& c : cases) {
@@ -52,7 +52,8 @@ TEST(GeneratorCpu, MatchesReferenceOnRandomWeights) {
     GeneratorCpu dec(w, c.chunk);
     dec.forward(z, cond, c.count, fast);
     double e = relMaxError(fast, ref);
-    std::printf("  arch R=%zu layers=%d chunk=%zu: max rel error %.2e\n", R, c.arch.layers(), dec.chunkProbes(), e);
+    std::printf("  arch R=%zu layers=%d chunk=%zu: max rel error %.2e\n", R, c.arch.layers(),
+                dec.chunkProbes(), e);
     EXPECT_LT(e, 1e-5) << "R=" << R;
     // The outputs are not trivially zero (the ReLUs did not kill everything).
     double energy = 0.0;
@@ -98,8 +99,8 @@ TEST(GeneratorCpu, DecodeProbeFieldMatchesReferenceChannels) {
   double worst[4] = {0, 0, 0, 0};
   for (size_t p = 0; p < count; ++p) {
     std::vector<float> rad(T * 3), dist(T * 2), nrm(T * 3), alb(T * 3);
-    decodeChannels(std::span(raw).subspan(p * kGeneratorChannels * T, kGeneratorChannels * T), field.resolution,
-                   scale, rad, dist, nrm, alb);
+    decodeChannels(std::span(raw).subspan(p * kGeneratorChannels * T, kGeneratorChannels * T),
+                   field.resolution, scale, rad, dist, nrm, alb);
     auto cmp = [&](const std::vector<float>& want, const std::vector<float>& got, size_t per, int which) {
       for (size_t i = 0; i < want.size(); ++i) {
         double d = std::abs(double(got[p * T * per + i]) - want[i]) / (1.0 + std::abs(double(want[i])));
@@ -111,8 +112,9 @@ TEST(GeneratorCpu, DecodeProbeFieldMatchesReferenceChannels) {
     cmp(nrm, field.normal, 3, 2);
     cmp(alb, field.albedo, 3, 3);
   }
-  std::printf("  decodeProbeField max error vs reference: radiance %.2e distance %.2e normal %.2e albedo %.2e\n",
-              worst[0], worst[1], worst[2], worst[3]);
+  std::printf(
+      "  decodeProbeField max error vs reference: radiance %.2e distance %.2e normal %.2e albedo %.2e\n",
+      worst[0], worst[1], worst[2], worst[3]);
   EXPECT_LT(worst[0], 1e-5);
   EXPECT_LT(worst[1], 1e-6 * scale.range * scale.range);  // r^2 = raw * range^2 scales the rounding up
   EXPECT_LT(worst[3], 1e-5);

@@ -41,7 +41,8 @@ TEST(Generator, TransposedConvScattersByPyTorchRule) {
           int oy = 2 * iy - 1 + ky, ox = 2 * ix - 1 + kx;
           if (oy >= 0 && oy < 8 && ox >= 0 && ox < 8) want[size_t(oy * 8 + ox)] += float(iy * 4 + ix + 1);
         }
-      for (size_t t = 0; t < 64; ++t) ASSERT_EQ(out[t], want[t]) << "tap " << ky << "," << kx << " texel " << t;
+      for (size_t t = 0; t < 64; ++t)
+        ASSERT_EQ(out[t], want[t]) << "tap " << ky << "," << kx << " texel " << t;
     }
 }
 
@@ -93,11 +94,11 @@ TEST(Generator, ConditioningAndPositionLatent) {
   EXPECT_EQ(c[2], 1.0f);  // weather clamps to [0, 1]
   std::vector<float> z(12);
   positionLatent({0.5f, 0.0f, 0.25f}, 2, z);
-  EXPECT_NEAR(z[0], 1.0f, 1e-6f);                                          // sin(pi/2)
-  EXPECT_NEAR(z[2], 0.0f, 1e-6f);                                          // sin(0)
-  EXPECT_NEAR(z[3], 1.0f, 1e-6f);                                          // cos(0)
-  EXPECT_NEAR(z[4], float(std::sin(std::numbers::pi / 4)), 1e-6f);        // sin(pi/4)
-  EXPECT_NEAR(z[6], 0.0f, 1e-6f);                                          // sin(2 pi 0.5)
+  EXPECT_NEAR(z[0], 1.0f, 1e-6f);                                   // sin(pi/2)
+  EXPECT_NEAR(z[2], 0.0f, 1e-6f);                                   // sin(0)
+  EXPECT_NEAR(z[3], 1.0f, 1e-6f);                                   // cos(0)
+  EXPECT_NEAR(z[4], float(std::sin(std::numbers::pi / 4)), 1e-6f);  // sin(pi/4)
+  EXPECT_NEAR(z[6], 0.0f, 1e-6f);                                   // sin(2 pi 0.5)
 }
 
 TEST(Generator, DecodeChannelsInvertsEncodings) {

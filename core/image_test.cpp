@@ -6,9 +6,9 @@
 
 #include <algorithm>
 #include <cstring>
-#include <limits>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 
 #define STB_IMAGE_STATIC
@@ -170,7 +170,7 @@ TEST(Exr, BitFlipsWrongVersionAndHugeWindow) {
   const size_t at = size_t(it - bytes.begin()) + key.size() + 4;
   for (const int32_t huge : {int32_t(1) << 30, int32_t(-1)}) {
     b = bytes;
-    std::memcpy(b.data() + at + 8, &huge, 4);  // xMax
+    std::memcpy(b.data() + at + 8, &huge, 4);   // xMax
     std::memcpy(b.data() + at + 12, &huge, 4);  // yMax
     writeBytes(bad, b);
     expectReadFails(bad, "dataWindow max " + std::to_string(huge));

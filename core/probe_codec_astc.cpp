@@ -26,8 +26,8 @@ class AstcHdrCodec final : public ProbeCodec {
       fail("astc codec: block size {} is not one of 4, 5, 6, 8, 10, 12", block);
     if (!(quality >= 0.0f && quality <= 100.0f)) fail("astc codec: quality {} outside [0, 100]", quality);
     astcenc_config config{};
-    astcenc_error e = astcenc_config_init(ASTCENC_PRF_HDR_RGB_LDR_A, unsigned(block), unsigned(block), 1, quality,
-                                          0, &config);
+    astcenc_error e = astcenc_config_init(ASTCENC_PRF_HDR_RGB_LDR_A, unsigned(block), unsigned(block), 1,
+                                          quality, 0, &config);
     if (e != ASTCENC_SUCCESS) fail("astc codec: astcenc_config_init: {}", astcenc_get_error_string(e));
     e = astcenc_context_alloc(&config, 1, &context_);
     if (e != ASTCENC_SUCCESS) fail("astc codec: astcenc_context_alloc: {}", astcenc_get_error_string(e));
@@ -65,10 +65,11 @@ class AstcHdrCodec final : public ProbeCodec {
     const size_t at = w.bytes.size(), payload = payloadBytes(n, P);
     w.bytes.resize(at + payload);
     const std::lock_guard lock(mutex_);
-    const astcenc_error e = astcenc_compress_image(context_, &image, &swz,
-                                                   reinterpret_cast<uint8_t*>(w.bytes.data() + at), payload, 0);
+    const astcenc_error e = astcenc_compress_image(
+        context_, &image, &swz, reinterpret_cast<uint8_t*>(w.bytes.data() + at), payload, 0);
     astcenc_compress_reset(context_);
-    if (e != ASTCENC_SUCCESS) fail("astc_hdr encode: astcenc_compress_image: {}", astcenc_get_error_string(e));
+    if (e != ASTCENC_SUCCESS)
+      fail("astc_hdr encode: astcenc_compress_image: {}", astcenc_get_error_string(e));
     return std::move(w.bytes);
   }
 
@@ -76,9 +77,11 @@ class AstcHdrCodec final : public ProbeCodec {
     ByteReader r{bytes, "astc_hdr"};
     readHeader(r, "LAST", 1, out);
     const int block = r.u8("block size");
-    if (block != block_) fail("astc_hdr decode: bytes use {}x{} blocks, this codec {}x{}", block, block, block_, block_);
+    if (block != block_)
+      fail("astc_hdr decode: bytes use {}x{} blocks, this codec {}x{}", block, block, block_, block_);
     const float scale = r.f32("scale");
-    if (!std::isfinite(scale) || scale <= 0.0f) fail("astc_hdr decode: scale {} is not a positive number", scale);
+    if (!std::isfinite(scale) || scale <= 0.0f)
+      fail("astc_hdr decode: scale {} is not a positive number", scale);
     prepareOut(out);
     const int n = out.resolution, T = tile(n);
     const size_t P = size_t(out.probeCount()), payload = payloadBytes(n, P);
@@ -93,7 +96,8 @@ class AstcHdrCodec final : public ProbeCodec {
       const astcenc_error e =
           astcenc_decompress_image(context_, reinterpret_cast<const uint8_t*>(src), payload, &image, &swz, 0);
       astcenc_decompress_reset(context_);
-      if (e != ASTCENC_SUCCESS) fail("astc_hdr decode: astcenc_decompress_image: {}", astcenc_get_error_string(e));
+      if (e != ASTCENC_SUCCESS)
+        fail("astc_hdr decode: astcenc_decompress_image: {}", astcenc_get_error_string(e));
     }
     for (size_t p = 0; p < P; ++p)
       for (int y = 0; y < n; ++y)
@@ -102,7 +106,8 @@ class AstcHdrCodec final : public ProbeCodec {
           float* d = out.radiance.data() + ((p * size_t(n) + size_t(y)) * size_t(n) + size_t(x)) * 3;
           for (int c = 0; c < 3; ++c) {
             // Every ASTC bit pattern decodes to something; an error block decodes to NaN (magenta in LDR).
-            if (!std::isfinite(s[c])) fail("astc_hdr decode: probe {} texel ({}, {}) decoded to {}", p, x, y, s[c]);
+            if (!std::isfinite(s[c]))
+              fail("astc_hdr decode: probe {} texel ({}, {}) decoded to {}", p, x, y, s[c]);
             d[c] = s[c] * scale;
           }
         }

@@ -18,8 +18,8 @@
 extern "C" void dsyevr_(const char* jobz, const char* range, const char* uplo, const int* n, double* a,
                         const int* lda, const double* vl, const double* vu, const int* il, const int* iu,
                         const double* abstol, int* m, double* w, double* z, const int* ldz, int* isuppz,
-                        double* work, const int* lwork, int* iwork, const int* liwork, int* info, size_t, size_t,
-                        size_t);
+                        double* work, const int* lwork, int* iwork, const int* liwork, int* info, size_t,
+                        size_t, size_t);
 
 namespace lfgi {
 
@@ -29,7 +29,8 @@ namespace {
 
 // Eigen-decomposition of a symmetric N x N matrix (either triangle filled, row- or column-major alike):
 // eigenvalues descending, eigenvectors as rows of `vectors` (N x N, row i for value i).
-void symmetricEigen(std::vector<double>& a, int N, std::vector<double>& values, std::vector<double>& vectors) {
+void symmetricEigen(std::vector<double>& a, int N, std::vector<double>& values,
+                    std::vector<double>& vectors) {
   const char jobz = 'V', range = 'A', uplo = 'L';
   const double vl = 0.0, vu = 0.0, abstol = 0.0;
   const int il = 0, iu = 0;
@@ -47,7 +48,8 @@ void symmetricEigen(std::vector<double>& a, int N, std::vector<double>& values, 
   std::vector<int> iwork(size_t(std::max(liwork, 1)));
   dsyevr_(&jobz, &range, &uplo, &N, a.data(), &N, &vl, &vu, &il, &iu, &abstol, &m, w.data(), z.data(), &N,
           isuppz.data(), work.data(), &lwork, iwork.data(), &liwork, &info, 1, 1, 1);
-  if (info != 0 || m != N) fail("pca encode: LAPACK dsyevr failed (info = {}, {} of {} eigenvalues)", info, m, N);
+  if (info != 0 || m != N)
+    fail("pca encode: LAPACK dsyevr failed (info = {}, {} of {} eigenvalues)", info, m, N);
   values.resize(size_t(N));
   vectors.resize(size_t(N) * size_t(N));
   for (int i = 0; i < N; ++i) {  // ascending -> descending; column N-1-i of the column-major z
@@ -98,7 +100,8 @@ class PcaCodec final : public ProbeCodec {
     double discarded = std::accumulate(values.begin(), values.end(), 0.0);
     const double tiny = 1e-12 * (values.empty() ? 0.0 : values[0]);
     int k = 0;
-    while (k < std::min(N, maxK_) && discarded > limit && values[size_t(k)] > tiny) discarded -= values[size_t(k++)];
+    while (k < std::min(N, maxK_) && discarded > limit && values[size_t(k)] > tiny)
+      discarded -= values[size_t(k++)];
     basis.assign(size_t(k) * size_t(D), 0.0);
     for (int i = 0; i < k; ++i) {
       double* v = basis.data() + size_t(i) * size_t(D);
@@ -118,17 +121,20 @@ class PcaCodec final : public ProbeCodec {
     std::vector<float> meanF(mean.begin(), mean.end()), basisF(basis.begin(), basis.end());
     w.halves(meanF);
     w.halves(basisF);
-    ByteReader back{std::span<const std::byte>(w.bytes).subspan(w.bytes.size() - 8 - 2 * (meanF.size() + basisF.size())),
-                    "pca"};
+    ByteReader back{
+        std::span<const std::byte>(w.bytes).subspan(w.bytes.size() - 8 - 2 * (meanF.size() + basisF.size())),
+        "pca"};
     back.halves(meanF, "mean");
     back.halves(basisF, "basis");
     std::vector<float> coeff(size_t(P) * size_t(k));
     std::vector<float> centred(static_cast<size_t>(D));
     for (int p = 0; p < P; ++p) {
-      for (int d = 0; d < D; ++d) centred[size_t(d)] = f.radiance[size_t(p) * size_t(D) + size_t(d)] - meanF[size_t(d)];
+      for (int d = 0; d < D; ++d)
+        centred[size_t(d)] = f.radiance[size_t(p) * size_t(D) + size_t(d)] - meanF[size_t(d)];
       for (int i = 0; i < k; ++i) {
         double dot = 0.0;
-        for (int d = 0; d < D; ++d) dot += double(centred[size_t(d)]) * basisF[size_t(i) * size_t(D) + size_t(d)];
+        for (int d = 0; d < D; ++d)
+          dot += double(centred[size_t(d)]) * basisF[size_t(i) * size_t(D) + size_t(d)];
         coeff[size_t(p) * size_t(k) + size_t(i)] = float(dot);
       }
     }
@@ -143,15 +149,16 @@ class PcaCodec final : public ProbeCodec {
     prepareOut(out);
     const int P = int(out.probeCount());
     const int D = out.resolution * out.resolution * 3;
-    std::vector<float> mean(static_cast<size_t>(D)), basis(size_t(k) * size_t(D)), coeff(size_t(P) * size_t(k));
+    std::vector<float> mean(static_cast<size_t>(D)), basis(size_t(k) * size_t(D)),
+        coeff(size_t(P) * size_t(k));
     r.halves(mean, "mean");
     r.halves(basis, "basis");
     r.halves(coeff, "coefficients");
     r.expectEnd();
     for (int p = 0; p < P; ++p) std::copy(mean.begin(), mean.end(), out.radiance.begin() + ptrdiff_t(p) * D);
     if (k > 0)
-      cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, P, D, k, 1.0f, coeff.data(), k, basis.data(), D, 1.0f,
-                  out.radiance.data(), D);
+      cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, P, D, k, 1.0f, coeff.data(), k, basis.data(), D,
+                  1.0f, out.radiance.data(), D);
   }
 
  private:

@@ -76,7 +76,8 @@ float ByteReader::f32(const char* what) {
 }
 void ByteReader::halves(std::span<float> out, const char* what) {
   const float scale = f32(what);
-  if (!std::isfinite(scale) || scale <= 0.0f) fail("{} decode: {} scale {} is not a positive number", codec, what, scale);
+  if (!std::isfinite(scale) || scale <= 0.0f)
+    fail("{} decode: {} scale {} is not a positive number", codec, what, scale);
   const std::byte* p = take(2 * out.size(), what);
   for (size_t i = 0; i < out.size(); ++i) {
     uint16_t h;
@@ -116,7 +117,8 @@ Header readHeader(ByteReader& r, const char magic[4], uint8_t version, const Pro
          std::string(reinterpret_cast<const char*>(m), 4), std::string(magic, 4));
   std::memcpy(h.magic, magic, 4);
   h.version = r.u8("version");
-  if (h.version != version) fail("{} decode: format version {} (this build reads {})", r.codec, h.version, version);
+  if (h.version != version)
+    fail("{} decode: format version {} (this build reads {})", r.codec, h.version, version);
   h.resolution = r.u16("resolution");
   h.probes = r.u32("probe count");
   if (h.resolution != out.resolution)
@@ -127,7 +129,8 @@ Header readHeader(ByteReader& r, const char magic[4], uint8_t version, const Pro
 }
 
 void checkField(const char* codec, const ProbeField& f) {
-  if (f.resolution < 1 || f.resolution > 256) fail("{} encode: resolution {} outside [1, 256]", codec, f.resolution);
+  if (f.resolution < 1 || f.resolution > 256)
+    fail("{} encode: resolution {} outside [1, 256]", codec, f.resolution);
   const int64_t P = f.probeCount();
   if (P < 1 || P > int64_t(UINT32_MAX)) fail("{} encode: {} probes outside [1, 2^32)", codec, P);
   const size_t want = size_t(P) * size_t(f.resolution) * size_t(f.resolution) * 3;
@@ -135,11 +138,13 @@ void checkField(const char* codec, const ProbeField& f) {
     fail("{} encode: radiance holds {} floats, {} probes of {}x{} need {}", codec, f.radiance.size(), P,
          f.resolution, f.resolution, want);
   for (size_t i = 0; i < want; ++i)
-    if (!std::isfinite(f.radiance[i])) fail("{} encode: radiance[{}] = {} is not finite", codec, i, f.radiance[i]);
+    if (!std::isfinite(f.radiance[i]))
+      fail("{} encode: radiance[{}] = {} is not finite", codec, i, f.radiance[i]);
 }
 
 void prepareOut(ProbeField& out) {
-  if (out.resolution < 1 || out.resolution > 256) fail("probe codec decode: field resolution {} outside [1, 256]", out.resolution);
+  if (out.resolution < 1 || out.resolution > 256)
+    fail("probe codec decode: field resolution {} outside [1, 256]", out.resolution);
   out.radiance.assign(size_t(out.probeCount()) * size_t(out.resolution) * size_t(out.resolution) * 3, 0.0f);
   out.irradiance.clear();
 }
@@ -177,7 +182,8 @@ class RawFp16Codec final : public ProbeCodec {
 class ZstdFp16Codec final : public ProbeCodec {
  public:
   explicit ZstdFp16Codec(int level) : level_(level) {
-    if (level < 1 || level > ZSTD_maxCLevel()) fail("zstd codec: level {} outside [1, {}]", level, ZSTD_maxCLevel());
+    if (level < 1 || level > ZSTD_maxCLevel())
+      fail("zstd codec: level {} outside [1, {}]", level, ZSTD_maxCLevel());
   }
   std::string name() const override { return "zstd_fp16"; }
   std::string setting() const override { return fmt::format("level {}", level_); }
@@ -196,7 +202,8 @@ class ZstdFp16Codec final : public ProbeCodec {
     w.f32(scale);
     const size_t at = w.bytes.size();
     w.bytes.resize(at + ZSTD_compressBound(planes.size()));
-    const size_t n = ZSTD_compress(w.bytes.data() + at, w.bytes.size() - at, planes.data(), planes.size(), level_);
+    const size_t n =
+        ZSTD_compress(w.bytes.data() + at, w.bytes.size() - at, planes.data(), planes.size(), level_);
     if (ZSTD_isError(n)) fail("zstd_fp16 encode: {}", ZSTD_getErrorName(n));
     w.bytes.resize(at + n);
     return std::move(w.bytes);
@@ -205,7 +212,8 @@ class ZstdFp16Codec final : public ProbeCodec {
     ByteReader r{bytes, "zstd_fp16"};
     readHeader(r, "LZST", 1, out);
     const float scale = r.f32("scale");
-    if (!std::isfinite(scale) || scale <= 0.0f) fail("zstd_fp16 decode: scale {} is not a positive number", scale);
+    if (!std::isfinite(scale) || scale <= 0.0f)
+      fail("zstd_fp16 decode: scale {} is not a positive number", scale);
     prepareOut(out);
     const size_t count = out.radiance.size();
     const size_t left = bytes.size() - r.pos;
@@ -217,7 +225,8 @@ class ZstdFp16Codec final : public ProbeCodec {
     std::vector<uint8_t> planes(2 * count);
     const size_t n = ZSTD_decompress(planes.data(), planes.size(), src, left);
     if (ZSTD_isError(n)) fail("zstd_fp16 decode: {}", ZSTD_getErrorName(n));
-    if (n != planes.size()) fail("zstd_fp16 decode: frame decompressed to {} bytes, expected {}", n, planes.size());
+    if (n != planes.size())
+      fail("zstd_fp16 decode: frame decompressed to {} bytes, expected {}", n, planes.size());
     for (size_t i = 0; i < count; ++i) {
       const float v = halfToFloat(uint16_t(planes[i] | (uint16_t(planes[count + i]) << 8)));
       if (!std::isfinite(v)) fail("zstd_fp16 decode: value {} at index {} is not finite", v, i);
@@ -338,11 +347,12 @@ std::unique_ptr<ProbeCodec> makeShCodec(int lmax) {
 
 void deriveIrradiance(ProbeField& field) {
   const int n = field.resolution, m = field.irradianceResolution;
-  if (n < 1 || n > 256 || m < 1 || m > 256) fail("deriveIrradiance: resolutions {} / {} outside [1, 256]", n, m);
+  if (n < 1 || n > 256 || m < 1 || m > 256)
+    fail("deriveIrradiance: resolutions {} / {} outside [1, 256]", n, m);
   const size_t P = size_t(field.probeCount()), tn = size_t(n) * size_t(n), tm = size_t(m) * size_t(m);
   if (field.radiance.size() != P * tn * 3)
-    fail("deriveIrradiance: radiance holds {} floats, {} probes of {}x{} need {}", field.radiance.size(), P, n, n,
-         P * tn * 3);
+    fail("deriveIrradiance: radiance holds {} floats, {} probes of {}x{} need {}", field.radiance.size(), P,
+         n, n, P * tn * 3);
   static std::mutex mutex;
   static std::map<int, std::vector<double>> solidAngles;
   const std::vector<double>* omega;

@@ -91,7 +91,8 @@ TEST(ProbeCodecs, ShConstantFieldIsExact) {
     const ProbeField d = roundTrip(*codec, f, &bytes);
     EXPECT_EQ(bytes, 11u + 1u + 4u + 3u * size_t(shCoefficientCount(lmax)) * 3u * 2u);
     // c_0 = sqrt(4 pi) L rounds to FP16 (relative 2^-11); the other coefficients are ~1e-12 -> 0.
-    for (size_t i = 0; i < f.radiance.size(); ++i) EXPECT_NEAR(d.radiance[i], f.radiance[i], 1e-3f * f.radiance[i]);
+    for (size_t i = 0; i < f.radiance.size(); ++i)
+      EXPECT_NEAR(d.radiance[i], f.radiance[i], 1e-3f * f.radiance[i]);
     ASSERT_EQ(d.irradiance.size(), size_t(3 * 8 * 8 * 3));
     for (size_t i = 0; i < d.irradiance.size(); ++i)
       EXPECT_NEAR(d.irradiance[i], std::numbers::pi_v<float> * (0.5f + 0.25f * float(i % 3)), 2e-3f);
@@ -106,8 +107,10 @@ TEST(ProbeCodecs, ShErrorsOnSmoothField) {
   deriveIrradiance(ref);
   const ProbeField d2 = roundTrip(*makeShCodec(2), f), d7 = roundTrip(*makeShCodec(7), f);
   const double r2 = relativeRms(d2.radiance, f.radiance), r7 = relativeRms(d7.radiance, f.radiance);
-  const double e2 = relativeRms(d2.irradiance, ref.irradiance), e7 = relativeRms(d7.irradiance, ref.irradiance);
-  std::printf("smooth field: radiance rel RMS L2 %.4f L7 %.4f; irradiance rel RMS L2 %.4f L7 %.4f\n", r2, r7, e2, e7);
+  const double e2 = relativeRms(d2.irradiance, ref.irradiance),
+               e7 = relativeRms(d7.irradiance, ref.irradiance);
+  std::printf("smooth field: radiance rel RMS L2 %.4f L7 %.4f; irradiance rel RMS L2 %.4f L7 %.4f\n", r2, r7,
+              e2, e7);
   EXPECT_LT(r7, r2);
   EXPECT_LT(r2, 0.05);
   EXPECT_LT(e2, 0.01);
@@ -125,7 +128,8 @@ TEST(ProbeCodecs, PcaRecoversALowRankCellAndMeetsItsTarget) {
     const float w1 = u(rng), w2 = u(rng), w3 = u(rng);
     for (int d = 0; d < D; ++d)
       f.radiance[size_t(p * D + d)] = base.radiance[size_t(d)] + w1 * base.radiance[size_t(D + d)] +
-                                      w2 * base.radiance[size_t(2 * D + d)] + w3 * base.radiance[size_t(3 * D + d)];
+                                      w2 * base.radiance[size_t(2 * D + d)] +
+                                      w3 * base.radiance[size_t(3 * D + d)];
   }
   size_t bytes = 0;
   const ProbeField d = roundTrip(*makePcaCodec(1e-4), f, &bytes);
@@ -143,8 +147,10 @@ TEST(ProbeCodecs, PcaRecoversALowRankCellAndMeetsItsTarget) {
   size_t tightBytes = 0, looseBytes = 0;
   const ProbeField tight = roundTrip(*makePcaCodec(0.01), noisy, &tightBytes);
   const ProbeField loose = roundTrip(*makePcaCodec(0.04), noisy, &looseBytes);
-  const double et = relativeRms(tight.radiance, noisy.radiance), el = relativeRms(loose.radiance, noisy.radiance);
-  std::printf("noisy cell: target 0.01 -> %.4f (%zu B), target 0.04 -> %.4f (%zu B)\n", et, tightBytes, el, looseBytes);
+  const double et = relativeRms(tight.radiance, noisy.radiance),
+               el = relativeRms(loose.radiance, noisy.radiance);
+  std::printf("noisy cell: target 0.01 -> %.4f (%zu B), target 0.04 -> %.4f (%zu B)\n", et, tightBytes, el,
+              looseBytes);
   EXPECT_LT(looseBytes, tightBytes);
   EXPECT_LT(et, 0.01 + 1e-3);
   EXPECT_LT(el, 0.04 + 1e-3);
@@ -162,7 +168,8 @@ TEST(ProbeCodecs, PcaCovariancePathAndBlackCell) {
   const ProbeField tight = roundTrip(*makePcaCodec(0.005), f, &tightBytes);
   const ProbeField loose = roundTrip(*makePcaCodec(0.03), f, &looseBytes);
   const double et = relativeRms(tight.radiance, f.radiance), el = relativeRms(loose.radiance, f.radiance);
-  std::printf("P > D cell: target 0.005 -> %.4f (%zu B), target 0.03 -> %.4f (%zu B)\n", et, tightBytes, el, looseBytes);
+  std::printf("P > D cell: target 0.005 -> %.4f (%zu B), target 0.03 -> %.4f (%zu B)\n", et, tightBytes, el,
+              looseBytes);
   EXPECT_LT(et, 0.005 + 1e-3);
   EXPECT_LT(el, 0.03 + 1e-3);
   EXPECT_LT(looseBytes, tightBytes);
@@ -184,9 +191,10 @@ TEST(ProbeCodecs, AstcHdrBytesAndError) {
     const size_t blocks = size_t((16 + block - 1) / block) * size_t((16 + block - 1) / block);
     EXPECT_EQ(bytes, 11u + 1u + 4u + 6u * blocks * 16u);
     const double err = relativeRms(d.radiance, smooth.radiance);
-    const double errSun = relativeRms(roundTrip(*makeAstcHdrCodec(block, 60.0f), sunny).radiance, sunny.radiance);
-    std::printf("astc %dx%d: %zu bytes, radiance rel RMS %.4f smooth, %.4f with a sun texel\n", block, block, bytes,
-                err, errSun);
+    const double errSun =
+        relativeRms(roundTrip(*makeAstcHdrCodec(block, 60.0f), sunny).radiance, sunny.radiance);
+    std::printf("astc %dx%d: %zu bytes, radiance rel RMS %.4f smooth, %.4f with a sun texel\n", block, block,
+                bytes, err, errSun);
     EXPECT_LT(err, block == 4 ? 0.02 : 0.05);
     EXPECT_LT(errSun, 0.3);
   }
@@ -198,7 +206,8 @@ TEST(ProbeCodecs, DeriveIrradianceOfConstantIsPi) {
   deriveIrradiance(f);
   ASSERT_EQ(f.irradiance.size(), size_t(2 * 64 * 3));
   // Texel-centre cosines (the capture's own sum) are exact only in the limit: 0.34 % at n = 16.
-  for (float e : f.irradiance) EXPECT_NEAR(e, 2.0f * std::numbers::pi_v<float>, 0.005f * 2.0f * std::numbers::pi_v<float>);
+  for (float e : f.irradiance)
+    EXPECT_NEAR(e, 2.0f * std::numbers::pi_v<float>, 0.005f * 2.0f * std::numbers::pi_v<float>);
 }
 
 std::vector<std::unique_ptr<ProbeCodec>> allCodecs() {

@@ -15,7 +15,8 @@ void ProbeField::validate() const {
                m2 = size_t(irradianceResolution) * size_t(irradianceResolution);
   auto check = [](const std::vector<float>& v, size_t want, const char* name, bool optional) {
     if (optional && v.empty()) return;
-    if (v.size() != want) fail("ProbeField.{} holds {} floats, the grid and resolution need {}", name, v.size(), want);
+    if (v.size() != want)
+      fail("ProbeField.{} holds {} floats, the grid and resolution need {}", name, v.size(), want);
     for (size_t i = 0; i < v.size(); ++i)
       if (!std::isfinite(v[i])) fail("ProbeField.{}[{}] = {} is not finite", name, i, v[i]);
   };
@@ -24,12 +25,15 @@ void ProbeField::validate() const {
   check(irradiance, P * m2 * 3, "irradiance", false);
   check(normal, P * n2 * 3, "normal", true);
   check(albedo, P * n2 * 3, "albedo", true);
-  if (!offsets.empty() && offsets.size() != P) fail("ProbeField.offsets holds {} entries for {} probes", offsets.size(), P);
-  if (!active.empty() && active.size() != P) fail("ProbeField.active holds {} entries for {} probes", active.size(), P);
+  if (!offsets.empty() && offsets.size() != P)
+    fail("ProbeField.offsets holds {} entries for {} probes", offsets.size(), P);
+  if (!active.empty() && active.size() != P)
+    fail("ProbeField.active holds {} entries for {} probes", active.size(), P);
 }
 
 size_t ProbeField::bytes() const {
-  return sizeof(float) * (radiance.size() + distance.size() + irradiance.size() + normal.size() + albedo.size()) +
+  return sizeof(float) *
+             (radiance.size() + distance.size() + irradiance.size() + normal.size() + albedo.size()) +
          sizeof(glm::vec3) * offsets.size() + active.size();
 }
 

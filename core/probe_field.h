@@ -11,16 +11,16 @@
 namespace lfgi {
 
 struct ProbeField {
-  ProbeGrid grid;                   // probe i sits at grid.probePosition(grid.probeCoord(i)) + offsets[i]
-  int resolution = 16;              // n: radiance, distance (and optional normal/albedo) maps
-  int irradianceResolution = 8;     // m: irradiance maps
-  std::vector<glm::vec3> offsets;   // probeCount (relocation; may be empty = all zero)
-  std::vector<uint8_t> active;      // probeCount: 1 probe exists, 0 disabled (may be empty = all active)
-  std::vector<float> radiance;      // probeCount * n*n*3
-  std::vector<float> distance;      // probeCount * n*n*2: mean r, mean r^2 (Chebyshev visibility)
-  std::vector<float> irradiance;    // probeCount * m*m*3
-  std::vector<float> normal;        // optional: probeCount * n*n*3, or empty
-  std::vector<float> albedo;        // optional: probeCount * n*n*3, or empty
+  ProbeGrid grid;                  // probe i sits at grid.probePosition(grid.probeCoord(i)) + offsets[i]
+  int resolution = 16;             // n: radiance, distance (and optional normal/albedo) maps
+  int irradianceResolution = 8;    // m: irradiance maps
+  std::vector<glm::vec3> offsets;  // probeCount (relocation; may be empty = all zero)
+  std::vector<uint8_t> active;     // probeCount: 1 probe exists, 0 disabled (may be empty = all active)
+  std::vector<float> radiance;     // probeCount * n*n*3
+  std::vector<float> distance;     // probeCount * n*n*2: mean r, mean r^2 (Chebyshev visibility)
+  std::vector<float> irradiance;   // probeCount * m*m*3
+  std::vector<float> normal;       // optional: probeCount * n*n*3, or empty
+  std::vector<float> albedo;       // optional: probeCount * n*n*3, or empty
 
   int64_t probeCount() const { return grid.probeCount(); }
   glm::vec3 probePosition(int64_t i) const {

@@ -23,9 +23,14 @@ void onSignal(int) {
 }  // namespace
 
 Progress::Progress(std::string label, size_t total, std::string unit, size_t alreadyDone)
-    : label_(std::move(label)), unit_(std::move(unit)), total_(total), done_(alreadyDone), startDone_(alreadyDone),
+    : label_(std::move(label)),
+      unit_(std::move(unit)),
+      total_(total),
+      done_(alreadyDone),
+      startDone_(alreadyDone),
       tty_(::isatty(STDERR_FILENO) == 1),
-      start_(std::chrono::steady_clock::now()), lastPrint_(start_) {}
+      start_(std::chrono::steady_clock::now()),
+      lastPrint_(start_) {}
 
 std::string Progress::formatDuration(double s) {
   if (!std::isfinite(s) || s < 0.0) return "?";
@@ -60,8 +65,8 @@ void Progress::print(bool final) {
   const int width = 30;
   int filled = total_ ? int(double(width) * double(done) / double(total_)) : width;
   std::string bar = std::string(size_t(filled), '#') + std::string(size_t(width - filled), '.');
-  std::string line = fmt::format("{} [{}] {}/{} {} {:.1f}/s elapsed {} eta {}", label_, bar, done, total_, unit_,
-                                 rate, formatDuration(elapsed), final ? "0s" : formatDuration(eta));
+  std::string line = fmt::format("{} [{}] {}/{} {} {:.1f}/s elapsed {} eta {}", label_, bar, done, total_,
+                                 unit_, rate, formatDuration(elapsed), final ? "0s" : formatDuration(eta));
   std::fprintf(stderr, tty_ ? "\r%s%s" : "%s%s", line.c_str(), (final || !tty_) ? "\n" : "");
   std::fflush(stderr);
 }
@@ -80,7 +85,11 @@ InterruptGuard::~InterruptGuard() {
   sigaction(SIGTERM, &gOldTerm, nullptr);
 }
 
-bool InterruptGuard::interrupted() { return gInterrupted.load(); }
-void InterruptGuard::reset() { gInterrupted = false; }
+bool InterruptGuard::interrupted() {
+  return gInterrupted.load();
+}
+void InterruptGuard::reset() {
+  gInterrupted = false;
+}
 
 }  // namespace lfgi

@@ -13,7 +13,9 @@ namespace {
 constexpr int64_t kTaps = int64_t(kGeneratorKernel) * kGeneratorKernel;
 constexpr int64_t kBase = 16;  // the linear layer's output is [C0][4][4]
 
-int maxCode(int bits) { return (1 << (bits - 1)) - 1; }
+int maxCode(int bits) {
+  return (1 << (bits - 1)) - 1;
+}
 
 void requireFinite(std::span<const float> x, const std::string& what) {
   for (size_t i = 0; i < x.size(); ++i)
@@ -50,7 +52,8 @@ QuantizedTensor encodeTensor(std::span<const float> x, Shape s, TensorEncoding e
   t.outer = s.outer;
   t.channels = s.channels;
   t.inner = s.inner;
-  if (int64_t(x.size()) != t.elements()) fail("{}: {} floats, the shape needs {}", what, x.size(), t.elements());
+  if (int64_t(x.size()) != t.elements())
+    fail("{}: {} floats, the shape needs {}", what, x.size(), t.elements());
   requireFinite(x, what);
   switch (e) {
     case TensorEncoding::Float32:
@@ -93,8 +96,10 @@ std::vector<float> decodeTensor(const QuantizedTensor& t) {
 
 const char* weightPrecisionName(WeightPrecision p) {
   switch (p) {
-    case WeightPrecision::Float16: return "fp16";
-    case WeightPrecision::Int8: return "int8";
+    case WeightPrecision::Float16:
+      return "fp16";
+    case WeightPrecision::Int8:
+      return "int8";
   }
   return "unknown";
 }
@@ -104,7 +109,8 @@ size_t QuantizedTensor::bytes() const {
 }
 
 void QuantizedTensor::validate(const std::string& what) const {
-  if (outer < 1 || channels < 1 || inner < 1) fail("{}: shape {}x{}x{} is empty", what, outer, channels, inner);
+  if (outer < 1 || channels < 1 || inner < 1)
+    fail("{}: shape {}x{}x{} is empty", what, outer, channels, inner);
   size_t n = size_t(elements());
   auto want = [&](size_t have, size_t need, const char* field) {
     if (have != need) fail("{}: {} holds {} values, expected {}", what, field, have, need);
@@ -158,8 +164,9 @@ void QuantizedWeights::validate() const {
     TensorEncoding want = precision == WeightPrecision::Float16 ? TensorEncoding::Float16
                           : bias                                ? TensorEncoding::Float32
                                                                 : TensorEncoding::Int8PerChannel;
-    if (t.encoding != want) fail("{}: encoding {}, {} weights store {}", what, int(t.encoding),
-                                 weightPrecisionName(precision), int(want));
+    if (t.encoding != want)
+      fail("{}: encoding {}, {} weights store {}", what, int(t.encoding), weightPrecisionName(precision),
+           int(want));
     t.validate(what);
   }
 }
@@ -177,7 +184,8 @@ void QuantizedLatents::validate(const std::string& what) const {
     fail("{}: {} codes for {} probes of {} dimensions", what, codes.size(), count, dim);
   int m = maxCode(bits);
   for (size_t i = 0; i < codes.size(); ++i)
-    if (codes[i] < -m || codes[i] > m) fail("{}: code {} = {} outside [-{}, {}]", what, i, int(codes[i]), m, m);
+    if (codes[i] < -m || codes[i] > m)
+      fail("{}: code {} = {} outside [-{}, {}]", what, i, int(codes[i]), m, m);
   for (size_t d = 0; d < scales.size(); ++d)
     if (!std::isfinite(scales[d]) || scales[d] < 0.0f) fail("{}: scale {} is {}", what, d, scales[d]);
 }
@@ -214,8 +222,8 @@ PerChannelCodes quantizePerChannel(std::span<const float> x, int64_t outer, int6
 std::vector<float> dequantizePerChannel(std::span<const int8_t> codes, std::span<const float> scales,
                                         int64_t outer, int64_t channels, int64_t inner) {
   if (int64_t(codes.size()) != outer * channels * inner || int64_t(scales.size()) != channels)
-    fail("dequantizePerChannel: {} codes and {} scales for shape {}x{}x{}", codes.size(), scales.size(), outer,
-         channels, inner);
+    fail("dequantizePerChannel: {} codes and {} scales for shape {}x{}x{}", codes.size(), scales.size(),
+         outer, channels, inner);
   std::vector<float> x(codes.size());
   for (int64_t a = 0; a < outer; ++a)
     for (int64_t c = 0; c < channels; ++c)
@@ -233,8 +241,8 @@ QuantizedWeights quantizeWeights(const GeneratorWeights& w, WeightPrecision prec
   std::vector<Shape> shapes = tensorShapes(w.arch);
   std::vector<std::span<const float>> src{w.linearWeight, w.linearBias};
   if (w.convWeight.size() != size_t(w.arch.layers()) || w.convBias.size() != size_t(w.arch.layers()))
-    fail("quantizeWeights: {} conv weight and {} bias arrays, the architecture has {} layers", w.convWeight.size(),
-         w.convBias.size(), w.arch.layers());
+    fail("quantizeWeights: {} conv weight and {} bias arrays, the architecture has {} layers",
+         w.convWeight.size(), w.convBias.size(), w.arch.layers());
   for (int i = 0; i < w.arch.layers(); ++i) {
     src.push_back(w.convWeight[size_t(i)]);
     src.push_back(w.convBias[size_t(i)]);
@@ -247,7 +255,8 @@ QuantizedWeights quantizeWeights(const GeneratorWeights& w, WeightPrecision prec
     TensorEncoding e = precision == WeightPrecision::Float16 ? TensorEncoding::Float16
                        : bias                                ? TensorEncoding::Float32
                                                              : TensorEncoding::Int8PerChannel;
-    q.tensors.push_back(encodeTensor(src[k], shapes[k], e, "quantizeWeights: GeneratorWeights." + tensorName(k)));
+    q.tensors.push_back(
+        encodeTensor(src[k], shapes[k], e, "quantizeWeights: GeneratorWeights." + tensorName(k)));
   }
   return q;
 }
@@ -302,12 +311,14 @@ void QuantizedAdapter::validateHeader(const GeneratorArch& arch, const std::stri
 void QuantizedAdapter::validate(const GeneratorArch& arch, const std::string& what) const {
   validateHeader(arch, what);
   const size_t wantScales = channels > 0 ? 2 : 0;
-  if (scales.size() != wantScales) fail("{}: {} adapter scales, {} expected", what, scales.size(), wantScales);
+  if (scales.size() != wantScales)
+    fail("{}: {} adapter scales, {} expected", what, scales.size(), wantScales);
   if (codes.size() != size_t(2 * channels))
     fail("{}: {} adapter codes for 2 x {} channels", what, codes.size(), channels);
   const int m = maxCode(bits);
   for (size_t i = 0; i < codes.size(); ++i)
-    if (codes[i] < -m || codes[i] > m) fail("{}: adapter code {} = {} outside [-{}, {}]", what, i, int(codes[i]), m, m);
+    if (codes[i] < -m || codes[i] > m)
+      fail("{}: adapter code {} = {} outside [-{}, {}]", what, i, int(codes[i]), m, m);
   for (size_t i = 0; i < scales.size(); ++i)
     if (!std::isfinite(scales[i]) || scales[i] < 0.0f) fail("{}: adapter scale {} is {}", what, i, scales[i]);
 }
@@ -333,7 +344,8 @@ GeneratorAdapter dequantizeAdapter(const QuantizedAdapter& q) {
   a.stages = q.stages;
   if (q.channels == 0) return a;
   if (q.codes.size() != size_t(2 * q.channels) || q.scales.size() != 2)
-    fail("QuantizedAdapter: {} codes and {} scales for {} channels", q.codes.size(), q.scales.size(), q.channels);
+    fail("QuantizedAdapter: {} codes and {} scales for {} channels", q.codes.size(), q.scales.size(),
+         q.channels);
   const std::vector<float> x = dequantizePerChannel(q.codes, q.scales, 1, 2, q.channels);
   a.scale.assign(x.begin(), x.begin() + q.channels);
   a.shift.assign(x.begin() + q.channels, x.end());

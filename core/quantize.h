@@ -41,10 +41,10 @@ enum class TensorEncoding : uint8_t { Float32 = 0, Float16 = 1, Int8PerChannel =
 struct QuantizedTensor {
   TensorEncoding encoding = TensorEncoding::Float32;
   int64_t outer = 0, channels = 0, inner = 0;
-  std::vector<float> f32;      // Float32: elements
-  std::vector<uint16_t> f16;   // Float16: elements (IEEE binary16 bits)
-  std::vector<int8_t> codes;   // Int8PerChannel: elements, each in [-127, 127]
-  std::vector<float> scales;   // Int8PerChannel: channels scales (>= 0, finite)
+  std::vector<float> f32;     // Float32: elements
+  std::vector<uint16_t> f16;  // Float16: elements (IEEE binary16 bits)
+  std::vector<int8_t> codes;  // Int8PerChannel: elements, each in [-127, 127]
+  std::vector<float> scales;  // Int8PerChannel: channels scales (>= 0, finite)
 
   int64_t elements() const { return outer * channels * inner; }
   // Stored bytes: 4 per f32, 2 per f16, 1 per code, 4 per scale.
@@ -71,10 +71,10 @@ struct QuantizedWeights {
 // scale per dimension.
 struct QuantizedLatents {
   int dim = 0;
-  int bits = 8;                // 8 or 4
+  int bits = 8;  // 8 or 4
   int64_t count = 0;
-  std::vector<float> scales;   // dim
-  std::vector<int8_t> codes;   // count * dim (4-bit codes are held one per byte here, packed in files)
+  std::vector<float> scales;  // dim
+  std::vector<int8_t> codes;  // count * dim (4-bit codes are held one per byte here, packed in files)
 
   // Stored bytes: 4 per scale + ceil(count * dim * bits / 8) for the packed codes.
   size_t bytes() const;
@@ -105,9 +105,9 @@ std::vector<float> dequantizeLatents(const QuantizedLatents& latents);
 struct QuantizedAdapter {
   int stages = 0;
   int bits = 8;
-  int64_t channels = 0;         // adapterChannels(arch, stages): floats per array
-  std::vector<float> scales;    // 2: of the scale array, of the shift array
-  std::vector<int8_t> codes;    // 2 * channels: scale codes, then shift codes
+  int64_t channels = 0;       // adapterChannels(arch, stages): floats per array
+  std::vector<float> scales;  // 2: of the scale array, of the shift array
+  std::vector<int8_t> codes;  // 2 * channels: scale codes, then shift codes
 
   // Stored bytes: 1 (stages) + 4 per scale + ceil(2 * channels * bits / 8) packed codes.
   size_t bytes() const;

@@ -109,11 +109,13 @@ TEST(Quantize, WeightsRoundTripWithinBoundsAndReportBytes) {
     const QuantizedTensor& t = q.tensors[size_t(2 + 2 * i)];
     for (size_t k = 0; k < w.convWeight[size_t(i)].size(); ++k) {
       size_t c = (k / 16) % size_t(t.channels);
-      EXPECT_LE(std::fabs(w.convWeight[size_t(i)][k] - wq.convWeight[size_t(i)][k]), 0.5f * t.scales[c] * 1.0001f);
+      EXPECT_LE(std::fabs(w.convWeight[size_t(i)][k] - wq.convWeight[size_t(i)][k]),
+                0.5f * t.scales[c] * 1.0001f);
     }
     EXPECT_EQ(wq.convBias[size_t(i)], w.convBias[size_t(i)]);
   }
-  std::printf("%zu parameters: fp32 %zu B, fp16 %zu B, int8 %zu B\n", params, params * 4, h.bytes(), q.bytes());
+  std::printf("%zu parameters: fp32 %zu B, fp16 %zu B, int8 %zu B\n", params, params * 4, h.bytes(),
+              q.bytes());
 
   // Decoding the dequantized network stays close to the float one (the error a cell file adds).
   std::vector<float> lat(3 * size_t(a.latentDim));
@@ -146,7 +148,8 @@ TEST(Quantize, LatentsPerDimensionEightAndFourBits) {
     EXPECT_EQ(q.bytes(), size_t(dim) * 4 + size_t(count * dim * bits) / 8);
     std::vector<float> back = dequantizeLatents(q);
     for (size_t i = 0; i < lat.size(); ++i)
-      EXPECT_LE(std::fabs(lat[i] - back[i]), 0.5f * q.scales[i % dim] * 1.0001f) << "bits " << bits << " " << i;
+      EXPECT_LE(std::fabs(lat[i] - back[i]), 0.5f * q.scales[i % dim] * 1.0001f)
+          << "bits " << bits << " " << i;
     EXPECT_GT(q.scales[5], 2.0f * q.scales[0]);  // per-dimension scales follow the spread
   }
 }

@@ -28,7 +28,8 @@ struct Normalisation {
   Normalisation() {
     for (int l = 0; l <= kShMaxBand; ++l)
       for (int m = 0; m <= l; ++m) {
-        const double v = std::sqrt((2.0 * l + 1.0) / (4.0 * std::numbers::pi) * factorial(l - m) / factorial(l + m));
+        const double v =
+            std::sqrt((2.0 * l + 1.0) / (4.0 * std::numbers::pi) * factorial(l - m) / factorial(l + m));
         k[l][m] = m == 0 ? v : std::sqrt(2.0) * v;
       }
   }
@@ -95,14 +96,17 @@ std::shared_ptr<const std::vector<double>> shTexelWeightsHigh(int lmax, int n) {
   }
   const int count = shCoefficientCount(lmax);
   auto weights = std::make_shared<const std::vector<double>>(octTexelIntegrals(
-      n, count, [&](const glm::dvec3& w, double* y) { shBasis(lmax, w, std::span<double>(y, size_t(count))); }));
+      n, count,
+      [&](const glm::dvec3& w, double* y) { shBasis(lmax, w, std::span<double>(y, size_t(count))); }));
   const std::lock_guard lock(mutex);
   return cache.emplace(key, std::move(weights)).first->second;
 }
 
 double clampedCosineZonalHigh(int l) {
   checkBand("clampedCosineZonalHigh", l);
-  if (l > 1 && l % 2 == 1) return 0.0;  // odd l: t P_l(t) is even, so the half-range integral is half of the full one, 0 by orthogonality to P_1
+  if (l > 1 && l % 2 == 1)
+    return 0.0;  // odd l: t P_l(t) is even, so the half-range integral is half of the full one, 0 by
+                 // orthogonality to P_1
   // 8-point Gauss-Legendre on [-1, 1], mapped to [0, 1].
   static constexpr double kX[8] = {-0.9602898564975363, -0.7966664774136267, -0.5255324099163290,
                                    -0.1834346424956498, 0.1834346424956498,  0.5255324099163290,

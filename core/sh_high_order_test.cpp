@@ -35,12 +35,15 @@ TEST(ShHighOrder, FirstNineMatchShL2) {
 TEST(ShHighOrder, OrthonormalWithExactTexelIntegrals) {
   constexpr int K = 64;
   const int n = 8;
-  const std::vector<double> products = octTexelIntegrals(n, K * K, [](const glm::dvec3& w, double* v) {
-    double y[K];
-    shBasis(7, w, std::span<double>(y, K));
-    for (int a = 0; a < K; ++a)
-      for (int b = 0; b < K; ++b) v[a * K + b] = y[a] * y[b];
-  }, /*order=*/12);  // products reach degree 14: order 8 leaves ~5e-10
+  const std::vector<double> products = octTexelIntegrals(
+      n, K * K,
+      [](const glm::dvec3& w, double* v) {
+        double y[K];
+        shBasis(7, w, std::span<double>(y, K));
+        for (int a = 0; a < K; ++a)
+          for (int b = 0; b < K; ++b) v[a * K + b] = y[a] * y[b];
+      },
+      /*order=*/12);  // products reach degree 14: order 8 leaves ~5e-10
   double worst = 0.0;
   for (int a = 0; a < K; ++a)
     for (int b = 0; b < K; ++b) {
@@ -65,7 +68,8 @@ TEST(ShHighOrder, ConstantMapProjectsExactly) {
   // The first 9 weights are core/sh.h's.
   const auto w2 = shTexelWeights(n);
   for (int t = 0; t < n * n; ++t)
-    for (int k = 0; k < 9; ++k) EXPECT_NEAR((*w)[size_t(t) * 64 + size_t(k)], (*w2)[size_t(t) * 9 + size_t(k)], 1e-14);
+    for (int k = 0; k < 9; ++k)
+      EXPECT_NEAR((*w)[size_t(t) * 64 + size_t(k)], (*w2)[size_t(t) * 9 + size_t(k)], 1e-14);
 }
 
 // The clamped cosine about +Z has only zonal coefficients; they match the closed form of the header and,

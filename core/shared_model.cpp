@@ -36,7 +36,9 @@ std::vector<std::byte> encode(const SharedModel& model, std::span<const detail::
 
 }  // namespace
 
-uint64_t SharedModel::weightsHash() const { return weightsContentHash(dequantizeWeights(weights)); }
+uint64_t SharedModel::weightsHash() const {
+  return weightsContentHash(dequantizeWeights(weights));
+}
 
 void SharedModel::validate(const std::string& what) const {
   try {
@@ -49,24 +51,33 @@ void SharedModel::validate(const std::string& what) const {
   if (stats.steps < 0) fail("{}: training steps {} < 0", what, stats.steps);
   for (double v : {stats.seconds, stats.errorAchieved})
     if (!std::isfinite(v) || v < 0.0) fail("{}: training stat {} must be finite and >= 0", what, v);
-  if (stats.cells.size() > 4096) fail("{}: training cell list is {} characters (limit 4096)", what, stats.cells.size());
+  if (stats.cells.size() > 4096)
+    fail("{}: training cell list is {} characters (limit 4096)", what, stats.cells.size());
 }
 
-std::filesystem::path sharedModelPath(const std::filesystem::path& outDir) { return outDir / "shared_model.vdb"; }
+std::filesystem::path sharedModelPath(const std::filesystem::path& outDir) {
+  return outDir / "shared_model.vdb";
+}
 
-std::vector<std::byte> encodeSharedModel(const SharedModel& model) { return encode(model, {}); }
+std::vector<std::byte> encodeSharedModel(const SharedModel& model) {
+  return encode(model, {});
+}
 
 std::vector<std::byte> detail::encodeSharedModelWithOverrides(const SharedModel& model,
                                                               std::span<const CellFileOverride> overrides) {
   return encode(model, overrides);
 }
 
-SharedModel decodeSharedModel(std::span<const std::byte> bytes, const std::string& name, uint64_t* weightsHash) {
-  const OpenedStream opened = vdbfile::open(bytes, name, kTrailerMagic, kSharedModelMaxBytes, "shared model file");
-  if (!opened.grids->empty()) fail("{}: {} grids, a shared model file holds none", name, opened.grids->size());
+SharedModel decodeSharedModel(std::span<const std::byte> bytes, const std::string& name,
+                              uint64_t* weightsHash) {
+  const OpenedStream opened =
+      vdbfile::open(bytes, name, kTrailerMagic, kSharedModelMaxBytes, "shared model file");
+  if (!opened.grids->empty())
+    fail("{}: {} grids, a shared model file holds none", name, opened.grids->size());
   MetaReader r(*opened.meta, name);
   const std::string magic = r.get<std::string>("lfgi_magic");
-  if (magic != kMagic) fail("{}: lfgi_magic is '{}', expected '{}' (not a shared model file)", name, magic, kMagic);
+  if (magic != kMagic)
+    fail("{}: lfgi_magic is '{}', expected '{}' (not a shared model file)", name, magic, kMagic);
   const int64_t version = r.get<int32_t>("lfgi_format_version");
   if (version != kSharedModelVersion)
     fail("{}: shared model format version {}, this build reads version {} (rebake the world)", name, version,
@@ -118,15 +129,17 @@ ResolvedSharedModel loadSharedModel(const std::filesystem::path& path) {
   return r;
 }
 
-void checkSharedReference(const CellGenerator& g, const ResolvedSharedModel* shared, const std::string& cellName) {
+void checkSharedReference(const CellGenerator& g, const ResolvedSharedModel* shared,
+                          const std::string& cellName) {
   if (!g.shared) return;
   if (!shared)
-    fail("{}: refers to shared model {:016x}, but no shared model file is loaded (the bake writes it as "
-         "shared_model.vdb next to cells/)",
-         cellName, g.shared->modelHash);
+    fail(
+        "{}: refers to shared model {:016x}, but no shared model file is loaded (the bake writes it as "
+        "shared_model.vdb next to cells/)",
+        cellName, g.shared->modelHash);
   if (shared->hash != g.shared->modelHash)
-    fail("{}: refers to shared model {:016x}, but {} holds {:016x} (rebake the cell or restore that model)", cellName,
-         g.shared->modelHash, shared->name, shared->hash);
+    fail("{}: refers to shared model {:016x}, but {} holds {:016x} (rebake the cell or restore that model)",
+         cellName, g.shared->modelHash, shared->name, shared->hash);
   const GeneratorArch &a = g.weights.arch, &b = shared->weights.arch;
   if (a.latentDim != b.latentDim || a.condDim != b.condDim || a.convChannels != b.convChannels ||
       a.latentSource != b.latentSource)

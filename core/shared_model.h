@@ -32,16 +32,16 @@ inline constexpr int kSharedModelVersion = 1;
 inline constexpr size_t kSharedModelMaxBytes = size_t(64) << 20;
 
 struct SharedModelStats {
-  int steps = 0;                 // pre-training steps, >= 0
-  double seconds = 0.0;          // pre-training wall time, >= 0
-  double errorAchieved = 0.0;    // mean irradiance relative RMS over the pre-training cells (float weights)
-  std::string cells;             // the pre-training cells in words, e.g. "0,1 field; 2,0 city"
+  int steps = 0;               // pre-training steps, >= 0
+  double seconds = 0.0;        // pre-training wall time, >= 0
+  double errorAchieved = 0.0;  // mean irradiance relative RMS over the pre-training cells (float weights)
+  std::string cells;           // the pre-training cells in words, e.g. "0,1 field; 2,0 city"
 };
 
 struct SharedModel {
   uint64_t worldSeed = 0;
-  uint64_t inputHash = 0;        // of the pre-training inputs (cells, capture and training settings)
-  QuantizedWeights weights;      // includes the architecture
+  uint64_t inputHash = 0;    // of the pre-training inputs (cells, capture and training settings)
+  QuantizedWeights weights;  // includes the architecture
   SharedModelStats stats;
 
   // weightsContentHash(dequantizeWeights(weights)).
@@ -56,7 +56,8 @@ std::filesystem::path sharedModelPath(const std::filesystem::path& outDir);
 
 std::vector<std::byte> encodeSharedModel(const SharedModel& model);
 // Errors start with `name`. weightsHash: if not null, receives the (checked) stored weights hash.
-SharedModel decodeSharedModel(std::span<const std::byte> bytes, const std::string& name, uint64_t* weightsHash = nullptr);
+SharedModel decodeSharedModel(std::span<const std::byte> bytes, const std::string& name,
+                              uint64_t* weightsHash = nullptr);
 void writeSharedModel(const std::filesystem::path& path, const SharedModel& model);
 SharedModel readSharedModel(const std::filesystem::path& path, uint64_t* weightsHash = nullptr);
 
@@ -66,16 +67,17 @@ SharedModel readSharedModel(const std::filesystem::path& path, uint64_t* weights
 // weights). Throws lfgi::Error naming cellName and sharedName when the cell needs a shared model and none
 // is given, or it is another one (hash or architecture differ).
 struct ResolvedSharedModel {
-  GeneratorWeights weights;      // dequantized
-  uint64_t hash = 0;             // weightsContentHash(weights)
-  std::string name;              // where it came from (its file), for errors
+  GeneratorWeights weights;  // dequantized
+  uint64_t hash = 0;         // weightsContentHash(weights)
+  std::string name;          // where it came from (its file), for errors
 };
 // readSharedModel(path) dequantized, with its hash and name = path.
 ResolvedSharedModel loadSharedModel(const std::filesystem::path& path);
 GeneratorWeights resolveCellWeights(const CellGenerator& generator, const ResolvedSharedModel* shared,
                                     const std::string& cellName);
 // resolveCellWeights' checks without the fold (no weights built): for validating many cells at once.
-void checkSharedReference(const CellGenerator& generator, const ResolvedSharedModel* shared, const std::string& cellName);
+void checkSharedReference(const CellGenerator& generator, const ResolvedSharedModel* shared,
+                          const std::string& cellName);
 
 namespace detail {
 // Test seam as detail::encodeCellFileWithOverrides (same override rules) for shared model files.

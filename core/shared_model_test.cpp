@@ -85,8 +85,9 @@ std::string errorOf(const std::function<void()>& f) {
 }
 
 // Every truncation and 2000 seeded 1-4 bit flips give an error starting with "<name>: ".
-void expectCorruptionRejected(const std::vector<std::byte>& bytes,
-                              const std::function<void(std::span<const std::byte>, const std::string&)>& decode) {
+void expectCorruptionRejected(
+    const std::vector<std::byte>& bytes,
+    const std::function<void(std::span<const std::byte>, const std::string&)>& decode) {
   for (size_t len = 0; len < bytes.size(); ++len) {
     const std::string e = errorOf([&] { decode(std::span(bytes).first(len), "cut.vdb"); });
     ASSERT_EQ(e.rfind("cut.vdb: ", 0), 0u) << "length " << len << ": '" << e << "'";
@@ -137,13 +138,18 @@ TEST(SharedModel, RoundTripIsBitExact) {
 }
 
 TEST(SharedModel, CorruptFilesAreRejectedCleanly) {
-  expectCorruptionRejected(encodeSharedModel(makeModel()),
-                           [](std::span<const std::byte> b, const std::string& n) { decodeSharedModel(b, n); });
+  expectCorruptionRejected(
+      encodeSharedModel(makeModel()),
+      [](std::span<const std::byte> b, const std::string& n) { decodeSharedModel(b, n); });
   // A cell file is not a shared model file, and the other way round.
   const SharedModel m = makeModel();
-  EXPECT_NE(errorOf([&] { decodeSharedModel(encodeCellFile(makeSharedCell(m)), "c.vdb"); }).find("c.vdb: truncated or not a shared model file"),
+  EXPECT_NE(errorOf([&] {
+              decodeSharedModel(encodeCellFile(makeSharedCell(m)), "c.vdb");
+            }).find("c.vdb: truncated or not a shared model file"),
             std::string::npos);
-  EXPECT_NE(errorOf([&] { decodeCellFile(encodeSharedModel(m), "s.vdb"); }).find("s.vdb: truncated or not a cell file"),
+  EXPECT_NE(errorOf([&] {
+              decodeCellFile(encodeSharedModel(m), "s.vdb");
+            }).find("s.vdb: truncated or not a cell file"),
             std::string::npos);
 }
 
@@ -153,7 +159,8 @@ TEST(SharedModel, IntactButWrongFilesNameTheProblem) {
     return errorOf([&] { decodeSharedModel(detail::encodeSharedModelWithOverrides(m, o), "s.vdb"); });
   };
   std::string e = err({{"weights_hash", 0, "0000000000000001"}});
-  EXPECT_NE(e.find("s.vdb: weights_hash is 0000000000000001, the stored weights hash to"), std::string::npos) << e;
+  EXPECT_NE(e.find("s.vdb: weights_hash is 0000000000000001, the stored weights hash to"), std::string::npos)
+      << e;
   e = err({{"lfgi_format_version", 2, ""}});
   EXPECT_NE(e.find("s.vdb: shared model format version 2"), std::string::npos) << e;
   e = err({{"generator_weights", 0, "abc"}});
@@ -218,7 +225,8 @@ TEST(SharedModel, VersionThreeFieldsAreCheckedByName) {
   const std::vector<Case> cases = {
       {{{"shared_model_hash", 0, "0000000000000000"}}, "v3.vdb: shared_model_hash is 0"},
       {{{"shared_model_hash", 0, "xyz"}}, "v3.vdb: shared_model_hash: 'xyz' is not 16 hex digits"},
-      {{{"adapter_channels", 9, ""}}, "v3.vdb: adapter: adapter of 9 channels, 2 stages of the model have 14"},
+      {{{"adapter_channels", 9, ""}},
+       "v3.vdb: adapter: adapter of 9 channels, 2 stages of the model have 14"},
       {{{"adapter_stages", 7, ""}}, "v3.vdb: field 'adapter_stages' = 7 outside [0, 3]"},
       {{{"adapter_bits", 6, ""}}, "v3.vdb: adapter: 6 bits per adapter code"},
       {{{"adapter", 0, "12345"}}, "v3.vdb: adapter ends after 5 bytes"},
@@ -237,10 +245,13 @@ TEST(SharedModel, VersionThreeFieldsAreCheckedByName) {
   own.generator->shared.reset();
   own.generator->weights = m.weights;
   const std::string e = errorOf([&] {
-    decodeCellFile(detail::encodeCellFileWithOverrides(own, std::vector<detail::CellFileOverride>{{"shared_model_hash", 0, "0000000000000001"}}),
-                   "v2.vdb");
+    decodeCellFile(
+        detail::encodeCellFileWithOverrides(
+            own, std::vector<detail::CellFileOverride>{{"shared_model_hash", 0, "0000000000000001"}}),
+        "v2.vdb");
   });
-  EXPECT_NE(e.find("v2.vdb: a cell with its own weights holds field 'shared_model_hash'"), std::string::npos) << e;
+  EXPECT_NE(e.find("v2.vdb: a cell with its own weights holds field 'shared_model_hash'"), std::string::npos)
+      << e;
   // The writer refuses an inconsistent reference.
   CellFile bad = c;
   bad.generator->shared->modelHash = 0;
@@ -250,7 +261,8 @@ TEST(SharedModel, VersionThreeFieldsAreCheckedByName) {
   EXPECT_NE(errorOf([&] { encodeCellFile(bad); }).find("adapter"), std::string::npos);
   bad = c;
   bad.generator->weights = m.weights;  // own tensors and a reference
-  EXPECT_NE(errorOf([&] { encodeCellFile(bad); }).find("holds 6 weight tensors of its own"), std::string::npos);
+  EXPECT_NE(errorOf([&] { encodeCellFile(bad); }).find("holds 6 weight tensors of its own"),
+            std::string::npos);
 }
 
 TEST(SharedModel, ResolveFoldsTheAdapterAndNamesBothFiles) {
@@ -258,7 +270,8 @@ TEST(SharedModel, ResolveFoldsTheAdapterAndNamesBothFiles) {
   const CellFile c = decodeCellFile(encodeCellFile(makeSharedCell(m)), "c.vdb");
   const ResolvedSharedModel r = resolved(m);
   const GeneratorWeights w = resolveCellWeights(*c.generator, &r, "c.vdb");
-  const GeneratorWeights byHand = applyAdapter(dequantizeWeights(m.weights), dequantizeAdapter(c.generator->shared->adapter));
+  const GeneratorWeights byHand =
+      applyAdapter(dequantizeWeights(m.weights), dequantizeAdapter(c.generator->shared->adapter));
   EXPECT_EQ(weightsContentHash(w), weightsContentHash(byHand));
   EXPECT_NE(weightsContentHash(w), r.hash);  // the adapter changed something
   std::string e = errorOf([&] { resolveCellWeights(*c.generator, nullptr, "c.vdb"); });

@@ -16,7 +16,8 @@
 
 namespace lfgi::vdbfile {
 
-static_assert(std::endian::native == std::endian::little, "lfgi files store little-endian blobs as memory images");
+static_assert(std::endian::native == std::endian::little,
+              "lfgi files store little-endian blobs as memory images");
 
 namespace {
 
@@ -24,7 +25,9 @@ namespace {
 // then the archive UUID as 36 ASCII characters (io/Archive.cc, writeHeader).
 constexpr size_t kUuidOffset = 21, kUuidChars = 36;
 
-std::string channelsText(const std::vector<int>& c) { return fmt::format("{}", fmt::join(c, ",")); }
+std::string channelsText(const std::vector<int>& c) {
+  return fmt::format("{}", fmt::join(c, ","));
+}
 
 std::vector<int> parseChannels(const std::string& s, const std::string& what) {
   std::vector<int> out;
@@ -33,7 +36,8 @@ std::vector<int> parseChannels(const std::string& s, const std::string& what) {
     size_t end = s.find(',', pos);
     if (end == std::string::npos) end = s.size();
     std::string item = s.substr(pos, end - pos);
-    if (item.empty() || item.size() > 4 || !std::all_of(item.begin(), item.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    if (item.empty() || item.size() > 4 ||
+        !std::all_of(item.begin(), item.end(), [](char c) { return c >= '0' && c <= '9'; }))
       fail("{}: '{}' is not a comma-separated list of channel counts", what, s);
     out.push_back(std::stoi(item));
     if (out.size() > 16) fail("{}: more than 16 entries", what);
@@ -42,7 +46,9 @@ std::vector<int> parseChannels(const std::string& s, const std::string& what) {
   return out;
 }
 
-const char* latentSourceName(LatentSource s) { return s == LatentSource::Stored ? "stored" : "position_fourier"; }
+const char* latentSourceName(LatentSource s) {
+  return s == LatentSource::Stored ? "stored" : "position_fourier";
+}
 
 }  // namespace
 
@@ -78,8 +84,12 @@ std::vector<uint8_t> encodeWeights(const QuantizedWeights& w) {
   std::vector<uint8_t> out;
   for (const QuantizedTensor& t : w.tensors) {
     switch (t.encoding) {
-      case TensorEncoding::Float32: appendPod<float>(out, t.f32); break;
-      case TensorEncoding::Float16: appendPod<uint16_t>(out, t.f16); break;
+      case TensorEncoding::Float32:
+        appendPod<float>(out, t.f32);
+        break;
+      case TensorEncoding::Float16:
+        appendPod<uint16_t>(out, t.f16);
+        break;
       case TensorEncoding::Int8PerChannel:
         appendPod<float>(out, t.scales);
         appendPod<int8_t>(out, t.codes);
@@ -108,8 +118,12 @@ QuantizedWeights decodeWeights(const std::vector<uint8_t>& blob, const Generator
   for (QuantizedTensor& t : q.tensors) {
     size_t n = size_t(t.elements());
     switch (t.encoding) {
-      case TensorEncoding::Float32: t.f32 = r.read<float>(n); break;
-      case TensorEncoding::Float16: t.f16 = r.read<uint16_t>(n); break;
+      case TensorEncoding::Float32:
+        t.f32 = r.read<float>(n);
+        break;
+      case TensorEncoding::Float16:
+        t.f16 = r.read<uint16_t>(n);
+        break;
       case TensorEncoding::Int8PerChannel:
         t.scales = r.read<float>(size_t(t.channels));
         t.codes = r.read<int8_t>(n);
@@ -121,10 +135,13 @@ QuantizedWeights decodeWeights(const std::vector<uint8_t>& blob, const Generator
   return q;
 }
 
-std::string hex64(uint64_t v) { return fmt::format("{:016x}", v); }
+std::string hex64(uint64_t v) {
+  return fmt::format("{:016x}", v);
+}
 
 uint64_t parseHex64(const std::string& s, const std::string& what) {
-  if (s.size() != 16 || !std::all_of(s.begin(), s.end(), [](char c) { return std::isxdigit(uint8_t(c)) != 0; }))
+  if (s.size() != 16 ||
+      !std::all_of(s.begin(), s.end(), [](char c) { return std::isxdigit(uint8_t(c)) != 0; }))
     fail("{}: '{}' is not 16 hex digits", what, s);
   return std::stoull(s, nullptr, 16);
 }
@@ -142,8 +159,10 @@ double MetaReader::getFiniteDouble(const char* field) const {
 int64_t MetaReader::getInt(const char* field, int64_t lo, int64_t hi) const {
   int64_t v;
   openvdb::Metadata::ConstPtr p = m_[field];
-  if (p && p->typeName() == openvdb::Int32Metadata::staticTypeName()) v = get<int32_t>(field);
-  else v = get<int64_t>(field);
+  if (p && p->typeName() == openvdb::Int32Metadata::staticTypeName())
+    v = get<int32_t>(field);
+  else
+    v = get<int64_t>(field);
   if (v < lo || v > hi) fail("{}: field '{}' = {} outside [{}, {}]", name_, field, v, lo, hi);
   return v;
 }
@@ -176,11 +195,15 @@ std::pair<GeneratorArch, WeightPrecision> readArch(const MetaReader& r) {
   GeneratorArch a;
   a.latentDim = int(r.getInt("generator_latent_dim", 1, 256));
   a.condDim = int(r.getInt("generator_cond_dim", 0, kConditioningDim));
-  a.convChannels = parseChannels(r.get<std::string>("generator_conv_channels"), name + ": generator_conv_channels");
+  a.convChannels =
+      parseChannels(r.get<std::string>("generator_conv_channels"), name + ": generator_conv_channels");
   std::string src = r.get<std::string>("generator_latent_source");
-  if (src == "stored") a.latentSource = LatentSource::Stored;
-  else if (src == "position_fourier") a.latentSource = LatentSource::PositionFourier;
-  else fail("{}: generator_latent_source '{}' is unknown (stored, position_fourier)", name, src);
+  if (src == "stored")
+    a.latentSource = LatentSource::Stored;
+  else if (src == "position_fourier")
+    a.latentSource = LatentSource::PositionFourier;
+  else
+    fail("{}: generator_latent_source '{}' is unknown (stored, position_fourier)", name, src);
   a.fourierOctaves = int(r.getInt("generator_fourier_octaves", 0, 16));
   try {
     a.validate();
@@ -189,9 +212,12 @@ std::pair<GeneratorArch, WeightPrecision> readArch(const MetaReader& r) {
   }
   std::string prec = r.get<std::string>("generator_weight_precision");
   WeightPrecision p;
-  if (prec == "fp16") p = WeightPrecision::Float16;
-  else if (prec == "int8") p = WeightPrecision::Int8;
-  else fail("{}: generator_weight_precision '{}' is unknown (fp16, int8)", name, prec);
+  if (prec == "fp16")
+    p = WeightPrecision::Float16;
+  else if (prec == "int8")
+    p = WeightPrecision::Int8;
+  else
+    fail("{}: generator_weight_precision '{}' is unknown (fp16, int8)", name, prec);
   return {a, p};
 }
 
@@ -206,11 +232,13 @@ void applyOverrides(openvdb::MetaMap& m, std::span<const detail::CellFileOverrid
       m.insertMeta(o.field, openvdb::StringMetadata(o.text));
     else if (p && p->typeName() == openvdb::Vec3IMetadata::staticTypeName()) {
       openvdb::Vec3i v(0, 0, 0);
-      if (std::sscanf(o.text.c_str(), "%d,%d,%d", &v[0], &v[1], &v[2]) != 3) fail("override {}: expected X,Y,Z", o.field);
+      if (std::sscanf(o.text.c_str(), "%d,%d,%d", &v[0], &v[1], &v[2]) != 3)
+        fail("override {}: expected X,Y,Z", o.field);
       m.insertMeta(o.field, openvdb::Vec3IMetadata(v));
     } else if (p && p->typeName() == kBlobType)
       putBlob(m, o.field.c_str(), std::vector<uint8_t>(o.text.begin(), o.text.end()));
-    else if (p && !o.text.empty() && p->typeName() == openvdb::FloatMetadata::staticTypeName())  // "nan", "-1.5"
+    else if (p && !o.text.empty() &&
+             p->typeName() == openvdb::FloatMetadata::staticTypeName())  // "nan", "-1.5"
       m.insertMeta(o.field, openvdb::FloatMetadata(std::strtof(o.text.c_str(), nullptr)));
     else if (p && !o.text.empty() && p->typeName() == openvdb::DoubleMetadata::staticTypeName())
       m.insertMeta(o.field, openvdb::DoubleMetadata(std::strtod(o.text.c_str(), nullptr)));
@@ -233,11 +261,12 @@ std::vector<std::byte> seal(const openvdb::GridCPtrVec& grids, const openvdb::Me
 
   // Deterministic archive UUID (OpenVDB draws a random one per write): derived from everything after it.
   if (s.size() < kUuidOffset + kUuidChars || s[kUuidOffset + 8] != '-' || s[kUuidOffset + 13] != '-')
-    fail("{}: OpenVDB header layout is not the expected one (archive UUID not at byte {})", what, kUuidOffset);
+    fail("{}: OpenVDB header layout is not the expected one (archive UUID not at byte {})", what,
+         kUuidOffset);
   XXH128_hash_t h = XXH3_128bits(s.data() + kUuidOffset + kUuidChars, s.size() - kUuidOffset - kUuidChars);
   std::string hex = fmt::format("{:016x}{:016x}", h.high64, h.low64);
-  std::string uuid = hex.substr(0, 8) + "-" + hex.substr(8, 4) + "-" + hex.substr(12, 4) + "-" + hex.substr(16, 4) +
-                     "-" + hex.substr(20, 12);
+  std::string uuid = hex.substr(0, 8) + "-" + hex.substr(8, 4) + "-" + hex.substr(12, 4) + "-" +
+                     hex.substr(16, 4) + "-" + hex.substr(20, 12);
   s.replace(kUuidOffset, kUuidChars, uuid);
 
   std::vector<std::byte> out(s.size() + kTrailerBytes);
@@ -252,9 +281,11 @@ std::vector<std::byte> seal(const openvdb::GridCPtrVec& grids, const openvdb::Me
 OpenedStream open(std::span<const std::byte> bytes, const std::string& name, const char (&trailerMagic)[9],
                   size_t maxBytes, const char* kind) {
   // Envelope: size, trailer, checksum. Nothing below trusts a byte that failed these.
-  if (bytes.size() > maxBytes) fail("{}: {} bytes, more than the {} limit {}", name, bytes.size(), kind, maxBytes);
+  if (bytes.size() > maxBytes)
+    fail("{}: {} bytes, more than the {} limit {}", name, bytes.size(), kind, maxBytes);
   if (bytes.size() < kTrailerBytes + 8)
-    fail("{}: truncated or not a {} ({} bytes, too short for the OpenVDB header and trailer)", name, kind, bytes.size());
+    fail("{}: truncated or not a {} ({} bytes, too short for the OpenVDB header and trailer)", name, kind,
+         bytes.size());
   const std::byte* tail = bytes.data() + bytes.size() - kTrailerBytes;
   uint64_t length = 0, sum = 0;
   std::memcpy(&length, tail + 8, 8);
@@ -263,20 +294,23 @@ OpenedStream open(std::span<const std::byte> bytes, const std::string& name, con
     int64_t vdbMagic = 0;
     std::memcpy(&vdbMagic, bytes.data(), 8);
     if (vdbMagic != openvdb::OPENVDB_MAGIC) fail("{}: not a {} (no OpenVDB magic at the start)", name, kind);
-    fail("{}: truncated or not a {} (the '{}' trailer is missing at the end)", name, kind, std::string(trailerMagic, 8));
+    fail("{}: truncated or not a {} (the '{}' trailer is missing at the end)", name, kind,
+         std::string(trailerMagic, 8));
   }
   if (length != bytes.size() - kTrailerBytes)
-    fail("{}: truncated or padded: the trailer records {} bytes of OpenVDB data, the file holds {}", name, length,
-         bytes.size() - kTrailerBytes);
+    fail("{}: truncated or padded: the trailer records {} bytes of OpenVDB data, the file holds {}", name,
+         length, bytes.size() - kTrailerBytes);
   uint64_t actual = XXH3_64bits(bytes.data(), size_t(length));
   if (actual != sum)
-    fail("{}: corrupt: checksum of the OpenVDB data is {:016x}, the trailer records {:016x}", name, actual, sum);
+    fail("{}: corrupt: checksum of the OpenVDB data is {:016x}, the trailer records {:016x}", name, actual,
+         sum);
 
   // OpenVDB parse (the bytes are the ones our writer produced).
   initOpenVdb();
   OpenedStream o;
   try {
-    std::istringstream is(std::string(reinterpret_cast<const char*>(bytes.data()), size_t(length)), std::ios::binary);
+    std::istringstream is(std::string(reinterpret_cast<const char*>(bytes.data()), size_t(length)),
+                          std::ios::binary);
     openvdb::io::Stream stream(is, false);
     o.meta = stream.getMetadata();
     o.grids = stream.getGrids();

@@ -39,7 +39,8 @@ class BlobReader {
   template <typename T>
   std::vector<T> read(size_t count) {
     if (count > (bytes_.size() - pos_) / sizeof(T))
-      fail("{} ends after {} bytes, {} more needed", what_, bytes_.size(), count * sizeof(T) - (bytes_.size() - pos_));
+      fail("{} ends after {} bytes, {} more needed", what_, bytes_.size(),
+           count * sizeof(T) - (bytes_.size() - pos_));
     std::vector<T> v(count);
     if (count) std::memcpy(v.data(), bytes_.data() + pos_, count * sizeof(T));
     pos_ += count * sizeof(T);
@@ -78,8 +79,9 @@ class MetaReader {
     openvdb::Metadata::ConstPtr p = m_[field];
     if (!p) fail("{}: field '{}' is missing", name_, field);
     auto typed = std::dynamic_pointer_cast<const openvdb::TypedMetadata<T>>(p);
-    if (!typed) fail("{}: field '{}' has type {}, expected {}", name_, field, p->typeName(),
-                     openvdb::TypedMetadata<T>::staticTypeName());
+    if (!typed)
+      fail("{}: field '{}' has type {}, expected {}", name_, field, p->typeName(),
+           openvdb::TypedMetadata<T>::staticTypeName());
     return typed->value();
   }
   float getFinite(const char* field) const;

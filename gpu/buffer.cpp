@@ -42,7 +42,9 @@ Buffer::Buffer(Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage, Memory
     vkGetBufferMemoryRequirements(device_, buffer_, &req);
     VkMemoryPropertyFlags required = 0, preferred = 0;
     switch (memory) {
-      case MemoryUsage::DeviceLocal: required = VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT; break;
+      case MemoryUsage::DeviceLocal:
+        required = VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT;
+        break;
       case MemoryUsage::Upload:
         required = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
         break;
@@ -56,7 +58,8 @@ Buffer::Buffer(Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage, Memory
     alloc.memoryTypeIndex = findMemoryType(ctx, req.memoryTypeBits, required, preferred);
     check(vkAllocateMemory(device_, &alloc, nullptr, &memory_), "vkAllocateMemory");
     check(vkBindBufferMemory(device_, buffer_, memory_, 0), "vkBindBufferMemory");
-    if (memory != MemoryUsage::DeviceLocal) check(vkMapMemory(device_, memory_, 0, size, 0, &mapped_), "vkMapMemory");
+    if (memory != MemoryUsage::DeviceLocal)
+      check(vkMapMemory(device_, memory_, 0, size, 0, &mapped_), "vkMapMemory");
   } catch (...) {
     release();
     throw;
@@ -84,7 +87,9 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
   return *this;
 }
 
-Buffer::~Buffer() { release(); }
+Buffer::~Buffer() {
+  release();
+}
 
 void Buffer::release() {
   if (device_ == VK_NULL_HANDLE) return;
@@ -143,7 +148,8 @@ void readbackBuffer(Context& ctx, const Buffer& src, std::span<std::byte> out, V
 }
 
 void fillBuffer(Context& ctx, Buffer& dst, uint32_t value) {
-  submitAndWait(ctx, [&](VkCommandBuffer cmd) { vkCmdFillBuffer(cmd, dst.handle(), 0, VK_WHOLE_SIZE, value); });
+  submitAndWait(ctx,
+                [&](VkCommandBuffer cmd) { vkCmdFillBuffer(cmd, dst.handle(), 0, VK_WHOLE_SIZE, value); });
 }
 
 }  // namespace lfgi::gpu

@@ -2,11 +2,11 @@
 
 #include <spdlog/spdlog.h>
 
+#include <fmt/format.h>
 #include <algorithm>
 #include <cctype>
 #include <cstdlib>
 #include <cstring>
-#include <fmt/format.h>
 
 #include "core/error.h"
 
@@ -37,21 +37,31 @@ std::string lower(std::string s) {
 
 const char* typeName(VkPhysicalDeviceType t) {
   switch (t) {
-    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return "discrete";
-    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return "integrated";
-    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return "virtual";
-    case VK_PHYSICAL_DEVICE_TYPE_CPU: return "cpu";
-    default: return "other";
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU:
+      return "discrete";
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU:
+      return "integrated";
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU:
+      return "virtual";
+    case VK_PHYSICAL_DEVICE_TYPE_CPU:
+      return "cpu";
+    default:
+      return "other";
   }
 }
 
 int typeRank(VkPhysicalDeviceType t) {
   switch (t) {
-    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return 0;
-    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return 1;
-    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return 2;
-    case VK_PHYSICAL_DEVICE_TYPE_CPU: return 3;
-    default: return 4;
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU:
+      return 0;
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU:
+      return 1;
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU:
+      return 2;
+    case VK_PHYSICAL_DEVICE_TYPE_CPU:
+      return 3;
+    default:
+      return 4;
   }
 }
 
@@ -160,7 +170,8 @@ VkPhysicalDevice pickDevice(const std::vector<VkPhysicalDevice>& devices, const 
       best = pd;
     }
   }
-  if (best == VK_NULL_HANDLE) fail("no Vulkan 1.3 device found ({} device(s) older); {}", devices.size(), noDeviceHelp());
+  if (best == VK_NULL_HANDLE)
+    fail("no Vulkan 1.3 device found ({} device(s) older); {}", devices.size(), noDeviceHelp());
   return best;
 }
 
@@ -186,7 +197,8 @@ uint32_t pickQueueFamily(VkPhysicalDevice pd) {
 const char* resultName(VkResult r) {
   switch (r) {
 #define LFGI_CASE(x) \
-  case x: return #x;
+  case x:            \
+    return #x;
     LFGI_CASE(VK_SUCCESS)
     LFGI_CASE(VK_NOT_READY)
     LFGI_CASE(VK_TIMEOUT)
@@ -206,7 +218,8 @@ const char* resultName(VkResult r) {
     LFGI_CASE(VK_ERROR_OUT_OF_POOL_MEMORY)
     LFGI_CASE(VK_ERROR_INVALID_SHADER_NV)
 #undef LFGI_CASE
-    default: return "VK_ERROR_(unknown)";
+    default:
+      return "VK_ERROR_(unknown)";
   }
 }
 
@@ -261,7 +274,9 @@ std::unique_ptr<Context> createContext(const ContextOptions& options) {
   if (ctx->validationEnabled) {
     auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
         vkGetInstanceProcAddr(ctx->instance, "vkCreateDebugUtilsMessengerEXT"));
-    if (create) check(create(ctx->instance, &messengerInfo, nullptr, &ctx->messenger), "vkCreateDebugUtilsMessengerEXT");
+    if (create)
+      check(create(ctx->instance, &messengerInfo, nullptr, &ctx->messenger),
+            "vkCreateDebugUtilsMessengerEXT");
   }
 
   std::string wanted = options.deviceName;
@@ -301,7 +316,8 @@ std::unique_ptr<Context> createContext(const ContextOptions& options) {
   e13.synchronization2 = f13.synchronization2;
   e13.dynamicRendering = f13.dynamicRendering;  // graphics without render passes (gpu/graphics.h)
   // glslc --target-env=vulkan1.3 emits LocalSizeId, which needs maintenance4 (mandatory in 1.3).
-  if (!f13.maintenance4) fail("Vulkan device '{}' lacks maintenance4 (mandatory in Vulkan 1.3)", ctx->info.name);
+  if (!f13.maintenance4)
+    fail("Vulkan device '{}' lacks maintenance4 (mandatory in Vulkan 1.3)", ctx->info.name);
   e13.maintenance4 = VK_TRUE;
   ctx->features.shaderInt64 = f2.features.shaderInt64;
   ctx->features.storageBuffer16BitAccess = f11.storageBuffer16BitAccess;
@@ -324,8 +340,8 @@ std::unique_ptr<Context> createContext(const ContextOptions& options) {
   deviceInfo.ppEnabledExtensionNames = extensions;
   check(vkCreateDevice(ctx->physicalDevice, &deviceInfo, nullptr, &ctx->device), "vkCreateDevice");
   vkGetDeviceQueue(ctx->device, ctx->queueFamily, 0, &ctx->queue);
-  ctx->cmdPushDescriptorSet =
-      reinterpret_cast<PFN_vkCmdPushDescriptorSetKHR>(vkGetDeviceProcAddr(ctx->device, "vkCmdPushDescriptorSetKHR"));
+  ctx->cmdPushDescriptorSet = reinterpret_cast<PFN_vkCmdPushDescriptorSetKHR>(
+      vkGetDeviceProcAddr(ctx->device, "vkCmdPushDescriptorSetKHR"));
   if (!ctx->cmdPushDescriptorSet) fail("vkCmdPushDescriptorSetKHR not found on '{}'", ctx->info.name);
 
   VkCommandPoolCreateInfo poolInfo{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
@@ -372,10 +388,12 @@ void submitAndWait(Context& ctx, const std::function<void(VkCommandBuffer)>& rec
 void memoryBarrier(VkCommandBuffer cmd) {
   VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
   barrier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
-  barrier.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT |
-                          VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_HOST_READ_BIT;
+  barrier.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT |
+                          VK_ACCESS_TRANSFER_READ_BIT | VK_ACCESS_TRANSFER_WRITE_BIT |
+                          VK_ACCESS_HOST_READ_BIT;
   VkPipelineStageFlags stages = VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT;
-  vkCmdPipelineBarrier(cmd, stages, stages | VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &barrier, 0, nullptr, 0, nullptr);
+  vkCmdPipelineBarrier(cmd, stages, stages | VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &barrier, 0, nullptr, 0,
+                       nullptr);
 }
 
 }  // namespace lfgi::gpu

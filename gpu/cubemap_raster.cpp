@@ -43,11 +43,13 @@ CubemapRaster::CubemapRaster(Context& ctx)
 CubemapCapture CubemapRaster::run(const CubemapScene& scene, std::span<const glm::vec3> probes,
                                   const CubemapRasterOptions& o) {
   if (scene.triangles.empty() || probes.empty())
-    fail("cubemap raster: {} triangles, {} probes: need at least one of each", scene.triangles.size(), probes.size());
+    fail("cubemap raster: {} triangles, {} probes: need at least one of each", scene.triangles.size(),
+         probes.size());
   if (scene.vertices.size() != 3 * scene.triangles.size())
     fail("cubemap raster: {} vertices for {} triangles (need 3 per triangle)", scene.vertices.size(),
          scene.triangles.size());
-  if (o.resolution < 1 || o.resolution > 1024) fail("cubemap raster: resolution {} outside [1, 1024]", o.resolution);
+  if (o.resolution < 1 || o.resolution > 1024)
+    fail("cubemap raster: resolution {} outside [1, 1024]", o.resolution);
   if (o.faceResolution < 0 || o.faceResolution > 4096)
     fail("cubemap raster: faceResolution {} outside [0, 4096]", o.faceResolution);
   if (!(std::isfinite(o.nearPlane) && o.nearPlane > 0.0f))
@@ -56,7 +58,8 @@ CubemapCapture CubemapRaster::run(const CubemapScene& scene, std::span<const glm
   const int64_t tileTexels = int64_t(F) * F;
   if (o.maxAtlasTexels < 6 * tileTexels)
     fail("cubemap raster: maxAtlasTexels {} below one probe's 6 faces of {}^2", o.maxAtlasTexels, F);
-  if (scene.vertices.size() > 0xFFFFFFFFull) fail("cubemap raster: {} vertices exceed 2^32", scene.vertices.size());
+  if (scene.vertices.size() > 0xFFFFFFFFull)
+    fail("cubemap raster: {} vertices exceed 2^32", scene.vertices.size());
 
   const uint32_t maxDim = ctx_.properties.limits.maxImageDimension2D;
   const uint32_t maxTilesPerRow = std::max(1u, maxDim / F);
@@ -67,11 +70,13 @@ CubemapCapture CubemapRaster::run(const CubemapScene& scene, std::span<const glm
   const uint32_t tilesX = std::min(maxTilesPerRow, uint32_t(std::ceil(std::sqrt(double(tiles)))));
   const uint32_t tilesY = (tiles + tilesX - 1) / tilesX;
   const uint32_t atlasW = tilesX * F, atlasH = tilesY * F;
-  if (atlasH > maxDim) fail("cubemap raster: atlas {}x{} exceeds maxImageDimension2D {}", atlasW, atlasH, maxDim);
+  if (atlasH > maxDim)
+    fail("cubemap raster: atlas {}x{} exceeds maxImageDimension2D {}", atlasW, atlasH, maxDim);
   const size_t batches = (probes.size() + probesPerBatch - 1) / probesPerBatch;
   const uint32_t* maxGroups = ctx_.properties.limits.maxComputeWorkGroupCount;
   if ((uint64_t(o.resolution) + 7) / 8 > maxGroups[0] || probesPerBatch > maxGroups[2])
-    fail("cubemap raster: N = {} x {} probes per batch exceeds the dispatch limits", o.resolution, probesPerBatch);
+    fail("cubemap raster: N = {} x {} probes per batch exceeds the dispatch limits", o.resolution,
+         probesPerBatch);
 
   const uint32_t n = uint32_t(o.resolution);
   const size_t texels = size_t(n) * n * probes.size();
@@ -108,10 +113,11 @@ CubemapCapture CubemapRaster::run(const CubemapScene& scene, std::span<const glm
         imageBarrier(cmd, im, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
                      VK_PIPELINE_STAGE_TRANSFER_BIT, 0, VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT,
                      VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT);
-      imageBarrier(cmd, depth, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
-                   VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT, 0,
-                   VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT,
-                   VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT);
+      imageBarrier(
+          cmd, depth, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL,
+          VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT, 0,
+          VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT,
+          VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT);
 
       VkRenderingAttachmentInfo color[3];
       for (int i = 0; i < 3; ++i) {
@@ -164,8 +170,8 @@ CubemapCapture CubemapRaster::run(const CubemapScene& scene, std::span<const glm
         VkBufferImageCopy region{};
         region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
         region.imageExtent = {atlasW, atlasH, 1};
-        vkCmdCopyImageToBuffer(cmd, images[i].handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, copies[i].handle(), 1,
-                               &region);
+        vkCmdCopyImageToBuffer(cmd, images[i].handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                               copies[i].handle(), 1, &region);
       }
       timer.stamp(cmd, uint32_t(2 + 3 * b));
       memoryBarrier(cmd);
@@ -177,9 +183,10 @@ CubemapCapture CubemapRaster::run(const CubemapScene& scene, std::span<const glm
       rp.probeOffset = uint32_t(first);
       rp.tilesX = tilesX;
       rp.atlasWidth = atlasW;
-      dispatch(ctx_, cmd, resample_,
-               {&copies[0], &copies[1], &copies[2], &distBuf, &normalBuf, &albedoBuf, &radianceBuf, &counters}, rp,
-               {n, n, uint32_t(count)});
+      dispatch(
+          ctx_, cmd, resample_,
+          {&copies[0], &copies[1], &copies[2], &distBuf, &normalBuf, &albedoBuf, &radianceBuf, &counters}, rp,
+          {n, n, uint32_t(count)});
       memoryBarrier(cmd);
       timer.stamp(cmd, uint32_t(3 + 3 * b));
     }

@@ -38,7 +38,8 @@ struct CubemapScene {
   std::vector<shared::CubemapTriangle> triangles;  // one per triangle
 
   // Adds triangle a-b-c (counter-clockwise from the front); the normal is the geometric one.
-  void addTriangle(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 albedo, glm::vec3 emission = glm::vec3(0.0f));
+  void addTriangle(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 albedo,
+                   glm::vec3 emission = glm::vec3(0.0f));
   size_t triangleCount() const { return triangles.size(); }
 };
 
@@ -63,7 +64,8 @@ class CubemapRaster {
 
   // Uploads, renders and resamples every batch in one submit, waits and reads back. Throws lfgi::Error on
   // empty input, a vertex/triangle count mismatch, bad options, or an atlas beyond the device limits.
-  CubemapCapture run(const CubemapScene& scene, std::span<const glm::vec3> probes, const CubemapRasterOptions& options);
+  CubemapCapture run(const CubemapScene& scene, std::span<const glm::vec3> probes,
+                     const CubemapRasterOptions& options);
 
  private:
   Context& ctx_;

@@ -128,7 +128,8 @@ bool rayBox(glm::vec3 lo, glm::vec3 hi, glm::vec3 o, glm::vec3 inv, float tMax) 
 }  // namespace
 
 GpuScene buildGpuScene(std::span<const glm::vec3> positions, std::span<const uint32_t> indices,
-                       std::span<const uint32_t> triangleMaterial, std::vector<shared::GpuMaterial> materials) {
+                       std::span<const uint32_t> triangleMaterial,
+                       std::vector<shared::GpuMaterial> materials) {
   if (indices.size() % 3 != 0) fail("GPU scene: {} indices is not a multiple of 3", indices.size());
   const size_t n = indices.size() / 3;
   if (triangleMaterial.size() != n)
@@ -141,7 +142,8 @@ GpuScene buildGpuScene(std::span<const glm::vec3> positions, std::span<const uin
     BuildTri bt{glm::vec3(1e30f), glm::vec3(-1e30f), glm::vec3(0.0f), uint32_t(t)};
     for (int k = 0; k < 3; ++k) {
       const uint32_t i = indices[t * 3 + size_t(k)];
-      if (i >= positions.size()) fail("GPU scene: triangle {} index {} >= {} positions", t, i, positions.size());
+      if (i >= positions.size())
+        fail("GPU scene: triangle {} index {} >= {} positions", t, i, positions.size());
       const glm::vec3 p = positions[i];
       if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
         fail("GPU scene: position {} is not finite", i);
@@ -164,7 +166,8 @@ GpuScene buildGpuScene(std::span<const glm::vec3> positions, std::span<const uin
     const glm::vec3 v0 = positions[indices[t * 3]], v1 = positions[indices[t * 3 + 1]],
                     v2 = positions[indices[t * 3 + 2]];
     scene.triangles.push_back({glm::vec4(v0, std::bit_cast<float>(triangleMaterial[t])),
-                               glm::vec4(v1 - v0, std::bit_cast<float>(uint32_t(t))), glm::vec4(v2 - v0, 0.0f)});
+                               glm::vec4(v1 - v0, std::bit_cast<float>(uint32_t(t))),
+                               glm::vec4(v2 - v0, 0.0f)});
   }
   if (materials.empty()) materials.push_back({});
   scene.materials = std::move(materials);
@@ -217,8 +220,10 @@ GpuSceneBuffers uploadGpuScene(Context& ctx, const GpuScene& scene) {
   b.nodeCount = uint32_t(scene.nodes.size());
   b.triangleCount = uint32_t(scene.triangles.size());
   b.nodes = createStorageBuffer(ctx, std::max<size_t>(1, scene.nodes.size()) * sizeof(shared::GpuBvhNode));
-  b.triangles = createStorageBuffer(ctx, std::max<size_t>(1, scene.triangles.size()) * sizeof(shared::GpuTriangle));
-  b.materials = createStorageBuffer(ctx, std::max<size_t>(1, scene.materials.size()) * sizeof(shared::GpuMaterial));
+  b.triangles =
+      createStorageBuffer(ctx, std::max<size_t>(1, scene.triangles.size()) * sizeof(shared::GpuTriangle));
+  b.materials =
+      createStorageBuffer(ctx, std::max<size_t>(1, scene.materials.size()) * sizeof(shared::GpuMaterial));
   upload<shared::GpuBvhNode>(ctx, b.nodes, scene.nodes);
   if (!scene.triangles.empty()) upload<shared::GpuTriangle>(ctx, b.triangles, scene.triangles);
   if (!scene.materials.empty()) upload<shared::GpuMaterial>(ctx, b.materials, scene.materials);
@@ -230,15 +235,16 @@ shared::GpuCamera makeGpuCamera(glm::vec3 position, glm::vec3 target, float fovD
   const float len = glm::length(d);
   if (!(len > 0.0f) || std::abs(d.y) / len > 0.99999f || !(fovDeg > 0.0f && fovDeg < 180.0f) || width < 1 ||
       height < 1)
-    fail("camera: position, target, fov {} deg or size {}x{} unusable (target must differ from the position "
-         "and not lie straight above or below it)",
-         fovDeg, width, height);
+    fail(
+        "camera: position, target, fov {} deg or size {}x{} unusable (target must differ from the position "
+        "and not lie straight above or below it)",
+        fovDeg, width, height);
   const glm::vec3 forward = d / len;
   const glm::vec3 right = glm::normalize(glm::cross(forward, glm::vec3(0.0f, 1.0f, 0.0f)));
   const glm::vec3 up = glm::cross(right, forward);
   const float tanHalf = std::tan(0.5f * fovDeg * std::numbers::pi_v<float> / 180.0f);
-  return {glm::vec4(position, tanHalf), glm::vec4(forward, float(width) / float(height)), glm::vec4(right, 0.0f),
-          glm::vec4(up, 0.0f)};
+  return {glm::vec4(position, tanHalf), glm::vec4(forward, float(width) / float(height)),
+          glm::vec4(right, 0.0f), glm::vec4(up, 0.0f)};
 }
 
 GBuffer createGBuffer(Context& ctx, int width, int height) {
@@ -271,7 +277,8 @@ void writeGBuffer(Context& ctx, const GBufferHost& h, GBuffer& g) {
   const size_t n = size_t(g.width) * size_t(g.height);
   if (h.width != g.width || h.height != g.height || h.position.size() != n || h.normal.size() != n ||
       h.albedo.size() != n || h.emission.size() != n)
-    fail("G-buffer upload: host data {}x{} does not match the {}x{} G-buffer", h.width, h.height, g.width, g.height);
+    fail("G-buffer upload: host data {}x{} does not match the {}x{} G-buffer", h.width, h.height, g.width,
+         g.height);
   upload<glm::vec4>(ctx, g.position, h.position);
   upload<glm::vec4>(ctx, g.normal, h.normal);
   upload<glm::vec4>(ctx, g.albedo, h.albedo);
@@ -279,10 +286,12 @@ void writeGBuffer(Context& ctx, const GBufferHost& h, GBuffer& g) {
 }
 
 GBufferPass::GBufferPass(Context& ctx)
-    : ctx_(ctx), program_(ctx, "gbuffer_raycast"), params_(createStorageBuffer(ctx, sizeof(shared::GBufferParams))) {}
+    : ctx_(ctx),
+      program_(ctx, "gbuffer_raycast"),
+      params_(createStorageBuffer(ctx, sizeof(shared::GBufferParams))) {}
 
-void GBufferPass::setCamera(const shared::GpuCamera& camera, int width, int height, const GpuSceneBuffers& scene,
-                            float maxDistance) {
+void GBufferPass::setCamera(const shared::GpuCamera& camera, int width, int height,
+                            const GpuSceneBuffers& scene, float maxDistance) {
   shared::GBufferParams p{};
   p.camera = camera;
   p.size = glm::uvec4(uint32_t(width), uint32_t(height), scene.triangleCount > 0 ? scene.nodeCount : 0u,

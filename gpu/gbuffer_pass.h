@@ -30,7 +30,8 @@ struct GpuScene {
 // per triangle into materials). Deterministic. Throws lfgi::Error naming the first out-of-range index or
 // non-finite position. An empty list gives one empty node; passes then skip tracing (every ray misses).
 GpuScene buildGpuScene(std::span<const glm::vec3> positions, std::span<const uint32_t> indices,
-                       std::span<const uint32_t> triangleMaterial, std::vector<shared::GpuMaterial> materials);
+                       std::span<const uint32_t> triangleMaterial,
+                       std::vector<shared::GpuMaterial> materials);
 
 // CPU closest hit against the same flattened data (tests compare the shader with it). Returns the index
 // into scene.triangles or -1; t receives the distance.
@@ -44,7 +45,8 @@ struct GpuSceneBuffers {
 GpuSceneBuffers uploadGpuScene(Context& ctx, const GpuScene& scene);
 
 // Camera basis as bake::cameraRayDirection (up = +Y). Throws lfgi::Error for a degenerate camera.
-shared::GpuCamera makeGpuCamera(glm::vec3 position, glm::vec3 target, float verticalFovDeg, int width, int height);
+shared::GpuCamera makeGpuCamera(glm::vec3 position, glm::vec3 target, float verticalFovDeg, int width,
+                                int height);
 
 // Four vec4 per pixel; layout in shaders/shared/shading.h (GBufferParams).
 struct GBuffer {

@@ -111,7 +111,8 @@ TEST(GBufferPass, RayCastMatchesTheCpuTraversal) {
   const float h = 4.0f;
   const glm::vec3 c[8] = {{-h, -h, -h}, {h, -h, -h}, {-h, h, -h}, {h, h, -h},
                           {-h, -h, h},  {h, -h, h},  {-h, h, h},  {h, h, h}};
-  const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                           {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
   for (const auto& q : quads) {
     soup.tri(c[q[0]], c[q[1]], c[q[2]], 0);
     soup.tri(c[q[0]], c[q[2]], c[q[3]], 0);
@@ -132,7 +133,8 @@ TEST(GBufferPass, RayCastMatchesTheCpuTraversal) {
     for (int x = 0; x < w; ++x) {
       const float sx = (2.0f * (float(x) + 0.5f) / float(w) - 1.0f) * cam.position.w * cam.forward.w;
       const float sy = (1.0f - 2.0f * (float(y) + 0.5f) / float(hgt)) * cam.position.w;
-      const glm::vec3 d = glm::normalize(glm::vec3(cam.forward) + sx * glm::vec3(cam.right) + sy * glm::vec3(cam.up));
+      const glm::vec3 d =
+          glm::normalize(glm::vec3(cam.forward) + sx * glm::vec3(cam.right) + sy * glm::vec3(cam.up));
       float t = 0.0f;
       const int k = intersectGpuScene(scene, eye, d, 1e4f, t);
       const size_t p = size_t(y) * size_t(w) + size_t(x);

@@ -12,7 +12,9 @@ namespace {
 
 constexpr uint32_t kBase = 4;
 
-uint32_t roundUp4(uint32_t v) { return (v + 3u) / 4u * 4u; }
+uint32_t roundUp4(uint32_t v) {
+  return (v + 3u) / 4u * 4u;
+}
 
 // Input channels of conv layer i as stored (the linear layer writes C0 channels; hidden convs write whole
 // groups of 4).
@@ -38,11 +40,13 @@ GeneratorGpuModel::GeneratorGpuModel(Context& ctx, const GeneratorWeights& w) : 
   std::vector<float> lw(size_t(rows4) * in * 4);
   for (uint32_t rb = 0; rb < rows4; ++rb)
     for (uint32_t k = 0; k < in; ++k)
-      for (uint32_t j = 0; j < 4; ++j) lw[(size_t(rb) * in + k) * 4 + j] = w.linearWeight[size_t(rb * 4 + j) * in + k];
+      for (uint32_t j = 0; j < 4; ++j)
+        lw[(size_t(rb) * in + k) * 4 + j] = w.linearWeight[size_t(rb * 4 + j) * in + k];
   linearWeight_ = uploadFloats(ctx, lw);
   linearBias_ = uploadFloats(ctx, w.linearBias);
   for (int l = 0; l < arch_.layers(); ++l) {
-    const uint32_t ci = uint32_t(arch_.convChannels[size_t(l)]), co = uint32_t(arch_.convChannels[size_t(l) + 1]);
+    const uint32_t ci = uint32_t(arch_.convChannels[size_t(l)]),
+                   co = uint32_t(arch_.convChannels[size_t(l) + 1]);
     const uint32_t co4 = roundUp4(co) / 4;
     const std::vector<float>& src = w.convWeight[size_t(l)];
     std::vector<float> cw(size_t(4) * co4 * ci * 4 * 4, 0.0f);
@@ -90,20 +94,26 @@ size_t GeneratorScratch::bytes() const {
 }
 
 GeneratorDecodePass::GeneratorDecodePass(Context& ctx)
-    : ctx_(ctx), linear_(ctx, "gen_linear"), rowstrip_(ctx, "gen_tconv_rowstrip"), tiled_(ctx, "gen_tconv_tiled") {}
+    : ctx_(ctx),
+      linear_(ctx, "gen_linear"),
+      rowstrip_(ctx, "gen_tconv_rowstrip"),
+      tiled_(ctx, "gen_tconv_tiled") {}
 
-void GeneratorDecodePass::record(VkCommandBuffer cmd, const GeneratorGpuModel& model, GeneratorScratch& scratch,
-                                 const Buffer& latents, std::span<const float> cond, uint32_t count,
-                                 const Buffer& out, GeneratorKernel kernel) const {
+void GeneratorDecodePass::record(VkCommandBuffer cmd, const GeneratorGpuModel& model,
+                                 GeneratorScratch& scratch, const Buffer& latents,
+                                 std::span<const float> cond, uint32_t count, const Buffer& out,
+                                 GeneratorKernel kernel) const {
   const GeneratorArch& a = model.arch();
   if (count == 0) return;
   if (count > scratch.capacity())
     fail("generator decode: {} probes in a batch, the scratch holds {}", count, scratch.capacity());
   if (size_t(a.layers()) != scratch.act_.size())
-    fail("generator decode: the scratch was built for {} layers, the model has {}", scratch.act_.size(), a.layers());
+    fail("generator decode: the scratch was built for {} layers, the model has {}", scratch.act_.size(),
+         a.layers());
   for (int l = 0; l < a.layers(); ++l) {
     uint32_t want = storedChannels(a, l), have = storedChannels(scratch.arch_, l);
-    if (want > have) fail("generator decode: layer {} needs {} channels of scratch, it holds {}", l, want, have);
+    if (want > have)
+      fail("generator decode: layer {} needs {} channels of scratch, it holds {}", l, want, have);
   }
   if (cond.size() != size_t(a.condDim))
     fail("generator decode: {} conditioning floats, the model takes {}", cond.size(), a.condDim);
@@ -140,7 +150,8 @@ void GeneratorDecodePass::record(VkCommandBuffer cmd, const GeneratorGpuModel& m
     cp.last = last ? 1u : 0u;
     cp.probeStride4 = s4;
     const Buffer& next = last ? out : scratch.act_[size_t(l) + 1];
-    const Buffer* bufs[] = {&scratch.act_[size_t(l)], &model.convWeight_[size_t(l)], &model.convBias_[size_t(l)], &next};
+    const Buffer* bufs[] = {&scratch.act_[size_t(l)], &model.convWeight_[size_t(l)],
+                            &model.convBias_[size_t(l)], &next};
     if (kernel == GeneratorKernel::RowStrip) {
       dispatch(ctx_, cmd, rowstrip_, {bufs[0], bufs[1], bufs[2], bufs[3], &out}, cp,
                {cp.cout4 * 4 * res * res * p4, 1, 1});

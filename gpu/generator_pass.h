@@ -64,13 +64,16 @@ class GeneratorDecodePass {
   // Records the decode of `count` probes (count <= scratch.capacity()): latents [count][latentDim] floats,
   // out [count][outChannels][R][R] floats (generatorForward's layout), cond: condDim floats for the batch.
   // Throws lfgi::Error if sizes disagree (buffers too small, scratch built for a smaller architecture).
-  void record(VkCommandBuffer cmd, const GeneratorGpuModel& model, GeneratorScratch& scratch, const Buffer& latents,
-              std::span<const float> cond, uint32_t count, const Buffer& out, GeneratorKernel kernel) const;
+  void record(VkCommandBuffer cmd, const GeneratorGpuModel& model, GeneratorScratch& scratch,
+              const Buffer& latents, std::span<const float> cond, uint32_t count, const Buffer& out,
+              GeneratorKernel kernel) const;
 
-  // Convenience: uploads latents, decodes all `count` probes as one batch (scratch of that capacity), waits and
-  // returns count * outChannels * R * R floats. gpuMs (if given) receives the device time of the decode only.
-  std::vector<float> run(const GeneratorGpuModel& model, std::span<const float> latents, std::span<const float> cond,
-                         size_t count, GeneratorKernel kernel, double* gpuMs = nullptr);
+  // Convenience: uploads latents, decodes all `count` probes as one batch (scratch of that capacity), waits
+  // and returns count * outChannels * R * R floats. gpuMs (if given) receives the device time of the decode
+  // only.
+  std::vector<float> run(const GeneratorGpuModel& model, std::span<const float> latents,
+                         std::span<const float> cond, size_t count, GeneratorKernel kernel,
+                         double* gpuMs = nullptr);
 
  private:
   Context& ctx_;

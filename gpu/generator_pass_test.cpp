@@ -8,8 +8,8 @@
 
 #include "core/error.h"
 #include "core/generator_cpu.h"
-#include "gpu/timing.h"
 #include "generator_test_util.h"
+#include "gpu/timing.h"
 
 namespace lfgi::gpu {
 namespace {
@@ -41,10 +41,10 @@ TEST(GpuGenerator, BothKernelsMatchCpuReference) {
     size_t count;
   };
   const Case cases[] = {
-      {makeArch(16, 3, {32, kGeneratorChannels}), 13},               // 8x8, count not a multiple of 4
-      {makeArch(8, 0, {24, 12, kGeneratorChannels}), 20},            // 16x16, channels not multiples of 4 or 16
-      {makeArch(16, 3, {20, 16, 8, kGeneratorChannels}), 6},         // 32x32
-      {makeArch(5, 3, {7, 37, 3}), 9},                               // odd sizes, Cin > one 16-channel tile
+      {makeArch(16, 3, {32, kGeneratorChannels}), 13},        // 8x8, count not a multiple of 4
+      {makeArch(8, 0, {24, 12, kGeneratorChannels}), 20},     // 16x16, channels not multiples of 4 or 16
+      {makeArch(16, 3, {20, 16, 8, kGeneratorChannels}), 6},  // 32x32
+      {makeArch(5, 3, {7, 37, 3}), 9},                        // odd sizes, Cin > one 16-channel tile
   };
   unsigned seed = 5;
   for (const Case& c : cases) {
@@ -71,7 +71,8 @@ TEST(GpuGenerator, BothKernelsMatchCpuReference) {
 TEST(GpuGenerator, ScratchIsReusedAcrossBatchesAndModels) {
   auto ctx = createContext();
   GeneratorDecodePass pass(*ctx);
-  GeneratorArch big = makeArch(8, 3, {16, 12, kGeneratorChannels}), small = makeArch(8, 3, {8, 4, kGeneratorChannels});
+  GeneratorArch big = makeArch(8, 3, {16, 12, kGeneratorChannels}),
+                small = makeArch(8, 3, {8, 4, kGeneratorChannels});
   GeneratorWeights wb = randomGeneratorWeights(big, 21), ws = randomGeneratorWeights(small, 22);
   GeneratorGpuModel mb(*ctx, wb), ms(*ctx, ws);
   GeneratorScratch scratch(*ctx, big, 16);
@@ -100,10 +101,13 @@ TEST(GpuGenerator, ScratchIsReusedAcrossBatchesAndModels) {
     std::printf("  batch %zu (%u probes): max rel error %.2e\n", i, counts[i], e);
     EXPECT_LT(e, 1e-5) << "batch " << i;
   }
-  EXPECT_THROW(pass.record(VK_NULL_HANDLE, mb, scratch, lat[0], cond, 17, out[0], GeneratorKernel::RowStrip), Error);
-  EXPECT_THROW(pass.record(VK_NULL_HANDLE, mb, scratch, lat[0], {}, 16, out[0], GeneratorKernel::RowStrip), Error);
+  EXPECT_THROW(pass.record(VK_NULL_HANDLE, mb, scratch, lat[0], cond, 17, out[0], GeneratorKernel::RowStrip),
+               Error);
+  EXPECT_THROW(pass.record(VK_NULL_HANDLE, mb, scratch, lat[0], {}, 16, out[0], GeneratorKernel::RowStrip),
+               Error);
   GeneratorScratch tooSmall(*ctx, small, 16);
-  EXPECT_THROW(pass.record(VK_NULL_HANDLE, mb, tooSmall, lat[0], cond, 16, out[0], GeneratorKernel::RowStrip), Error);
+  EXPECT_THROW(pass.record(VK_NULL_HANDLE, mb, tooSmall, lat[0], cond, 16, out[0], GeneratorKernel::RowStrip),
+               Error);
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
 }
 

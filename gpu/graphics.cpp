@@ -19,7 +19,8 @@ bool isDepthFormat(VkFormat f) {
 
 uint32_t deviceLocalMemoryType(const Context& ctx, uint32_t typeBits) {
   const VkPhysicalDeviceMemoryProperties& mp = ctx.memoryProperties;
-  for (VkMemoryPropertyFlags want : {VkMemoryPropertyFlags(VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT), VkMemoryPropertyFlags(0)})
+  for (VkMemoryPropertyFlags want :
+       {VkMemoryPropertyFlags(VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT), VkMemoryPropertyFlags(0)})
     for (uint32_t i = 0; i < mp.memoryTypeCount; ++i)
       if ((typeBits & (1u << i)) && (mp.memoryTypes[i].propertyFlags & want) == want) return i;
   fail("no memory type for an image on '{}'", ctx.info.name);
@@ -28,7 +29,8 @@ uint32_t deviceLocalMemoryType(const Context& ctx, uint32_t typeBits) {
 std::vector<uint32_t> loadSpirv(const std::string& name) {
   const std::filesystem::path path = shaderDirectory() / (name + ".spv");
   std::vector<std::byte> bytes = readFileBytes(path);
-  if (bytes.size() % 4 != 0 || bytes.size() < 20) fail("{}: size {} is not SPIR-V", path.string(), bytes.size());
+  if (bytes.size() % 4 != 0 || bytes.size() < 20)
+    fail("{}: size {} is not SPIR-V", path.string(), bytes.size());
   std::vector<uint32_t> words(bytes.size() / 4);
   std::memcpy(words.data(), bytes.data(), bytes.size());
   if (words[0] != 0x07230203u) fail("{}: not SPIR-V (bad magic)", path.string());
@@ -40,7 +42,8 @@ struct StageReflection {
   uint32_t pushConstantBytes = 0;
 };
 
-StageReflection reflectStage(std::span<const uint32_t> spirv, const std::string& name, SpvExecutionModel model) {
+StageReflection reflectStage(std::span<const uint32_t> spirv, const std::string& name,
+                             SpvExecutionModel model) {
   spvc_context sc = nullptr;
   if (spvc_context_create(&sc) != SPVC_SUCCESS) fail("SPIRV-Cross: cannot create context");
   StageReflection out;
@@ -48,15 +51,18 @@ StageReflection reflectStage(std::span<const uint32_t> spirv, const std::string&
     spvc_parsed_ir ir = nullptr;
     spvc_compiler comp = nullptr;
     if (spvc_context_parse_spirv(sc, spirv.data(), spirv.size(), &ir) != SPVC_SUCCESS ||
-        spvc_context_create_compiler(sc, SPVC_BACKEND_NONE, ir, SPVC_CAPTURE_MODE_TAKE_OWNERSHIP, &comp) != SPVC_SUCCESS)
+        spvc_context_create_compiler(sc, SPVC_BACKEND_NONE, ir, SPVC_CAPTURE_MODE_TAKE_OWNERSHIP, &comp) !=
+            SPVC_SUCCESS)
       fail("shader '{}': invalid SPIR-V ({})", name, spvc_context_get_last_error_string(sc));
     if (spvc_compiler_get_execution_model(comp) != model)
-      fail("shader '{}': wrong stage (expected {})", name, model == SpvExecutionModelVertex ? "vertex" : "fragment");
+      fail("shader '{}': wrong stage (expected {})", name,
+           model == SpvExecutionModelVertex ? "vertex" : "fragment");
     spvc_resources res = nullptr;
     if (spvc_compiler_create_shader_resources(comp, &res) != SPVC_SUCCESS)
       fail("shader '{}': reflection failed", name);
-    for (auto [type, vkType] : {std::pair{SPVC_RESOURCE_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
-                                std::pair{SPVC_RESOURCE_TYPE_UNIFORM_BUFFER, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER}}) {
+    for (auto [type, vkType] :
+         {std::pair{SPVC_RESOURCE_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER},
+          std::pair{SPVC_RESOURCE_TYPE_UNIFORM_BUFFER, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER}}) {
       const spvc_reflected_resource* list = nullptr;
       size_t count = 0;
       spvc_resources_get_resource_list_for_type(res, type, &list, &count);
@@ -67,20 +73,22 @@ StageReflection reflectStage(std::span<const uint32_t> spirv, const std::string&
                                 list[i].name ? list[i].name : ""});
       }
     }
-    for (spvc_resource_type unsupported : {SPVC_RESOURCE_TYPE_STORAGE_IMAGE, SPVC_RESOURCE_TYPE_SAMPLED_IMAGE,
-                                           SPVC_RESOURCE_TYPE_SEPARATE_IMAGE, SPVC_RESOURCE_TYPE_SEPARATE_SAMPLERS}) {
+    for (spvc_resource_type unsupported :
+         {SPVC_RESOURCE_TYPE_STORAGE_IMAGE, SPVC_RESOURCE_TYPE_SAMPLED_IMAGE,
+          SPVC_RESOURCE_TYPE_SEPARATE_IMAGE, SPVC_RESOURCE_TYPE_SEPARATE_SAMPLERS}) {
       const spvc_reflected_resource* list = nullptr;
       size_t count = 0;
       spvc_resources_get_resource_list_for_type(res, unsupported, &list, &count);
-      if (count > 0) fail("shader '{}': resource '{}' is not a buffer; only buffers are supported", name, list[0].name);
+      if (count > 0)
+        fail("shader '{}': resource '{}' is not a buffer; only buffers are supported", name, list[0].name);
     }
     const spvc_reflected_resource* pc = nullptr;
     size_t pcCount = 0;
     spvc_resources_get_resource_list_for_type(res, SPVC_RESOURCE_TYPE_PUSH_CONSTANT, &pc, &pcCount);
     if (pcCount > 0) {
       size_t bytes = 0;
-      if (spvc_compiler_get_declared_struct_size(comp, spvc_compiler_get_type_handle(comp, pc[0].base_type_id),
-                                                 &bytes) != SPVC_SUCCESS)
+      if (spvc_compiler_get_declared_struct_size(
+              comp, spvc_compiler_get_type_handle(comp, pc[0].base_type_id), &bytes) != SPVC_SUCCESS)
         fail("shader '{}': cannot size push constant block", name);
       out.pushConstantBytes = uint32_t(bytes);
     }
@@ -110,8 +118,8 @@ Image::Image(Context& ctx, uint32_t width, uint32_t height, VkFormat format, VkI
     fail("image {}x{} outside [1, {}] (maxImageDimension2D of '{}')", width, height, maxDim, ctx.info.name);
   aspect_ = isDepthFormat(format) ? VK_IMAGE_ASPECT_DEPTH_BIT : VK_IMAGE_ASPECT_COLOR_BIT;
   VkImageFormatProperties props{};
-  if (vkGetPhysicalDeviceImageFormatProperties(ctx.physicalDevice, format, VK_IMAGE_TYPE_2D, VK_IMAGE_TILING_OPTIMAL,
-                                               usage, 0, &props) != VK_SUCCESS)
+  if (vkGetPhysicalDeviceImageFormatProperties(ctx.physicalDevice, format, VK_IMAGE_TYPE_2D,
+                                               VK_IMAGE_TILING_OPTIMAL, usage, 0, &props) != VK_SUCCESS)
     fail("image format {} does not support usage 0x{:x} on '{}'", int(format), usage, ctx.info.name);
   try {
     VkImageCreateInfo info{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
@@ -170,7 +178,9 @@ Image& Image::operator=(Image&& o) noexcept {
   return *this;
 }
 
-Image::~Image() { release(); }
+Image::~Image() {
+  release();
+}
 
 void Image::release() {
   if (!device_) return;
@@ -207,15 +217,21 @@ GraphicsProgram::GraphicsProgram(Context& ctx, const GraphicsPipelineDesc& desc)
   const StageReflection rf = reflectStage(fs, desc.fragmentShader, SpvExecutionModelFragment);
   bindings_ = rv.bindings;
   for (const ShaderBinding& b : rf.bindings) {
-    auto same = std::find_if(bindings_.begin(), bindings_.end(), [&](const ShaderBinding& x) { return x.binding == b.binding; });
-    if (same == bindings_.end()) bindings_.push_back(b);
-    else if (same->type != b.type) fail("{}: binding {} has different types in the two stages", name_, b.binding);
+    auto same = std::find_if(bindings_.begin(), bindings_.end(),
+                             [&](const ShaderBinding& x) { return x.binding == b.binding; });
+    if (same == bindings_.end())
+      bindings_.push_back(b);
+    else if (same->type != b.type)
+      fail("{}: binding {} has different types in the two stages", name_, b.binding);
   }
-  std::sort(bindings_.begin(), bindings_.end(), [](const ShaderBinding& a, const ShaderBinding& b) { return a.binding < b.binding; });
+  std::sort(bindings_.begin(), bindings_.end(),
+            [](const ShaderBinding& a, const ShaderBinding& b) { return a.binding < b.binding; });
   for (size_t i = 0; i < bindings_.size(); ++i)
-    if (bindings_[i].binding != i) fail("{}: bindings must be dense 0..{} across both stages", name_, bindings_.size() - 1);
+    if (bindings_[i].binding != i)
+      fail("{}: bindings must be dense 0..{} across both stages", name_, bindings_.size() - 1);
   if (rv.pushConstantBytes && rf.pushConstantBytes && rv.pushConstantBytes != rf.pushConstantBytes)
-    fail("{}: push-constant blocks differ ({} vs {} bytes)", name_, rv.pushConstantBytes, rf.pushConstantBytes);
+    fail("{}: push-constant blocks differ ({} vs {} bytes)", name_, rv.pushConstantBytes,
+         rf.pushConstantBytes);
   pushConstantBytes_ = std::max(rv.pushConstantBytes, rf.pushConstantBytes);
   if (pushConstantBytes_ > ctx.properties.limits.maxPushConstantsSize)
     fail("{}: {} push-constant bytes exceed the device limit", name_, pushConstantBytes_);
@@ -233,7 +249,8 @@ GraphicsProgram::GraphicsProgram(Context& ctx, const GraphicsPipelineDesc& desc)
     setInfo.flags = VK_DESCRIPTOR_SET_LAYOUT_CREATE_PUSH_DESCRIPTOR_BIT_KHR;
     setInfo.bindingCount = uint32_t(lb.size());
     setInfo.pBindings = lb.data();
-    check(vkCreateDescriptorSetLayout(device_, &setInfo, nullptr, &setLayout_), "vkCreateDescriptorSetLayout");
+    check(vkCreateDescriptorSetLayout(device_, &setInfo, nullptr, &setLayout_),
+          "vkCreateDescriptorSetLayout");
     VkPushConstantRange range{stages, 0, pushConstantBytes_};
     VkPipelineLayoutCreateInfo layoutInfo{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
     layoutInfo.setLayoutCount = 1;
@@ -252,8 +269,10 @@ GraphicsProgram::GraphicsProgram(Context& ctx, const GraphicsPipelineDesc& desc)
     st[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
     st[1].module = fm;
     st[1].pName = "main";
-    VkPipelineVertexInputStateCreateInfo vertexInput{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
-    VkPipelineInputAssemblyStateCreateInfo assembly{VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
+    VkPipelineVertexInputStateCreateInfo vertexInput{
+        VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
+    VkPipelineInputAssemblyStateCreateInfo assembly{
+        VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
     assembly.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
     VkPipelineViewportStateCreateInfo viewport{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
     viewport.viewportCount = 1;
@@ -263,7 +282,8 @@ GraphicsProgram::GraphicsProgram(Context& ctx, const GraphicsPipelineDesc& desc)
     raster.cullMode = VK_CULL_MODE_NONE;
     raster.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
     raster.lineWidth = 1.0f;
-    VkPipelineMultisampleStateCreateInfo multisample{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
+    VkPipelineMultisampleStateCreateInfo multisample{
+        VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
     multisample.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;
     VkPipelineDepthStencilStateCreateInfo depth{VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
     depth.depthTestEnable = desc.depthFormat != VK_FORMAT_UNDEFINED;
@@ -337,11 +357,12 @@ void bindGraphics(Context& ctx, VkCommandBuffer cmd, const GraphicsProgram& prog
   }
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, program.pipeline());
   if (!writes.empty())
-    ctx.cmdPushDescriptorSet(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, program.layout(), 0, uint32_t(writes.size()),
-                             writes.data());
+    ctx.cmdPushDescriptorSet(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, program.layout(), 0,
+                             uint32_t(writes.size()), writes.data());
 }
 
-void pushGraphicsConstants(VkCommandBuffer cmd, const GraphicsProgram& program, std::span<const std::byte> bytes) {
+void pushGraphicsConstants(VkCommandBuffer cmd, const GraphicsProgram& program,
+                           std::span<const std::byte> bytes) {
   if (bytes.size() != program.pushConstantBytes())
     fail("pushGraphicsConstants '{}': {} bytes given, shaders declare {}", program.name(), bytes.size(),
          program.pushConstantBytes());

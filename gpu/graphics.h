@@ -92,7 +92,8 @@ void bindGraphics(Context& ctx, VkCommandBuffer cmd, const GraphicsProgram& prog
                   std::initializer_list<const Buffer*> buffers);
 
 // Pushes constants to both stages. Throws if the size differs from the reflected block.
-void pushGraphicsConstants(VkCommandBuffer cmd, const GraphicsProgram& program, std::span<const std::byte> bytes);
+void pushGraphicsConstants(VkCommandBuffer cmd, const GraphicsProgram& program,
+                           std::span<const std::byte> bytes);
 template <typename Params>
 void pushGraphicsConstants(VkCommandBuffer cmd, const GraphicsProgram& program, const Params& params) {
   pushGraphicsConstants(cmd, program, std::as_bytes(std::span(&params, 1)));

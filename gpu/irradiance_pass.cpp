@@ -6,7 +6,8 @@
 
 namespace lfgi::gpu {
 
-IrradianceConvolution::IrradianceConvolution(Context& ctx) : ctx_(ctx), program_(ctx, "irradiance_convolve") {}
+IrradianceConvolution::IrradianceConvolution(Context& ctx)
+    : ctx_(ctx), program_(ctx, "irradiance_convolve") {}
 
 void IrradianceConvolution::record(VkCommandBuffer cmd, const Buffer& radiance, const Buffer& solidAngles,
                                    const Buffer& irradiance, const shared::IrradianceParams& p) const {
@@ -24,9 +25,11 @@ std::vector<glm::vec3> IrradianceConvolution::run(std::span<const glm::vec3> rad
                                                   int irradianceRes, int probeCount, double* gpuMs) {
   if (radianceRes < 1 || irradianceRes < 1 || probeCount < 1)
     fail("irradiance convolution: bad sizes N={}, M={}, probes={}", radianceRes, irradianceRes, probeCount);
-  const size_t n2 = size_t(radianceRes) * size_t(radianceRes), m2 = size_t(irradianceRes) * size_t(irradianceRes);
+  const size_t n2 = size_t(radianceRes) * size_t(radianceRes),
+               m2 = size_t(irradianceRes) * size_t(irradianceRes);
   if (radiance.size() != n2 * size_t(probeCount))
-    fail("irradiance convolution: {} radiance texels given, expected {}", radiance.size(), n2 * size_t(probeCount));
+    fail("irradiance convolution: {} radiance texels given, expected {}", radiance.size(),
+         n2 * size_t(probeCount));
 
   std::vector<glm::vec4> rad4(radiance.size());
   for (size_t i = 0; i < radiance.size(); ++i) rad4[i] = glm::vec4(radiance[i], 0.0f);

@@ -62,7 +62,8 @@ TEST(GpuIrradiance, MatchesCpuBruteForceForSeveralProbes) {
       for (int i = 0; i < m; ++i) {
         glm::vec3 cpu = bruteForceIrradiance(rgb, n, octTexelDirection(i, j, m), omega);
         glm::vec3 g = gpu[size_t(p) * m * m + size_t(j) * m + i];
-        for (int c = 0; c < 3; ++c) worstRel = std::max(worstRel, double(std::abs(g[c] - cpu[c]) / std::abs(cpu[c])));
+        for (int c = 0; c < 3; ++c)
+          worstRel = std::max(worstRel, double(std::abs(g[c] - cpu[c]) / std::abs(cpu[c])));
       }
   }
   EXPECT_LT(worstRel, 1e-5);

@@ -72,7 +72,8 @@ ShadingProbeSet packShadingProbes(std::span<const ShadingCellInput> cells, int l
   for (size_t c = 0; c < cells.size(); ++c) {
     const ShadingCellInput& in = cells[c];
     for (int k = 0; k < 4; ++k)
-      if (!std::isfinite(in.fallback.c[size_t(k)].x + in.fallback.c[size_t(k)].y + in.fallback.c[size_t(k)].z))
+      if (!std::isfinite(in.fallback.c[size_t(k)].x + in.fallback.c[size_t(k)].y +
+                         in.fallback.c[size_t(k)].z))
         fail("probe shading: cell {}: fallback SH coefficient {} is not finite", c, k);
     if (in.fallbackOnly) {
       if (in.field) fail("probe shading: cell {} is fallback-only but has a field", c);
@@ -81,15 +82,20 @@ ShadingProbeSet packShadingProbes(std::span<const ShadingCellInput> cells, int l
       } catch (const Error& e) {
         fail("probe shading: cell {}: fallback-only box: {}", c, e.what());
       }
-      shared::ShadeCell sc{glm::vec4(in.box.origin, 0.0f), glm::vec4(in.box.spacing, 1.0f), glm::ivec4(in.box.dims, -1),
-                           {}, {}};
+      shared::ShadeCell sc{glm::vec4(in.box.origin, 0.0f),
+                           glm::vec4(in.box.spacing, 1.0f),
+                           glm::ivec4(in.box.dims, -1),
+                           {},
+                           {}};
       packFallback(in.fallback, sc);
       s.cells.push_back(sc);
       continue;
     }
     const ProbeField* f = in.field;
-    if (!f) fail("probe shading: cell {} has no field (a cell shaded from its SH L1 alone is fallbackOnly)", c);
-    if (!(in.fade >= 0.0f && in.fade <= 1.0f)) fail("probe shading: cell {}: fade {} outside [0, 1]", c, in.fade);
+    if (!f)
+      fail("probe shading: cell {} has no field (a cell shaded from its SH L1 alone is fallbackOnly)", c);
+    if (!(in.fade >= 0.0f && in.fade <= 1.0f))
+      fail("probe shading: cell {}: fade {} outside [0, 1]", c, in.fade);
     try {
       f->validate();
     } catch (const Error& e) {
@@ -100,8 +106,8 @@ ShadingProbeSet packShadingProbes(std::span<const ShadingCellInput> cells, int l
       s.irradianceResolution = f->irradianceResolution;
       haveResolution = true;
     } else if (f->resolution != s.resolution || f->irradianceResolution != s.irradianceResolution) {
-      fail("probe shading: cell {} has resolutions {}/{}, an earlier cell has {}/{} (all cells must agree)", c,
-           f->resolution, f->irradianceResolution, s.resolution, s.irradianceResolution);
+      fail("probe shading: cell {} has resolutions {}/{}, an earlier cell has {}/{} (all cells must agree)",
+           c, f->resolution, f->irradianceResolution, s.resolution, s.irradianceResolution);
     }
     const int n = f->resolution, m = f->irradianceResolution;
     const size_t n2 = size_t(n) * size_t(n), m2 = size_t(m) * size_t(m);
@@ -110,14 +116,17 @@ ShadingProbeSet packShadingProbes(std::span<const ShadingCellInput> cells, int l
       fail("probe shading: cell {}: specular holds {} floats, expected {} probes x {} levels x {}x{}x3", c,
            in.specular.size(), count, levels, n, n);
     s.minSpacing = std::min({s.minSpacing, f->grid.spacing.x, f->grid.spacing.y, f->grid.spacing.z});
-    shared::ShadeCell sc{glm::vec4(f->grid.origin, in.fade), glm::vec4(f->grid.spacing, 0.0f),
-                         glm::ivec4(f->grid.dims, int(s.probes.size())), {}, {}};
+    shared::ShadeCell sc{glm::vec4(f->grid.origin, in.fade),
+                         glm::vec4(f->grid.spacing, 0.0f),
+                         glm::ivec4(f->grid.dims, int(s.probes.size())),
+                         {},
+                         {}};
     packFallback(in.fallback, sc);
     s.cells.push_back(sc);
     for (int64_t i = 0; i < count; ++i) {
       s.probes.push_back(glm::vec4(f->probePosition(i), f->isActive(i) ? 1.0f : 0.0f));
-      const std::vector<float> irr = makeBordered(
-          std::span<const float>(f->irradiance).subspan(size_t(i) * m2 * 3, m2 * 3), m, 3);
+      const std::vector<float> irr =
+          makeBordered(std::span<const float>(f->irradiance).subspan(size_t(i) * m2 * 3, m2 * 3), m, 3);
       for (size_t t = 0; t < irr.size() / 3; ++t)
         s.irradiance.push_back(glm::vec4(irr[t * 3], irr[t * 3 + 1], irr[t * 3 + 2], 0.0f));
       const std::vector<float> mom =
@@ -129,7 +138,8 @@ ShadingProbeSet packShadingProbes(std::span<const ShadingCellInput> cells, int l
                 ? std::span<const float>(f->radiance).subspan(size_t(i) * n2 * 3, n2 * 3)
                 : in.specular.subspan((size_t(i) * size_t(levels) + size_t(l)) * n2 * 3, n2 * 3);
         const std::vector<float> b = makeBordered(src, n, 3);
-        for (size_t t = 0; t < b.size() / 3; ++t) s.specular.push_back(glm::vec4(b[t * 3], b[t * 3 + 1], b[t * 3 + 2], 0.0f));
+        for (size_t t = 0; t < b.size() / 3; ++t)
+          s.specular.push_back(glm::vec4(b[t * 3], b[t * 3 + 1], b[t * 3 + 2], 0.0f));
       }
     }
   }
@@ -169,7 +179,9 @@ ShadeOutputHost readShadeOutput(Context& ctx, const ShadeOutput& o) {
 }
 
 ProbeShadingPass::ProbeShadingPass(Context& ctx)
-    : ctx_(ctx), program_(ctx, "probe_shade"), params_(createStorageBuffer(ctx, sizeof(shared::ShadeParams))) {}
+    : ctx_(ctx),
+      program_(ctx, "probe_shade"),
+      params_(createStorageBuffer(ctx, sizeof(shared::ShadeParams))) {}
 
 void ProbeShadingPass::setProbes(const ShadingProbeSet& s) {
   const size_t probes = s.probes.size();
@@ -177,8 +189,10 @@ void ProbeShadingPass::setProbes(const ShadingProbeSet& s) {
   const size_t nb = size_t(s.resolution + 2) * size_t(s.resolution + 2);
   if (s.cells.empty() || s.irradiance.size() != probes * mb || s.moments.size() != probes * nb ||
       s.specular.size() != probes * nb * size_t(s.specularLevels))
-    fail("probe shading: inconsistent probe set ({} cells, {} probes, {} irradiance, {} moment, {} specular texels)",
-         s.cells.size(), probes, s.irradiance.size(), s.moments.size(), s.specular.size());
+    fail(
+        "probe shading: inconsistent probe set ({} cells, {} probes, {} irradiance, {} moment, {} specular "
+        "texels)",
+        s.cells.size(), probes, s.irradiance.size(), s.moments.size(), s.specular.size());
   cells_ = createStorageBuffer(ctx_, s.cells.size() * sizeof(shared::ShadeCell));
   upload<shared::ShadeCell>(ctx_, cells_, s.cells);
   // Every cell fallback-only: no probe is read, but each binding needs a buffer (one zero element).
@@ -198,18 +212,20 @@ void ProbeShadingPass::setProbes(const ShadingProbeSet& s) {
   haveProbes_ = true;
 }
 
-void ProbeShadingPass::setView(const shared::SkyParams& sky, const shared::GpuCamera& camera, int width, int height,
-                               const GpuSceneBuffers& scene, const ShadingOptions& o) {
+void ProbeShadingPass::setView(const shared::SkyParams& sky, const shared::GpuCamera& camera, int width,
+                               int height, const GpuSceneBuffers& scene, const ShadingOptions& o) {
   if (!haveProbes_) fail("probe shading: setView before setProbes");
   shared::ShadeParams p{};
   p.sky = sky;
   p.camera = camera;
   p.size = glm::uvec4(uint32_t(width), uint32_t(height), cellCount_, scene.nodeCount);
   p.maps = maps_;
-  p.maps.w = (o.chebyshev ? 1u : 0u) | (o.backface ? 2u : 0u) | (o.sunShadows && scene.triangleCount > 0 ? 4u : 0u);
+  p.maps.w =
+      (o.chebyshev ? 1u : 0u) | (o.backface ? 2u : 0u) | (o.sunShadows && scene.triangleCount > 0 ? 4u : 0u);
   p.bias = glm::vec4(o.normalBias >= 0.0f ? o.normalBias : 0.045f * minSpacing_,
                      o.viewBias >= 0.0f ? o.viewBias : 0.18f * minSpacing_, o.chebyshevFloor, o.maxDistance);
-  if (!(std::isfinite(o.aoRadius) && o.aoRadius >= 0.0f)) fail("shading: aoRadius {} must be finite and >= 0", o.aoRadius);
+  if (!(std::isfinite(o.aoRadius) && o.aoRadius >= 0.0f))
+    fail("shading: aoRadius {} must be finite and >= 0", o.aoRadius);
   p.weights = glm::vec4(o.direct ? 1.0f : 0.0f, o.diffuse ? 1.0f : 0.0f, o.specular ? 1.0f : 0.0f,
                         scene.triangleCount > 0 ? o.aoRadius : 0.0f);
   upload<shared::ShadeParams>(ctx_, params_, std::span(&p, 1));
@@ -221,12 +237,13 @@ void ProbeShadingPass::record(VkCommandBuffer cmd, const GpuSceneBuffers& scene,
                               ShadeOutput& out) const {
   if (!haveProbes_ || width_ == 0) fail("probe shading: record before setProbes/setView");
   if (g.width != width_ || g.height != height_ || out.width != width_ || out.height != height_)
-    fail("probe shading: G-buffer {}x{} / output {}x{} differ from the view {}x{}", g.width, g.height, out.width,
-         out.height, width_, height_);
-  dispatch(ctx_, cmd, program_,
-           {&params_, &cells_, &probes_, &irradiance_, &moments_, &specular_, &scene.nodes, &scene.triangles,
-            &g.position, &g.normal, &g.albedo, &g.emission, &out.direct, &out.diffuse, &out.specular, &out.total},
-           std::span<const std::byte>(), {uint32_t(width_), uint32_t(height_), 1});
+    fail("probe shading: G-buffer {}x{} / output {}x{} differ from the view {}x{}", g.width, g.height,
+         out.width, out.height, width_, height_);
+  dispatch(
+      ctx_, cmd, program_,
+      {&params_, &cells_, &probes_, &irradiance_, &moments_, &specular_, &scene.nodes, &scene.triangles,
+       &g.position, &g.normal, &g.albedo, &g.emission, &out.direct, &out.diffuse, &out.specular, &out.total},
+      std::span<const std::byte>(), {uint32_t(width_), uint32_t(height_), 1});
 }
 
 }  // namespace lfgi::gpu

@@ -92,11 +92,11 @@ struct ShadingProbeSet {
 ShadingProbeSet packShadingProbes(std::span<const ShadingCellInput> cells, int specularLevels);
 
 struct ShadingOptions {
-  bool chebyshev = true;      // visibility from distance moments
-  bool backface = true;       // DDGI wrap-shading weight towards the probe
-  bool sunShadows = true;     // shadow rays for sun and moon
-  float normalBias = -1.0f;   // m; < 0: 0.045 x min spacing (DDGI: 0.2 x 0.75 x 0.3)
-  float viewBias = -1.0f;     // m; < 0: 0.18 x min spacing (DDGI: 0.8 x 0.75 x 0.3)
+  bool chebyshev = true;     // visibility from distance moments
+  bool backface = true;      // DDGI wrap-shading weight towards the probe
+  bool sunShadows = true;    // shadow rays for sun and moon
+  float normalBias = -1.0f;  // m; < 0: 0.045 x min spacing (DDGI: 0.2 x 0.75 x 0.3)
+  float viewBias = -1.0f;    // m; < 0: 0.18 x min spacing (DDGI: 0.8 x 0.75 x 0.3)
   float chebyshevFloor = 0.0f;
   float maxDistance = 1.0e4f;
   bool direct = true, diffuse = true, specular = true;  // layers to compute (others are 0)

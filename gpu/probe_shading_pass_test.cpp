@@ -69,7 +69,8 @@ struct Harness {
   ShadeOutputHost shadeCells(const std::vector<ShadingCellInput>& in, const GBufferHost& g, glm::vec3 eye,
                              const ShadingOptions& o, const shared::SkyParams& sky = {}) {
     pass.setProbes(packShadingProbes(in, 1));
-    const shared::GpuCamera cam = makeGpuCamera(eye, eye + glm::vec3(0.0f, 0.0f, -1.0f), 60.0f, g.width, g.height);
+    const shared::GpuCamera cam =
+        makeGpuCamera(eye, eye + glm::vec3(0.0f, 0.0f, -1.0f), 60.0f, g.width, g.height);
     pass.setView(sky, cam, g.width, g.height, sceneBuffers, o);
     GBuffer gb = createGBuffer(*ctx, g.width, g.height);
     writeGBuffer(*ctx, g, gb);
@@ -92,7 +93,8 @@ TEST(ProbeShading, ConstantFieldGivesAlbedoOverPiTimesE) {
     n.push_back(glm::normalize(glm::vec3(s(rng), s(rng), s(rng)) + glm::vec3(0.0f, 1e-3f, 0.0f)));
   }
   const glm::vec3 albedo(0.5f, 0.25f, 1.0f);
-  const ShadeOutputHost r = h.shade({&f}, points(p, n, albedo), glm::vec3(1.0f, 1.0f, 5.0f), ShadingOptions{});
+  const ShadeOutputHost r =
+      h.shade({&f}, points(p, n, albedo), glm::vec3(1.0f, 1.0f, 5.0f), ShadingOptions{});
   for (size_t k = 0; k < p.size(); ++k)
     for (int c = 0; c < 3; ++c)
       EXPECT_NEAR(r.diffuse[k][c], albedo[c] / kPi * glm::vec3(2.0f, 4.0f, 8.0f)[c], 1e-5f) << k;
@@ -182,8 +184,9 @@ TEST(ProbeShading, SunIsShadowedThroughTheBvh) {
   h.sceneBuffers = uploadGpuScene(*h.ctx, h.scene);
   const glm::vec3 albedo(0.5f);
   const ShadeOutputHost r =
-      h.shade({&f}, points({glm::vec3(-0.5f, 0.0f, 0.0f), glm::vec3(2.0f, 0.0f, 0.0f)},
-                           {glm::vec3(0.0f, 1.0f, 0.0f), glm::vec3(0.0f, 1.0f, 0.0f)}, albedo),
+      h.shade({&f},
+              points({glm::vec3(-0.5f, 0.0f, 0.0f), glm::vec3(2.0f, 0.0f, 0.0f)},
+                     {glm::vec3(0.0f, 1.0f, 0.0f), glm::vec3(0.0f, 1.0f, 0.0f)}, albedo),
               glm::vec3(0.0f, 2.0f, 3.0f), ShadingOptions{}, sky);
   for (int c = 0; c < 3; ++c) {
     EXPECT_NEAR(r.direct[0][c], 0.5f / kPi * sky.sunIrradiance[c] * sunDir.y, 1e-4f);
@@ -245,7 +248,8 @@ TEST(ProbeShading, FallbackOnlyCellIsLitByItsShL1) {
   }
   const GBufferHost g = points(p, n, glm::vec3(kPi));
   const glm::vec3 eye(4.0f, 6.0f, 6.0f);
-  const std::vector<ShadingCellInput> cells{fullCell(a, 1.0f, constantSky(LA)), fallbackCell(gridB, constantSky(L))};
+  const std::vector<ShadingCellInput> cells{fullCell(a, 1.0f, constantSky(LA)),
+                                            fallbackCell(gridB, constantSky(L))};
   ShadingOptions noVis;
   noVis.chebyshev = false;
   noVis.backface = false;
@@ -314,7 +318,8 @@ TEST(ProbeShading, NoJumpAcrossABorderToAFullOrFallbackNeighbour) {
   auto line = [&](const std::vector<ShadingCellInput>& cells) {
     const ShadeOutputHost r = h.shadeCells(cells, g, eye, ShadingOptions{});
     Line l;
-    for (size_t k = 1; k < p.size(); ++k) l.maxJump = std::max(l.maxJump, std::abs(r.diffuse[k].x - r.diffuse[k - 1].x));
+    for (size_t k = 1; k < p.size(); ++k)
+      l.maxJump = std::max(l.maxJump, std::abs(r.diffuse[k].x - r.diffuse[k - 1].x));
     l.change = std::abs(r.diffuse[101].x - r.diffuse[50].x);  // x = 4.02 and x = 3.00
     return l;
   };
@@ -345,7 +350,8 @@ TEST(ProbeShading, NoJumpAcrossABorderToAFullOrFallbackNeighbour) {
 TEST(ProbeShading, FadeBlendsLinearlyFromFallbackToProbes) {
   Harness h;
   const ProbeGrid grid{glm::vec3(0.0f), glm::vec3(1.0f), glm::ivec3(3, 3, 3)};
-  const ProbeField f = makeField(grid, [](glm::vec3 q) { return glm::vec3(1.0f + q.x, 2.0f + q.y, 3.0f - q.z); });
+  const ProbeField f =
+      makeField(grid, [](glm::vec3 q) { return glm::vec3(1.0f + q.x, 2.0f + q.y, 3.0f - q.z); });
   const glm::vec3 L(0.4f, 0.9f, 0.2f);
   const ShL1 sky = constantSky(L);
   std::mt19937 rng(3);
@@ -398,9 +404,11 @@ TEST(ProbeShading, FadeBlendsLinearlyFromFallbackToProbes) {
 }
 
 TEST(ProbeShading, InconsistentInputsAreErrors) {
-  const ProbeField a = makeField({glm::vec3(0.0f), glm::vec3(1.0f), glm::ivec3(2, 2, 2)}, [](glm::vec3) { return glm::vec3(1.0f); });
-  const ProbeField b = makeField({glm::vec3(2.0f, 0.0f, 0.0f), glm::vec3(1.0f), glm::ivec3(2, 2, 2)},
-                                 [](glm::vec3) { return glm::vec3(1.0f); }, 100.0f, 1.0f, 8, 4);
+  const ProbeField a = makeField({glm::vec3(0.0f), glm::vec3(1.0f), glm::ivec3(2, 2, 2)},
+                                 [](glm::vec3) { return glm::vec3(1.0f); });
+  const ProbeField b = makeField(
+      {glm::vec3(2.0f, 0.0f, 0.0f), glm::vec3(1.0f), glm::ivec3(2, 2, 2)},
+      [](glm::vec3) { return glm::vec3(1.0f); }, 100.0f, 1.0f, 8, 4);
   const std::vector<ShadingCellInput> mixed{{&a, {}}, {&b, {}}};
   EXPECT_THROW(packShadingProbes(mixed, 1), Error);
   const std::vector<ShadingCellInput> none{{nullptr, {}}};
@@ -416,7 +424,8 @@ TEST(ProbeShading, InconsistentInputsAreErrors) {
   ShadingCellInput badBox = fallbackCell(ProbeGrid{glm::vec3(0.0f), glm::vec3(0.0f), glm::ivec3(2)}, ShL1{});
   EXPECT_THROW(packShadingProbes(std::vector<ShadingCellInput>{badBox}, 1), Error);
   for (float fade : {-0.1f, 1.5f, std::nanf("")})
-    EXPECT_THROW(packShadingProbes(std::vector<ShadingCellInput>{fullCell(a, fade, ShL1{})}, 1), Error) << fade;
+    EXPECT_THROW(packShadingProbes(std::vector<ShadingCellInput>{fullCell(a, fade, ShL1{})}, 1), Error)
+        << fade;
   ShL1 inf;
   inf.c[1].y = INFINITY;
   EXPECT_THROW(packShadingProbes(std::vector<ShadingCellInput>{fullCell(a, 1.0f, inf)}, 1), Error);
@@ -428,8 +437,9 @@ TEST(ProbeShading, InconsistentInputsAreErrors) {
   std::vector<ShadingCellInput> block;
   for (int z = 0; z < 2; ++z)
     for (int x = 0; x < 2; ++x)
-      block.push_back(fallbackCell(ProbeGrid{glm::vec3(2.0f * float(x), 0.0f, 2.0f * float(z)), glm::vec3(1.0f),
-                                             glm::ivec3(2)}, ShL1{}));
+      block.push_back(fallbackCell(
+          ProbeGrid{glm::vec3(2.0f * float(x), 0.0f, 2.0f * float(z)), glm::vec3(1.0f), glm::ivec3(2)},
+          ShL1{}));
   const ShadingProbeSet t = packShadingProbes(block, 1);
   auto entry = [&](int cell, int dx, int dz) {
     const int k = (dz + 1) * 3 + dx + 1;
@@ -439,10 +449,10 @@ TEST(ProbeShading, InconsistentInputsAreErrors) {
   EXPECT_EQ(entry(0, 1, 0), 1);
   EXPECT_EQ(entry(0, 0, 1), 2);
   EXPECT_EQ(entry(0, 1, 1), 3);
-  EXPECT_EQ(entry(0, -1, 0), 0);   // world edge in x: clamped to the cell itself
-  EXPECT_EQ(entry(0, -1, 1), 2);   // x clamped, z kept
+  EXPECT_EQ(entry(0, -1, 0), 0);  // world edge in x: clamped to the cell itself
+  EXPECT_EQ(entry(0, -1, 1), 2);  // x clamped, z kept
   EXPECT_EQ(entry(3, -1, -1), 0);
-  EXPECT_EQ(entry(3, 1, -1), 1);   // x clamped at the +x edge
+  EXPECT_EQ(entry(3, 1, -1), 1);  // x clamped at the +x edge
 }
 
 // Every cell on its fallback (nothing resident yet): the pass still shades every point, pi L.
@@ -457,8 +467,8 @@ TEST(ProbeShading, OnlyFallbackCellsStillLightEveryPoint) {
     p.push_back(glm::vec3(u(rng), u(rng), u(rng)));
     n.push_back(unitVector(rng));
   }
-  const ShadeOutputHost r =
-      h.shadeCells({fallbackCell(box, constantSky(L))}, points(p, n, glm::vec3(kPi)), glm::vec3(2.0f, 8.0f, 8.0f), {});
+  const ShadeOutputHost r = h.shadeCells({fallbackCell(box, constantSky(L))}, points(p, n, glm::vec3(kPi)),
+                                         glm::vec3(2.0f, 8.0f, 8.0f), {});
   for (size_t k = 0; k < p.size(); ++k) {
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(r.diffuse[k][c], kPi * L[c], 1e-5f * kPi * L[c]) << k;
     EXPECT_EQ(r.direct[k].w, 1.0f);

@@ -34,7 +34,9 @@ void addResources(spvc_compiler comp, spvc_resources res, spvc_resource_type typ
   for (size_t i = 0; i < count; ++i) {
     unsigned set = spvc_compiler_get_decoration(comp, list[i].id, SpvDecorationDescriptorSet);
     unsigned binding = spvc_compiler_get_decoration(comp, list[i].id, SpvDecorationBinding);
-    if (set != 0) fail("shader '{}': resource '{}' uses descriptor set {}; lfgi binds set 0 only", name, list[i].name, set);
+    if (set != 0)
+      fail("shader '{}': resource '{}' uses descriptor set {}; lfgi binds set 0 only", name, list[i].name,
+           set);
     out.bindings.push_back({binding, vkType, list[i].name ? list[i].name : ""});
   }
 }
@@ -42,12 +44,14 @@ void addResources(spvc_compiler comp, spvc_resources res, spvc_resource_type typ
 }  // namespace
 
 ShaderReflection reflectComputeShader(std::span<const uint32_t> spirv, const std::string& name) {
-  if (spirv.size() < 5 || spirv[0] != 0x07230203u) fail("shader '{}': not SPIR-V (bad magic or too short)", name);
+  if (spirv.size() < 5 || spirv[0] != 0x07230203u)
+    fail("shader '{}': not SPIR-V (bad magic or too short)", name);
   SpvcContext sc;
   spvc_parsed_ir ir = nullptr;
   spvc_compiler comp = nullptr;
   if (spvc_context_parse_spirv(sc.ctx, spirv.data(), spirv.size(), &ir) != SPVC_SUCCESS ||
-      spvc_context_create_compiler(sc.ctx, SPVC_BACKEND_NONE, ir, SPVC_CAPTURE_MODE_TAKE_OWNERSHIP, &comp) != SPVC_SUCCESS)
+      spvc_context_create_compiler(sc.ctx, SPVC_BACKEND_NONE, ir, SPVC_CAPTURE_MODE_TAKE_OWNERSHIP, &comp) !=
+          SPVC_SUCCESS)
     fail("shader '{}': invalid SPIR-V ({})", name, spvc_context_get_last_error_string(sc.ctx));
   if (spvc_compiler_get_execution_model(comp) != SpvExecutionModelGLCompute)
     fail("shader '{}': not a compute shader", name);
@@ -69,7 +73,8 @@ ShaderReflection reflectComputeShader(std::span<const uint32_t> spirv, const std
     const spvc_reflected_resource* list = nullptr;
     size_t count = 0;
     spvc_resources_get_resource_list_for_type(res, unsupported, &list, &count);
-    if (count > 0) fail("shader '{}': resource '{}' is not a buffer; only buffers are supported", name, list[0].name);
+    if (count > 0)
+      fail("shader '{}': resource '{}' is not a buffer; only buffers are supported", name, list[0].name);
   }
   std::sort(out.bindings.begin(), out.bindings.end(),
             [](const ShaderBinding& a, const ShaderBinding& b) { return a.binding < b.binding; });
@@ -96,18 +101,21 @@ std::filesystem::path shaderDirectory() {
   char buf[PATH_MAX];
   ssize_t n = ::readlink("/proc/self/exe", buf, sizeof(buf) - 1);
   if (n <= 0) fail("cannot locate the running executable to find shaders; set LFGI_SHADER_DIR");
-  std::filesystem::path exeDir = std::filesystem::path(std::string(buf, static_cast<size_t>(n))).parent_path();
+  std::filesystem::path exeDir =
+      std::filesystem::path(std::string(buf, static_cast<size_t>(n))).parent_path();
   for (const auto& candidate : {exeDir.parent_path() / "shaders", exeDir / "shaders"})
     if (std::filesystem::is_directory(candidate)) return candidate;
-  fail("no compiled shaders next to {} (looked in ../shaders and ./shaders); build the lfgi_shaders target or "
-       "set LFGI_SHADER_DIR",
-       exeDir.string());
+  fail(
+      "no compiled shaders next to {} (looked in ../shaders and ./shaders); build the lfgi_shaders target or "
+      "set LFGI_SHADER_DIR",
+      exeDir.string());
 }
 
 Program::Program(Context& ctx, const std::string& name) : device_(ctx.device), name_(name) {
   std::filesystem::path path = shaderDirectory() / (name + ".spv");
   std::vector<std::byte> bytes = readFileBytes(path);
-  if (bytes.size() % 4 != 0) fail("{}: size {} is not a multiple of 4; not SPIR-V", path.string(), bytes.size());
+  if (bytes.size() % 4 != 0)
+    fail("{}: size {} is not a multiple of 4; not SPIR-V", path.string(), bytes.size());
   std::vector<uint32_t> words(bytes.size() / 4);
   std::memcpy(words.data(), bytes.data(), bytes.size());
   reflection_ = reflectComputeShader(words, path.string());
@@ -116,10 +124,11 @@ Program::Program(Context& ctx, const std::string& name) : device_(ctx.device), n
   const uint32_t* ls = reflection_.localSize;
   if (ls[0] > lim.maxComputeWorkGroupSize[0] || ls[1] > lim.maxComputeWorkGroupSize[1] ||
       ls[2] > lim.maxComputeWorkGroupSize[2] || ls[0] * ls[1] * ls[2] > lim.maxComputeWorkGroupInvocations)
-    fail("{}: workgroup {}x{}x{} exceeds the limits of '{}'", path.string(), ls[0], ls[1], ls[2], ctx.info.name);
+    fail("{}: workgroup {}x{}x{} exceeds the limits of '{}'", path.string(), ls[0], ls[1], ls[2],
+         ctx.info.name);
   if (reflection_.pushConstantBytes > lim.maxPushConstantsSize)
-    fail("{}: {} push-constant bytes exceed the device limit {}", path.string(), reflection_.pushConstantBytes,
-         lim.maxPushConstantsSize);
+    fail("{}: {} push-constant bytes exceed the device limit {}", path.string(),
+         reflection_.pushConstantBytes, lim.maxPushConstantsSize);
 
   try {
     std::vector<VkDescriptorSetLayoutBinding> bindings;
@@ -129,7 +138,8 @@ Program::Program(Context& ctx, const std::string& name) : device_(ctx.device), n
     setInfo.flags = VK_DESCRIPTOR_SET_LAYOUT_CREATE_PUSH_DESCRIPTOR_BIT_KHR;
     setInfo.bindingCount = static_cast<uint32_t>(bindings.size());
     setInfo.pBindings = bindings.data();
-    check(vkCreateDescriptorSetLayout(device_, &setInfo, nullptr, &setLayout_), "vkCreateDescriptorSetLayout");
+    check(vkCreateDescriptorSetLayout(device_, &setInfo, nullptr, &setLayout_),
+          "vkCreateDescriptorSetLayout");
 
     VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, reflection_.pushConstantBytes};
     VkPipelineLayoutCreateInfo layoutInfo{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
@@ -168,7 +178,9 @@ Program::Program(Program&& o) noexcept
       layout_(std::exchange(o.layout_, VK_NULL_HANDLE)),
       pipeline_(std::exchange(o.pipeline_, VK_NULL_HANDLE)) {}
 
-Program::~Program() { release(); }
+Program::~Program() {
+  release();
+}
 
 void Program::release() {
   if (!device_) return;
@@ -181,14 +193,16 @@ void Program::release() {
   device_ = VK_NULL_HANDLE;
 }
 
-void dispatch(Context& ctx, VkCommandBuffer cmd, const Program& program, std::initializer_list<const Buffer*> buffers,
-              std::span<const std::byte> pushConstants, DispatchSize threads) {
+void dispatch(Context& ctx, VkCommandBuffer cmd, const Program& program,
+              std::initializer_list<const Buffer*> buffers, std::span<const std::byte> pushConstants,
+              DispatchSize threads) {
   const ShaderReflection& refl = program.reflection();
   if (buffers.size() != refl.bindings.size())
-    fail("dispatch '{}': {} buffers given, shader declares {}", program.name(), buffers.size(), refl.bindings.size());
+    fail("dispatch '{}': {} buffers given, shader declares {}", program.name(), buffers.size(),
+         refl.bindings.size());
   if (pushConstants.size() != refl.pushConstantBytes)
-    fail("dispatch '{}': {} push-constant bytes given, shader declares {}", program.name(), pushConstants.size(),
-         refl.pushConstantBytes);
+    fail("dispatch '{}': {} push-constant bytes given, shader declares {}", program.name(),
+         pushConstants.size(), refl.pushConstantBytes);
 
   std::vector<VkDescriptorBufferInfo> infos;
   std::vector<VkWriteDescriptorSet> writes;

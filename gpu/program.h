@@ -73,12 +73,13 @@ struct DispatchSize {
 // Binds program and buffers (in binding order 0..n-1), pushes constants and dispatches enough workgroups
 // to cover `threads` invocations (rounding up by the reflected local size). Throws lfgi::Error if the
 // buffer count or push-constant size differs from the shader's.
-void dispatch(Context& ctx, VkCommandBuffer cmd, const Program& program, std::initializer_list<const Buffer*> buffers,
-              std::span<const std::byte> pushConstants, DispatchSize threads);
+void dispatch(Context& ctx, VkCommandBuffer cmd, const Program& program,
+              std::initializer_list<const Buffer*> buffers, std::span<const std::byte> pushConstants,
+              DispatchSize threads);
 
 template <typename Params>
-void dispatch(Context& ctx, VkCommandBuffer cmd, const Program& program, std::initializer_list<const Buffer*> buffers,
-              const Params& params, DispatchSize threads) {
+void dispatch(Context& ctx, VkCommandBuffer cmd, const Program& program,
+              std::initializer_list<const Buffer*> buffers, const Params& params, DispatchSize threads) {
   dispatch(ctx, cmd, program, buffers, std::as_bytes(std::span(&params, 1)), threads);
 }
 

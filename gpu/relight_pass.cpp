@@ -22,7 +22,9 @@ Program requireInt64Atomics(Context& ctx, const char* name) {
   return Program(ctx, name);
 }
 
-float luminance(glm::vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+float luminance(glm::vec3 c) {
+  return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z;
+}
 
 void validate(const RelightOptions& o) {
   if (o.shadowResolution != 0 && (o.shadowResolution < 16 || o.shadowResolution > 4096))
@@ -49,7 +51,9 @@ void validate(const RelightOptions& o) {
     fail("relight: emitterBiasSlope {} must be finite and >= 0", o.emitterBiasSlope);
 }
 
-bool emits(const shared::Surfel& s) { return std::max({s.emission.x, s.emission.y, s.emission.z}) > 0.0f; }
+bool emits(const shared::Surfel& s) {
+  return std::max({s.emission.x, s.emission.y, s.emission.z}) > 0.0f;
+}
 
 // Emitter NEE inputs: clusters (uniform grid over the emitters' bounds x the 6 dominant normal
 // directions, the grid coarsened until at most maxEmitterClusters cells are occupied; the two sides of a
@@ -84,7 +88,8 @@ EmitterSetup setupEmitters(std::span<const shared::Surfel> surfels, const Religh
       clusters[{k.x, k.y, k.z, 2 * axis + (n[axis] < 0.0f ? 1 : 0)}].push_back(i);
     }
     // A single cell per side is as coarse as the grid gets; the sides stay apart.
-    if (int(clusters.size()) <= o.maxEmitterClusters || cell > 4.0f * std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z, 1e-3f}))
+    if (int(clusters.size()) <= o.maxEmitterClusters ||
+        cell > 4.0f * std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z, 1e-3f}))
       break;
     cell *= 2.0f;
   }
@@ -94,7 +99,8 @@ EmitterSetup setupEmitters(std::span<const shared::Surfel> surfels, const Religh
     glm::dvec3 centroid(0.0), normal(0.0);
     double area = 0.0, radius = 0.0;
     for (uint32_t i : members) {
-      const double a = std::numbers::pi * double(surfels[i].positionRadius.w) * double(surfels[i].positionRadius.w);
+      const double a =
+          std::numbers::pi * double(surfels[i].positionRadius.w) * double(surfels[i].positionRadius.w);
       centroid += a * glm::dvec3(glm::vec3(surfels[i].positionRadius));
       normal += a * glm::dvec3(glm::vec3(surfels[i].normal));
       area += a;
@@ -128,7 +134,9 @@ EmitterSetup setupEmitters(std::span<const shared::Surfel> surfels, const Religh
 }
 
 // Storage buffers of at least 16 bytes (an unused binding still needs a valid buffer).
-Buffer storage(Context& ctx, size_t bytes) { return createStorageBuffer(ctx, std::max<size_t>(bytes, 16)); }
+Buffer storage(Context& ctx, size_t bytes) {
+  return createStorageBuffer(ctx, std::max<size_t>(bytes, 16));
+}
 
 }  // namespace
 
@@ -233,9 +241,11 @@ RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, cons
       emitterDepth[t] = maps.normal[t].w == LFGI_VIR_HOLE ? 1e30f : maps.distance[t].x;
     // Receiver pushed one mean radius along its normal; depth bias one mean radius + slope x texel angle
     // (an octahedral texel spans ~sqrt(4 pi) / N rad) x distance.
-    frame.emitters = glm::uvec4(uint32_t(em.samples.size()), uint32_t(em.centres.size()), uint32_t(emitterRes), 0u);
-    frame.emitterBias = glm::vec4(em.meanRadius, em.meanRadius,
-                                  o.emitterBiasSlope * std::sqrt(4.0f * std::numbers::pi_v<float>) / float(emitterRes), 0.0f);
+    frame.emitters =
+        glm::uvec4(uint32_t(em.samples.size()), uint32_t(em.centres.size()), uint32_t(emitterRes), 0u);
+    frame.emitterBias =
+        glm::vec4(em.meanRadius, em.meanRadius,
+                  o.emitterBiasSlope * std::sqrt(4.0f * std::numbers::pi_v<float>) / float(emitterRes), 0.0f);
     result.emitterClusters = int(em.centres.size());
     result.emitterSamples = int(em.samples.size());
   }
@@ -258,7 +268,8 @@ RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, cons
   params.irradianceRes = bounce ? uint32_t(previous->irradianceResolution) : 1u;
   params.distanceRes = bounce ? uint32_t(previous->distanceResolution) : 1u;
   params.flags = (keyOn ? LFGI_RELIGHT_SUN : 0u) | (bounce ? LFGI_RELIGHT_BOUNCE : 0u) |
-                 (o.chebyshev ? LFGI_RELIGHT_CHEBYSHEV : 0u) | (em.samples.empty() ? 0u : LFGI_RELIGHT_EMITTERS);
+                 (o.chebyshev ? LFGI_RELIGHT_CHEBYSHEV : 0u) |
+                 (em.samples.empty() ? 0u : LFGI_RELIGHT_EMITTERS);
   params.footprintScale = o.shadowFootprintScale;
   params.missDistance = o.missDistance;
 
@@ -291,7 +302,8 @@ RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, cons
     vkCmdFillBuffer(cmd, slots.handle(), 0, VK_WHOLE_SIZE, 0xFFFFFFFFu);
     memoryBarrier(cmd);
     timer.stamp(cmd, 0);
-    if (keyOn) dispatch(ctx_, cmd, shadowSplat_, {&surfelBuf, &frameBuf, &slots}, params, {params.surfelCount, 1, 1});
+    if (keyOn)
+      dispatch(ctx_, cmd, shadowSplat_, {&surfelBuf, &frameBuf, &slots}, params, {params.surfelCount, 1, 1});
     memoryBarrier(cmd);
     timer.stamp(cmd, 1);
     dispatch(ctx_, cmd, surfels_,
@@ -333,20 +345,22 @@ class CosineWeights {
   std::vector<glm::vec3> normals_, dirs_;
 };
 
-ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyParams& sky, const RelightOptions& o,
-                                   const ProbeLighting* sameGeometry) {
+ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyParams& sky,
+                                    const RelightOptions& o, const ProbeLighting* sameGeometry) {
   validate(o);
   const size_t n2 = size_t(atlas.resolution) * size_t(atlas.resolution);
   const size_t texels = n2 * size_t(atlas.probeCount);
   if (atlas.resolution < 1 || atlas.probeCount < 1 || atlas.radiance.size() != texels ||
       atlas.normal.size() != texels || atlas.distance.size() != texels)
-    fail("relight: atlas of {} probes at N={} has {} radiance, {} normal, {} distance texels", atlas.probeCount,
-         atlas.resolution, atlas.radiance.size(), atlas.normal.size(), atlas.distance.size());
-  if (sameGeometry && (sameGeometry->distanceResolution != atlas.resolution ||
-                       sameGeometry->probeCount != atlas.probeCount || sameGeometry->moments.size() != texels))
+    fail("relight: atlas of {} probes at N={} has {} radiance, {} normal, {} distance texels",
+         atlas.probeCount, atlas.resolution, atlas.radiance.size(), atlas.normal.size(),
+         atlas.distance.size());
+  if (sameGeometry &&
+      (sameGeometry->distanceResolution != atlas.resolution || sameGeometry->probeCount != atlas.probeCount ||
+       sameGeometry->moments.size() != texels))
     fail("relight: moments of {} probes at N={} ({} texels) given for an atlas of {} probes at N={}",
-         sameGeometry->probeCount, sameGeometry->distanceResolution, sameGeometry->moments.size(), atlas.probeCount,
-         atlas.resolution);
+         sameGeometry->probeCount, sameGeometry->distanceResolution, sameGeometry->moments.size(),
+         atlas.probeCount, atlas.resolution);
   const uint32_t m = uint32_t(o.irradianceResolution);
   ProbeLighting out;
   out.irradianceResolution = int(m);
@@ -361,7 +375,8 @@ ProbeLighting RelightPass::convolve(const ProbeAtlas& atlas, const shared::SkyPa
   const CosineWeights cw(atlas.resolution, int(m));
   std::vector<glm::vec4> weights(size_t(groups) * n2 * 4, glm::vec4(0.0f)), skyTable(n2);
   for (uint32_t t = 0; t < n2; ++t) {
-    skyTable[t] = glm::vec4(shared::skyRadiance(sky, shared::octTexelDirection(glm::uvec2(t % n, t / n), n)), 0.0f);
+    skyTable[t] =
+        glm::vec4(shared::skyRadiance(sky, shared::octTexelDirection(glm::uvec2(t % n, t / n), n)), 0.0f);
     for (uint32_t o2 = 0; o2 < m * m; ++o2)
       weights[(size_t(o2 / 16) * n2 + t) * 4 + (o2 % 16) / 4][int(o2 % 4)] = cw.weight(o2, t);
   }
@@ -412,7 +427,8 @@ std::vector<glm::vec4> RelightPass::prefilterGgx(std::span<const glm::vec4> radi
   if (!(roughness >= 0.0f && roughness <= 1.0f)) fail("relight: GGX roughness {} outside [0, 1]", roughness);
   const size_t n2 = size_t(n) * size_t(n), m2 = size_t(outN) * size_t(outN);
   if (probeCount < 1 || radiance.size() != n2 * size_t(probeCount))
-    fail("relight: GGX prefilter got {} radiance texels for {} probes of {} x {}", radiance.size(), probeCount, n, n);
+    fail("relight: GGX prefilter got {} radiance texels for {} probes of {} x {}", radiance.size(),
+         probeCount, n, n);
   const std::vector<double> omega = octTexelSolidAngles(n);
   const std::vector<float> omegaF(omega.begin(), omega.end());
   Buffer radBuf = storage(ctx_, radiance.size_bytes());
@@ -437,11 +453,12 @@ std::vector<glm::vec4> RelightPass::prefilterGgx(std::span<const glm::vec4> radi
 }
 
 RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const shared::Surfel> surfels,
-                           const RelightProbes& probes, const shared::SkyParams& sky, const VirOptions& virOptions,
-                           const RelightOptions& options, CellLighting& state) {
+                           const RelightProbes& probes, const shared::SkyParams& sky,
+                           const VirOptions& virOptions, const RelightOptions& options, CellLighting& state) {
   const bool nee = options.emitterNee && std::any_of(surfels.begin(), surfels.end(), emits);
   const ProbeLighting* previous = nullptr;
-  if (state.frames > 0) previous = nee && !state.reflected.irradiance.empty() ? &state.reflected : &state.probes;
+  if (state.frames > 0)
+    previous = nee && !state.reflected.irradiance.empty() ? &state.reflected : &state.probes;
   RelightResult result = relight.relight(surfels, probes, sky, previous, options);
   if (!nee) {
     state.atlas = vir.run(surfels, probes.positions, virOptions, result.irradiance);
@@ -485,7 +502,8 @@ RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const s
     const CosineWeights cw(a.resolution, state.probes.irradianceResolution);
     const uint32_t flags = probeSkyFlags(options);
     for (const EmitterTexel& e : state.emitterTexels) {
-      if (a.normal[e.texel].w == LFGI_VIR_HOLE || e.distance > a.distance[e.texel].x * 1.001f + 1e-5f) continue;
+      if (a.normal[e.texel].w == LFGI_VIR_HOLE || e.distance > a.distance[e.texel].x * 1.001f + 1e-5f)
+        continue;
       a.radiance[e.texel] += glm::vec4(e.radiance, 0.0f);
       if (shared::relightTexelSeesSky(a.normal[e.texel].w, flags)) continue;  // the convolution reads the sky
       glm::vec4* out = &state.probes.irradiance[size_t(e.texel / n2) * cw.outputs()];

@@ -64,22 +64,22 @@ struct RelightOptions {
   float shadowBiasConstant = 0.02f;   // m
   float shadowBiasSlope = 1.5f;       // texels x tan(theta)
   int irradianceResolution = 8;       // M of the probe irradiance maps, [1, 64]
-  float normalBias = -1.0f;           // m, Chebyshev test point offset along the normal; < 0: 0.2 x min spacing
-  float missDistance = 1.0e4f;        // m, distance moment of a probe texel that sees the sky
-  bool sun = true;                    // key disc with the shadow map
-  bool bounce = true;                 // last frame's probe irradiance
-  bool chebyshev = true;              // Chebyshev visibility weights
-  bool skyInProbes = true;            // probe texels no surfel covered see the sky
+  float normalBias = -1.0f;     // m, Chebyshev test point offset along the normal; < 0: 0.2 x min spacing
+  float missDistance = 1.0e4f;  // m, distance moment of a probe texel that sees the sky
+  bool sun = true;              // key disc with the shadow map
+  bool bounce = true;           // last frame's probe irradiance
+  bool chebyshev = true;        // Chebyshev visibility weights
+  bool skyInProbes = true;      // probe texels no surfel covered see the sky
   // ... and so do texels only the VIR hole fill covered (relight_probe_irradiance.comp). false (default
   // since the fill closes only enclosed gaps, vir_holefill.comp, 2026-12-03): a filled gap is geometry; city
   // cell of VirRelightAccuracy: surfel E p90 0.35 -> 0.19, probe irradiance unchanged. true: filled texels
   // see the sky (what the old dilation, which grew silhouettes into the sky, needed).
   bool filledTexelsSeeSky = false;
-  bool emitterNee = true;             // emitter next-event estimation (see the top of this file)
-  int maxEmitterClusters = 16;        // [1, 256] (exceeded only by the count of distinct normal directions)
-  int maxEmitterSamples = 256;        // [1, 65536] over all clusters
-  int emitterShadowResolution = 32;   // octahedral depth map per cluster, [4, 256]
-  float emitterBiasSlope = 1.5f;      // depth bias in texel angles x distance (>= 0)
+  bool emitterNee = true;            // emitter next-event estimation (see the top of this file)
+  int maxEmitterClusters = 16;       // [1, 256] (exceeded only by the count of distinct normal directions)
+  int maxEmitterSamples = 256;       // [1, 65536] over all clusters
+  int emitterShadowResolution = 32;  // octahedral depth map per cluster, [4, 256]
+  float emitterBiasSlope = 1.5f;     // depth bias in texel angles x distance (>= 0)
 };
 
 // How the probe convolution treats uncovered texels (LFGI_RELIGHT_SKY, LFGI_RELIGHT_FILLED_SKY of
@@ -100,7 +100,7 @@ struct RelightResult {
   std::vector<glm::vec4> irradiance;  // per surfel: rgb E (kilolux), w: key-light visibility (0 or 1)
   int shadowResolution = 0;
   float shadowTexelM = 0.0f;
-  glm::vec3 keyDirection{0.0f};  // towards the shadowed disc; 0 when neither disc is up
+  glm::vec3 keyDirection{0.0f};                 // towards the shadowed disc; 0 when neither disc is up
   int emitterClusters = 0, emitterSamples = 0;  // emitter NEE (0: none)
   double shadowMs = 0.0, lightMs = 0.0;
   double emitterShadowMs = 0.0;  // VIR splat of the clusters' depth maps
@@ -116,10 +116,10 @@ struct EmitterTexel {
 
 // Everything a cell keeps between frames.
 struct CellLighting {
-  ProbeAtlas atlas;                     // last VIR atlas (radiance holds the last relit radiance)
-  ProbeLighting probes;                 // derived from atlas
-  ProbeLighting reflected;              // with emitter NEE: the same maps without emission (the gather's
-                                        // input); empty when no surfel emits or NEE is off
+  ProbeAtlas atlas;         // last VIR atlas (radiance holds the last relit radiance)
+  ProbeLighting probes;     // derived from atlas
+  ProbeLighting reflected;  // with emitter NEE: the same maps without emission (the gather's
+                            // input); empty when no surfel emits or NEE is off
   std::vector<glm::vec4> surfelIrradiance;
   int frames = 0;
   // The emitters-only splat's texels (see relightFrame), kept while the emitter surfels, probe positions
@@ -156,8 +156,8 @@ class RelightPass {
   // outN x outN maps: the GPU version of bake::prefilterRadianceGgx (same normalised kernel, exact texel
   // solid angles; shaders/relight_prefilter_ggx.comp). Throws lfgi::Error for sizes outside [1, 256],
   // roughness outside [0, 1] or a radiance count != probeCount N^2. gpuMs, if given, gets the device time.
-  std::vector<glm::vec4> prefilterGgx(std::span<const glm::vec4> radiance, int n, int probeCount, float roughness,
-                                      int outN, double* gpuMs = nullptr);
+  std::vector<glm::vec4> prefilterGgx(std::span<const glm::vec4> radiance, int n, int probeCount,
+                                      float roughness, int outN, double* gpuMs = nullptr);
 
   // The VirPass relightFrame splats the emitters alone with (NEE): its own, so that the caller's VirPass
   // and this one each keep their winners from frame to frame (VirOptions::reuseSplat).
@@ -184,7 +184,7 @@ class RelightPass {
 // CellLighting::emitterTexels); state.probes is state.reflected plus those texels' cosine sums (the
 // convolution is linear in radiance), same moments.
 RelightResult relightFrame(RelightPass& relight, VirPass& vir, std::span<const shared::Surfel> surfels,
-                           const RelightProbes& probes, const shared::SkyParams& sky, const VirOptions& virOptions,
-                           const RelightOptions& options, CellLighting& state);
+                           const RelightProbes& probes, const shared::SkyParams& sky,
+                           const VirOptions& virOptions, const RelightOptions& options, CellLighting& state);
 
 }  // namespace lfgi::gpu

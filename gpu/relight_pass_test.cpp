@@ -272,9 +272,11 @@ TEST(RelightPass, EmitterNextEventEstimationMatchesAnalyticAndIsShadowed) {
   EXPECT_EQ(state.probes.moments, fresh.moments);
   EXPECT_EQ(state.probes.moments, state.reflected.moments);
   ASSERT_EQ(state.probes.irradiance.size(), fresh.irradiance.size());
-  for (size_t t = 0; t < fresh.irradiance.size(); ++t)  // the emitters' part is summed on the CPU, in another order
+  for (size_t t = 0; t < fresh.irradiance.size();
+       ++t)  // the emitters' part is summed on the CPU, in another order
     for (int c = 0; c < 3; ++c)
-      ASSERT_NEAR(state.probes.irradiance[t][c], fresh.irradiance[t][c], 1e-5f * (std::abs(fresh.irradiance[t][c]) + 1e-3f))
+      ASSERT_NEAR(state.probes.irradiance[t][c], fresh.irradiance[t][c],
+                  1e-5f * (std::abs(fresh.irradiance[t][c]) + 1e-3f))
           << "texel " << t;
   ProbeLighting other = fresh;
   other.moments.pop_back();
@@ -298,7 +300,8 @@ TEST(RelightPass, EmitterNextEventEstimationMatchesAnalyticAndIsShadowed) {
     ASSERT_FALSE(kept.emitterTexels.empty());
     ASSERT_EQ(kept.atlas.radiance.size(), redone.atlas.radiance.size());
     size_t differ = 0;
-    for (size_t t = 0; t < kept.atlas.radiance.size(); ++t) differ += kept.atlas.radiance[t] != redone.atlas.radiance[t];
+    for (size_t t = 0; t < kept.atlas.radiance.size(); ++t)
+      differ += kept.atlas.radiance[t] != redone.atlas.radiance[t];
     EXPECT_EQ(differ, 0u) << "frame " << k;
     EXPECT_EQ(kept.probes.irradiance, redone.probes.irradiance) << "frame " << k;
     const ProbeLighting full = pass.convolve(kept.atlas, sky, one);
@@ -306,7 +309,8 @@ TEST(RelightPass, EmitterNextEventEstimationMatchesAnalyticAndIsShadowed) {
     for (size_t t = 0; t < full.irradiance.size(); ++t) {
       lampPart = std::max(lampPart, double(full.irradiance[t].y - kept.reflected.irradiance[t].y));
       for (int c = 0; c < 3; ++c)
-        ASSERT_NEAR(kept.probes.irradiance[t][c], full.irradiance[t][c], 1e-5f * (std::abs(full.irradiance[t][c]) + 1e-3f))
+        ASSERT_NEAR(kept.probes.irradiance[t][c], full.irradiance[t][c],
+                    1e-5f * (std::abs(full.irradiance[t][c]) + 1e-3f))
             << "frame " << k << " texel " << t;
     }
     EXPECT_GT(lampPart, 1.0) << "the probe under the lamp gets its light (frame " << k << ")";
@@ -351,10 +355,12 @@ TEST(RelightPass, ConvolveMatchesTheCosineSumWithSkyInHoles) {
       double worst = 0.0;
       for (int p = 0; p < probes; ++p)
         for (int o2 = 0; o2 < m * m; ++o2) {
-          const glm::dvec3 no(shared::octTexelDirection(glm::uvec2(uint32_t(o2 % m), uint32_t(o2 / m)), uint32_t(m)));
+          const glm::dvec3 no(
+              shared::octTexelDirection(glm::uvec2(uint32_t(o2 % m), uint32_t(o2 / m)), uint32_t(m)));
           glm::dvec3 e(0.0);
           for (int t = 0; t < n * n; ++t) {
-            const glm::vec3 w = shared::octTexelDirection(glm::uvec2(uint32_t(t % n), uint32_t(t / n)), uint32_t(n));
+            const glm::vec3 w =
+                shared::octTexelDirection(glm::uvec2(uint32_t(t % n), uint32_t(t / n)), uint32_t(n));
             const double c = glm::dot(no, glm::dvec3(w));
             if (c <= 0.0) continue;
             const size_t i = size_t(p * n * n + t);

@@ -24,7 +24,9 @@ GpuTimer::~GpuTimer() {
   if (pool_) vkDestroyQueryPool(device_, pool_, nullptr);
 }
 
-void GpuTimer::reset(VkCommandBuffer cmd) { vkCmdResetQueryPool(cmd, pool_, 0, capacity_); }
+void GpuTimer::reset(VkCommandBuffer cmd) {
+  vkCmdResetQueryPool(cmd, pool_, 0, capacity_);
+}
 
 void GpuTimer::stamp(VkCommandBuffer cmd, uint32_t index) {
   if (index >= capacity_) fail("GpuTimer: timestamp {} out of range (capacity {})", index, capacity_);
@@ -35,8 +37,8 @@ double GpuTimer::elapsedMs(uint32_t begin, uint32_t end) const {
   if (begin >= capacity_ || end >= capacity_) fail("GpuTimer: timestamps {}..{} out of range", begin, end);
   uint64_t t[2] = {0, 0};
   for (int i = 0; i < 2; ++i) {
-    check(vkGetQueryPoolResults(device_, pool_, i == 0 ? begin : end, 1, sizeof(uint64_t), &t[i], sizeof(uint64_t),
-                                VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
+    check(vkGetQueryPoolResults(device_, pool_, i == 0 ? begin : end, 1, sizeof(uint64_t), &t[i],
+                                sizeof(uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
           "vkGetQueryPoolResults");
   }
   uint64_t ticks = ((t[1] & validMask_) - (t[0] & validMask_)) & validMask_;

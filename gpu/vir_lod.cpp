@@ -34,7 +34,7 @@ uint32_t normalClass(glm::vec3 n) {  // dominant axis and sign: 0..5
 
 constexpr float kBoundsMargin = 1.0f + 1e-5f;  // VirLodTree::bounds, against rounding in the sums
 
-struct NodeExtra {  // build-time bounds of the leaves below a node
+struct NodeExtra {               // build-time bounds of the leaves below a node
   float footprintRadius = 0.0f;  // m, covers every leaf's footprint disc
   float coneRad = 0.0f;          // max angle between the node normal and a leaf normal below
   float thickness = 0.0f;        // m, max leaf-centre distance from the node plane
@@ -51,8 +51,10 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
   glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
   for (size_t i = 0; i < surfels.size(); ++i) {
     const glm::vec4 p = surfels[i].positionRadius;
-    if (!(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && std::isfinite(p.w) && p.w >= 0.0f))
-      fail("VIR LOD: surfel {} has a non-finite position or a bad radius ({}, {}, {}, r {})", i, p.x, p.y, p.z, p.w);
+    if (!(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && std::isfinite(p.w) &&
+          p.w >= 0.0f))
+      fail("VIR LOD: surfel {} has a non-finite position or a bad radius ({}, {}, {}, r {})", i, p.x, p.y,
+           p.z, p.w);
     lo = glm::min(lo, glm::vec3(p));
     hi = glm::max(hi, glm::vec3(p));
   }
@@ -163,13 +165,15 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
         float bound = e.footprintRadius;
         for (size_t c = c0; c < c1; ++c) {
           const uint32_t ci = current[c].second;
-          bound = std::max(bound, glm::length(glm::vec3(tree.nodes[ci].positionRadius) - rectCentre) + tree.bounds[ci]);
+          bound = std::max(
+              bound, glm::length(glm::vec3(tree.nodes[ci].positionRadius) - rectCentre) + tree.bounds[ci]);
         }
         tree.bounds.push_back(bound * kBoundsMargin);
         const uint32_t node = uint32_t(tree.nodes.size());
-        tree.nodes.push_back({glm::vec4(rectCentre, e.footprintRadius / o.footprintScale), glm::vec4(n, area),
-                              glm::vec4(albedo / area, std::cos(std::min(e.coneRad, 0.5f * std::numbers::pi_v<float>))),
-                              glm::vec4(emission / area, e.thickness)});
+        tree.nodes.push_back(
+            {glm::vec4(rectCentre, e.footprintRadius / o.footprintScale), glm::vec4(n, area),
+             glm::vec4(albedo / area, std::cos(std::min(e.coneRad, 0.5f * std::numbers::pi_v<float>))),
+             glm::vec4(emission / area, e.thickness)});
         tree.rects.push_back(glm::vec4(shared::octEncode(t1), ext.x, ext.y));
         tree.links.push_back({first, uint32_t(c1 - c0), coherent ? LFGI_VIR_LOD_COHERENT : 0u, ~0u});
         extra.push_back(e);
@@ -216,7 +220,8 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
       tree.frontier.push_back(i);
       continue;
     }
-    for (uint32_t c = tree.links[i].childCount; c > 0; --c) stack.push_back(tree.children[tree.links[i].firstChild + c - 1]);
+    for (uint32_t c = tree.links[i].childCount; c > 0; --c)
+      stack.push_back(tree.children[tree.links[i].firstChild + c - 1]);
   }
   // The cut's compact nodes; skip links top-down (a parent's index exceeds its children's).
   tree.cutNodes.resize(tree.nodes.size());

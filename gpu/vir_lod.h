@@ -8,18 +8,18 @@
 // Construction (deterministic): surfels sorted by (dominant normal axis, plane offset dot(n, p) in 4096
 // buckets, 30-bit Morton code of the position in the cloud's bounding cube); level l groups the previous
 // level's nodes that share the key with its 3 l low bits dropped (an octree per normal class and plane,
-// at most 8 children per node; a group of one is passed up unchanged), until one root remains. An inner node is a rectangle in the plane through the
-// area-weighted centroid with the area-weighted normal: the bounding box, in a frame whose first axis is a
-// world axis projected into the plane, of its children's footprints (leaf discs of radius r x
-// footprintScale, child rectangles), so it covers every surfel footprint below it, and its edges follow
-// the axis-aligned walls of the city (a bounding disc overhung building edges by ~0.2 of its size and put
-// surfaces in front of the sky). Albedo and emission are area-weighted (albedo.a: the cosine of the normal
-// cone, the largest angle between the node normal and a leaf normal below, capped at 90 degrees; leaves 1),
-// area the children's sum; radius =
-// the rectangle's half diagonal / footprintScale (bounds its angular size); emission.a = thickness, the
-// largest distance of a leaf centre from the plane (the cut only splats a node whose thickness is small
-// next to its distance). Nodes whose normal cone exceeds coherentConeDeg are flagged incoherent and
-// always refined: a building corner merged into one rectangle would put a surface where there is none.
+// at most 8 children per node; a group of one is passed up unchanged), until one root remains. An inner node
+// is a rectangle in the plane through the area-weighted centroid with the area-weighted normal: the bounding
+// box, in a frame whose first axis is a world axis projected into the plane, of its children's footprints
+// (leaf discs of radius r x footprintScale, child rectangles), so it covers every surfel footprint below it,
+// and its edges follow the axis-aligned walls of the city (a bounding disc overhung building edges by ~0.2 of
+// its size and put surfaces in front of the sky). Albedo and emission are area-weighted (albedo.a: the cosine
+// of the normal cone, the largest angle between the node normal and a leaf normal below, capped at 90
+// degrees; leaves 1), area the children's sum; radius = the rectangle's half diagonal / footprintScale
+// (bounds its angular size); emission.a = thickness, the largest distance of a leaf centre from the plane
+// (the cut only splats a node whose thickness is small next to its distance). Nodes whose normal cone exceeds
+// coherentConeDeg are flagged incoherent and always refined: a building corner merged into one rectangle
+// would put a surface where there is none.
 #pragma once
 
 #include <cstdint>
@@ -32,8 +32,8 @@
 namespace lfgi::gpu {
 
 struct VirLodBuildOptions {
-  float footprintScale = 1.3f;     // as VirOptions::footprintScale (inner radii are stored divided by it)
-  float coherentConeDeg = 18.0f;   // max angle between an inner node's normal and any leaf normal below it
+  float footprintScale = 1.3f;    // as VirOptions::footprintScale (inner radii are stored divided by it)
+  float coherentConeDeg = 18.0f;  // max angle between an inner node's normal and any leaf normal below it
 };
 
 struct VirLodTree {
@@ -48,8 +48,8 @@ struct VirLodTree {
   // (leaf discs at footprintScale, the node's and its descendants' rectangles): occlusion culling of
   // whole subtrees (vir_lod_cut.comp's far pass).
   std::vector<float> bounds;
-  std::vector<uint32_t> children;         // node indices, referenced by links[i].firstChild/childCount
-  std::vector<uint32_t> levelStart;       // level l = nodes [levelStart[l], levelStart[l + 1]); level 0: leaves
+  std::vector<uint32_t> children;    // node indices, referenced by links[i].firstChild/childCount
+  std::vector<uint32_t> levelStart;  // level l = nodes [levelStart[l], levelStart[l + 1]); level 0: leaves
   uint32_t leafCount = 0;
   uint32_t root() const { return uint32_t(nodes.size() - 1); }
   int maxDepth = 0;  // longest root-to-leaf path, in edges

@@ -25,7 +25,8 @@ void addFloor(std::vector<shared::Surfel>& out, float size, float spacing, float
       const float jz = float(((i * 83492791u) ^ (j * 2971215073u) ^ seed) % 1000u) / 1000.0f;
       const glm::vec3 p((float(i) + jx) * spacing, h, (float(j) + jz) * spacing);
       out.push_back({glm::vec4(p, radius), glm::vec4(0.0f, 1.0f, 0.0f, 0.0f),
-                     glm::vec4(p.x / size, 0.5f, 0.25f, 1.0f), glm::vec4(0.0f, 0.0f, p.z > size * 0.5f ? 1.0f : 0.0f, 0.0f)});
+                     glm::vec4(p.x / size, 0.5f, 0.25f, 1.0f),
+                     glm::vec4(0.0f, 0.0f, p.z > size * 0.5f ? 1.0f : 0.0f, 0.0f)});
     }
 }
 
@@ -70,7 +71,8 @@ TEST(VirLod, TreeConservesAreaAndBoundsChildren) {
       const glm::vec3 t2 = glm::cross(glm::vec3(tree.nodes[i].normal), t1);
       const glm::vec3 dc = glm::vec3(tree.nodes[ch].positionRadius - tree.nodes[i].positionRadius);
       const float rc = tree.rects[ch].z >= 0.0f ? 0.0f : tree.nodes[ch].positionRadius.w * fs;
-      const float ec1 = tree.rects[ch].z >= 0.0f ? tree.rects[ch].z : 0.0f, ec2 = tree.rects[ch].z >= 0.0f ? tree.rects[ch].w : 0.0f;
+      const float ec1 = tree.rects[ch].z >= 0.0f ? tree.rects[ch].z : 0.0f,
+                  ec2 = tree.rects[ch].z >= 0.0f ? tree.rects[ch].w : 0.0f;
       if (tree.nodes[i].emission.w < 1e-3f) {  // one floor below this node
         EXPECT_LE(std::abs(glm::dot(dc, t1)) + rc + ec1, rect.z * 1.0001f + 1e-4f);
         EXPECT_LE(std::abs(glm::dot(dc, t2)) + rc + ec2, rect.w * 1.0001f + 1e-4f);
@@ -128,7 +130,8 @@ TEST(VirLod, TreeConservesAreaAndBoundsChildren) {
       st.pop_back();
       ++underFrontier[x];
       ++nodes;
-      for (uint32_t c = 0; c < tree.links[x].childCount; ++c) st.push_back(tree.children[tree.links[x].firstChild + c]);
+      for (uint32_t c = 0; c < tree.links[x].childCount; ++c)
+        st.push_back(tree.children[tree.links[x].firstChild + c]);
     }
     EXPECT_LE(nodes, VirLodTree::kFrontierSubtree);
     for (uint32_t a = tree.up[tree.frontier[fi]].x; a != ~0u; a = tree.up[a].x) {
@@ -147,18 +150,20 @@ TEST(VirLod, TreeConservesAreaAndBoundsChildren) {
   // Deterministic: the same input gives the same tree.
   const VirLodTree again = buildVirLodTree(surfels, {fs, 18.0f});
   ASSERT_EQ(again.children, tree.children);
-  EXPECT_EQ(std::memcmp(again.nodes.data(), tree.nodes.data(), tree.nodes.size() * sizeof(shared::Surfel)), 0);
+  EXPECT_EQ(std::memcmp(again.nodes.data(), tree.nodes.data(), tree.nodes.size() * sizeof(shared::Surfel)),
+            0);
 }
 
 // VirLodTree::bounds (the far pass's occlusion culling drops whole subtrees by it): the sphere of radius
 // bounds[i] about node i's centre holds every footprint below it, leaf discs (radius x footprintScale) and
-// merged rectangles (half diagonal) alike. Two parallel floors and a tilted panel, so the top nodes mix planes.
+// merged rectangles (half diagonal) alike. Two parallel floors and a tilted panel, so the top nodes mix
+// planes.
 TEST(VirLod, BoundsHoldEveryFootprintBelow) {
   std::vector<shared::Surfel> surfels;
   addFloor(surfels, 8.0f, 0.25f, 0.0f, 1u);
   addFloor(surfels, 8.0f, 0.25f, 3.0f, 2u);
-  const std::vector<shared::Surfel> panel =
-      test::panelSurfels(glm::vec3(2.0f, 6.0f, -1.0f), glm::normalize(glm::vec3(0.4f, 1.0f, -0.3f)), 24, 0.2f, 0.11f);
+  const std::vector<shared::Surfel> panel = test::panelSurfels(
+      glm::vec3(2.0f, 6.0f, -1.0f), glm::normalize(glm::vec3(0.4f, 1.0f, -0.3f)), 24, 0.2f, 0.11f);
   surfels.insert(surfels.end(), panel.begin(), panel.end());
   const float fs = 1.3f;
   const VirLodTree tree = buildVirLodTree(surfels, {fs, 18.0f});
@@ -167,7 +172,8 @@ TEST(VirLod, BoundsHoldEveryFootprintBelow) {
   // of every descendant's, by a walk of its subtree.
   size_t checked = 0;
   float loosest = 1.0f;
-  for (uint32_t i = 0; i < tree.nodes.size(); i = i < tree.leafCount ? std::min(i + 97u, tree.leafCount) : i + 1u) {
+  for (uint32_t i = 0; i < tree.nodes.size();
+       i = i < tree.leafCount ? std::min(i + 97u, tree.leafCount) : i + 1u) {
     const glm::vec3 c(tree.nodes[i].positionRadius);
     float reach = 0.0f;
     std::vector<uint32_t> st{i};
@@ -175,10 +181,11 @@ TEST(VirLod, BoundsHoldEveryFootprintBelow) {
       const uint32_t x = st.back();
       st.pop_back();
       const glm::vec4 rect = tree.rects[x];
-      const float own = rect.z >= 0.0f ? std::sqrt(rect.z * rect.z + rect.w * rect.w)
-                                       : tree.nodes[x].positionRadius.w * fs;
+      const float own =
+          rect.z >= 0.0f ? std::sqrt(rect.z * rect.z + rect.w * rect.w) : tree.nodes[x].positionRadius.w * fs;
       reach = std::max(reach, glm::length(glm::vec3(tree.nodes[x].positionRadius) - c) + own);
-      for (uint32_t k = 0; k < tree.links[x].childCount; ++k) st.push_back(tree.children[tree.links[x].firstChild + k]);
+      for (uint32_t k = 0; k < tree.links[x].childCount; ++k)
+        st.push_back(tree.children[tree.links[x].firstChild + k]);
     }
     ASSERT_LE(reach, tree.bounds[i] * (1.0f + 1e-6f)) << "node " << i << " of " << tree.nodes.size();
     loosest = std::max(loosest, tree.bounds[i] / std::max(reach, 1e-9f));
@@ -187,7 +194,8 @@ TEST(VirLod, BoundsHoldEveryFootprintBelow) {
   EXPECT_GT(checked, tree.nodes.size() - tree.leafCount);
   // The build nests child spheres (triangle inequality), so a bound may exceed the farthest footprint, but
   // not by much: a sphere far too big would cull nothing.
-  std::printf("VIR LOD bounds: %zu nodes checked, loosest bound %.3f x the farthest footprint\n", checked, loosest);
+  std::printf("VIR LOD bounds: %zu nodes checked, loosest bound %.3f x the farthest footprint\n", checked,
+              loosest);
   EXPECT_LT(loosest, 1.5f);
 }
 

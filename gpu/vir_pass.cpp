@@ -22,7 +22,8 @@ Program requireInt64Atomics(Context& ctx, const char* name) {
 }
 
 constexpr size_t kMaxCutEntries = size_t(1) << 24;  // per batch of blocks (64 MiB of node indices)
-constexpr size_t kLodStats = 8;  // counters of vir_lod_cut.comp / vir_lod_splat.comp (see their Stats buffers)
+constexpr size_t kLodStats =
+    8;  // counters of vir_lod_cut.comp / vir_lod_splat.comp (see their Stats buffers)
 
 }  // namespace
 
@@ -129,8 +130,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   const uint32_t* maxGroups = ctx_.properties.limits.maxComputeWorkGroupCount;
   const uint64_t splatGroupsX = (surfels.size() + 63) / 64;
   const uint64_t mapGroups = (uint64_t(o.resolution) + 7) / 8;
-  if ((!o.lod && (splatGroupsX > maxGroups[0] || probes.size() > maxGroups[1])) || probes.size() > maxGroups[2] ||
-      surfels.size() > 0x7FFFFFFFull || mapGroups > maxGroups[0])
+  if ((!o.lod && (splatGroupsX > maxGroups[0] || probes.size() > maxGroups[1])) ||
+      probes.size() > maxGroups[2] || surfels.size() > 0x7FFFFFFFull || mapGroups > maxGroups[0])
     fail("VIR: {} surfels x {} probes exceeds the device's dispatch limits ({}, {}, {} workgroups)",
          surfels.size(), probes.size(), maxGroups[0], maxGroups[1], maxGroups[2]);
 
@@ -161,7 +162,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   const bool lit = !surfelIrradiance.empty();
   if (lit && o.lod) {
     std::vector<glm::vec4> leafIrradiance(tree_.leafCount);
-    for (uint32_t i = 0; i < tree_.leafCount; ++i) leafIrradiance[i] = surfelIrradiance[tree_.links[i].surfel];
+    for (uint32_t i = 0; i < tree_.leafCount; ++i)
+      leafIrradiance[i] = surfelIrradiance[tree_.links[i].surfel];
     upload<glm::vec4>(ctx_, irrBuf_, leafIrradiance);
   } else if (lit) {
     upload<glm::vec4>(ctx_, irrBuf_, surfelIrradiance);
@@ -214,7 +216,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
       lp.hizProbeTexels += dim * dim;
     }
   }
-  if (o.lod) grow(hizBuf_, size_t(lp.hizProbeTexels) * probeCount * sizeof(uint32_t));  // bound even when unused
+  if (o.lod)
+    grow(hizBuf_, size_t(lp.hizProbeTexels) * probeCount * sizeof(uint32_t));  // bound even when unused
 
   const bool reuse = o.reuseSplat && splatValid_ && sameSplat(o, splatOptions_) && splatProbes_ == probe4;
   splatValid_ = splatValid_ && reuse;  // this run overwrites slots_ unless it reuses them
@@ -249,8 +252,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
           lp.nodeCount = tree_.levelStart[l + 1] - tree_.levelStart[l];
           if (lp.nodeCount == 0) continue;
           lp.leafPass = l == 0 ? 1u : 0u;
-          dispatch(ctx_, cmd, lodRadiance_, {&nodeBuf_, &linkBuf_, &childBuf_, &irrBuf_, &nodeRadianceBuf_}, lp,
-                   {lp.nodeCount, 1, 1});
+          dispatch(ctx_, cmd, lodRadiance_, {&nodeBuf_, &linkBuf_, &childBuf_, &irrBuf_, &nodeRadianceBuf_},
+                   lp, {lp.nodeCount, 1, 1});
           memoryBarrier(cmd);
         }
       }
@@ -300,7 +303,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
           cutAndSplat(LFGI_VIR_LOD_PASS_ALL);
         }
       } else {
-        dispatch(ctx_, cmd, splat_, {&surfelBuf_, &probeBuf_, &slots_}, params, {params.surfelCount, probeCount, 1});
+        dispatch(ctx_, cmd, splat_, {&surfelBuf_, &probeBuf_, &slots_}, params,
+                 {params.surfelCount, probeCount, 1});
         memoryBarrier(cmd);
       }
       timer.stamp(cmd, 2);
@@ -310,8 +314,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
                  params, {res, res, probeCount});
       else
         dispatch(ctx_, cmd, resolve_,
-                 {&slots_, &surfelBuf_, &irrBuf_, &distBuf_, &normalBuf_, &albedoBuf_, &radianceBuf_},
-                 params, {res, res, probeCount});
+                 {&slots_, &surfelBuf_, &irrBuf_, &distBuf_, &normalBuf_, &albedoBuf_, &radianceBuf_}, params,
+                 {res, res, probeCount});
       memoryBarrier(cmd);
       timer.stamp(cmd, 3);
       for (int pass = 0; pass < o.fillPasses; ++pass) {
@@ -330,10 +334,12 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
       break;
     }
     if (cutCapacity_ >= kMaxCutEntries)
-      fail("VIR LOD: a probe block's cut has {} nodes, more than {}: use fewer lodBlockProbes or more lodTexels",
-           stats[3], kMaxCutEntries);
-    spdlog::debug("VIR LOD: a probe block's cut has {} nodes, more than its {} entries: splatting again", stats[3],
-                  cutCapacity_);
+      fail(
+          "VIR LOD: a probe block's cut has {} nodes, more than {}: use fewer lodBlockProbes or more "
+          "lodTexels",
+          stats[3], kMaxCutEntries);
+    spdlog::debug("VIR LOD: a probe block's cut has {} nodes, more than its {} entries: splatting again",
+                  stats[3], cutCapacity_);
     cutCapacity_ = uint32_t(std::min<uint64_t>(kMaxCutEntries, stats[3] + stats[3] / 4));  // and run again
   }
   if (o.lod) {  // this run's counters, or the reused splat's

@@ -43,17 +43,18 @@ struct VirOptions {
   int resolution = 16;          // N
   float maxRange = 64.0f;       // m; surfels farther from a probe are not splatted into it
   float footprintScale = 1.3f;  // disc radius multiplier of the footprint test (see vir_splat.comp)
-  int maxFootprintRadius = 6;   // full splat (lod off): window half-size in texels (up to 13 x 13, near surfels only)
-  int fillPasses = 2;           // hole fill passes (enclosed gaps only), 0..kMaxFillPasses
-  bool lod = true;              // splat a per-probe-block cut of the surfel LOD tree (see above)
-  float lodTexels = 4.0f;       // LOD: a merged node may stand in for its surfels when <= this many texels wide
+  int maxFootprintRadius =
+      6;               // full splat (lod off): window half-size in texels (up to 13 x 13, near surfels only)
+  int fillPasses = 2;  // hole fill passes (enclosed gaps only), 0..kMaxFillPasses
+  bool lod = true;     // splat a per-probe-block cut of the surfel LOD tree (see above)
+  float lodTexels = 4.0f;  // LOD: a merged node may stand in for its surfels when <= this many texels wide
   // LOD: a foreshortened merged node (seen obliquely from every probe of the block) may be up to this x
   // lodTexels wide while its projected area stays within a lodTexels-wide node's; [1, 8], 1: the width
   // test alone (shared/vir.h virLodClassify)
   float lodElongation = 2.0f;
-  int lodBlockProbes = 16;      // LOD: probes sharing one cut (consecutive along a Morton curve), [1, 32];
-                                // 16 (2 x 2 x 4 of a grid) since the node-major splat: as fast as 8 and a
-                                // finer cut (city cell, N = 8: texels > 5 % off 6.7 -> 3.4 %)
+  int lodBlockProbes = 16;  // LOD: probes sharing one cut (consecutive along a Morton curve), [1, 32];
+                            // 16 (2 x 2 x 4 of a grid) since the node-major splat: as fast as 8 and a
+                            // finer cut (city cell, N = 8: texels > 5 % off 6.7 -> 3.4 %)
   float lodDepthTolerance = 0.01f;  // LOD: merged node thickness <= this x distance (relative depth error)
   // LOD: occlusion culling. > 0: cut and splat the nodes within this range (m) of each probe block first,
   // build a max-depth pyramid per probe map, then cut and splat the rest, dropping subtrees and pairs
@@ -80,11 +81,12 @@ struct ProbeAtlas {
   double holeFractionAfterFill = 0.0;   // texels still holes after the fill passes / all texels
   double gpuMs = 0.0;                   // device time of clear + splat + resolve + fill
   double splatMs = 0.0, resolveMs = 0.0, fillMs = 0.0;  // LOD: splatMs includes the cut
-  double lodRadianceMs = 0.0;  // LOD: per-node radiance (leaves + merged discs), inside gpuMs; 0 without irradiance
-  double lodBuildMs = 0.0;     // LOD: CPU build + upload of the tree in this call (0 when reused), not in gpuMs
-  uint64_t lodNodes = 0;       // LOD: nodes in the tree (leaves + merged)
-  uint64_t splatPairs = 0;     // (disc, probe) pairs the splat visited: surfels x probes without LOD
-  uint64_t splatAtomics = 0;   // LOD: 64-bit atomicMin calls counted on the device; 0 without LOD
+  double lodRadianceMs =
+      0.0;  // LOD: per-node radiance (leaves + merged discs), inside gpuMs; 0 without irradiance
+  double lodBuildMs = 0.0;  // LOD: CPU build + upload of the tree in this call (0 when reused), not in gpuMs
+  uint64_t lodNodes = 0;    // LOD: nodes in the tree (leaves + merged)
+  uint64_t splatPairs = 0;  // (disc, probe) pairs the splat visited: surfels x probes without LOD
+  uint64_t splatAtomics = 0;      // LOD: 64-bit atomicMin calls counted on the device; 0 without LOD
   uint64_t splatTexelTests = 0;   // LOD: texel-centre ray / footprint tests of the splat (device count)
   uint64_t splatWindowPairs = 0;  // LOD: front-facing pairs splatted through the wrapped square window
   uint64_t occludedNodes = 0;     // LOD occlusion culling: far-pass cut nodes / subtrees dropped per block

@@ -142,7 +142,8 @@ TEST(VirPass, HoleFillClosesGapsButNeverGrowsASilhouette) {
     for (float x = -half + 0.5f * spacing; x < half; x += spacing, ++k)
       surfels.push_back({glm::vec4(x + 0.3f * spacing * (test::hash01(2 * k) - 0.5f),
                                    y + 0.3f * spacing * (test::hash01(2 * k + 1) - 0.5f), z, radius),
-                         glm::vec4(0.0f, 0.0f, -1.0f, 0.0f), glm::vec4(0.5f, 0.5f, 0.5f, 1.0f), glm::vec4(0.0f)});
+                         glm::vec4(0.0f, 0.0f, -1.0f, 0.0f), glm::vec4(0.5f, 0.5f, 0.5f, 1.0f),
+                         glm::vec4(0.0f)});
   const uint32_t n = 32;
   for (const bool lod : {false, true}) {
     VirOptions options;
@@ -169,9 +170,10 @@ TEST(VirPass, HoleFillClosesGapsButNeverGrowsASilhouette) {
           outsideGeometry += w != LFGI_VIR_HOLE ? 1 : 0;
         }
       }
-    std::printf("VIR panel N=32 lod=%d: holes %.4f before fill; inside %zu texels, %zu holes left; outside %zu, %zu "
-                "with geometry\n",
-                int(lod), atlas.holeFractionBeforeFill, inside, insideHoles, outside, outsideGeometry);
+    std::printf(
+        "VIR panel N=32 lod=%d: holes %.4f before fill; inside %zu texels, %zu holes left; outside %zu, %zu "
+        "with geometry\n",
+        int(lod), atlas.holeFractionBeforeFill, inside, insideHoles, outside, outsideGeometry);
     ASSERT_GT(inside, 50u);
     ASSERT_GT(outside, 500u);
     EXPECT_EQ(outsideGeometry, 0u) << "lod " << lod;
@@ -254,14 +256,15 @@ TEST(VirPass, LodRadianceUsesEachLeafsIrradianceAndEmissionWithoutIt) {
     const ProbeAtlas a = pass.run(surfels, probes, full, irradiance);
     const ProbeAtlas b = pass.run(surfels, probes, leaves, irradiance);
     const auto [same, both] = sameRadiance(a, b, 1e-6f);
-    std::printf("LOD leaves vs full splat: %zu of %zu texels with the same depth have the same radiance\n", same,
-                both);
+    std::printf("LOD leaves vs full splat: %zu of %zu texels with the same depth have the same radiance\n",
+                same, both);
     EXPECT_GT(both, a.radiance.size() / 2);  // the same winner (depth) in most texels
     EXPECT_EQ(same, both);
   }
   for (const VirOptions& o : {leaves, merged}) {
     const ProbeAtlas unlit = pass.run(surfels, probes, o);
-    const ProbeAtlas zero = pass.run(surfels, probes, o, std::vector<glm::vec4>(surfels.size(), glm::vec4(0.0f)));
+    const ProbeAtlas zero =
+        pass.run(surfels, probes, o, std::vector<glm::vec4>(surfels.size(), glm::vec4(0.0f)));
     EXPECT_EQ(unlit.lodRadianceMs, 0.0);  // no radiance pass ran
     const auto [same, both] = sameRadiance(unlit, zero, 1e-5f);
     EXPECT_GT(both, unlit.radiance.size() * 9 / 10);  // the same splat: the same winners
@@ -373,7 +376,8 @@ TEST(VirPass, LodOcclusionCullingIsExactAndDropsHiddenSurfels) {
   const size_t inner = surfels.size();
   const std::vector<shared::Surfel> cube = test::inwardBoxSurfels(0.5f, 0.5f);
   for (int k = 0; k < 1000; ++k) {
-    const glm::vec3 c = glm::vec3(float(k % 10), float(k / 10 % 10), float(k / 100)) * 4.0f - glm::vec3(18.0f);
+    const glm::vec3 c =
+        glm::vec3(float(k % 10), float(k / 10 % 10), float(k / 100)) * 4.0f - glm::vec3(18.0f);
     if (glm::all(glm::lessThan(glm::abs(c), glm::vec3(8.0f)))) continue;
     for (shared::Surfel sf : cube) {
       sf.positionRadius += glm::vec4(c, 0.0f);
@@ -382,9 +386,11 @@ TEST(VirPass, LodOcclusionCullingIsExactAndDropsHiddenSurfels) {
     }
   }
   std::vector<glm::vec4> irradiance(surfels.size());
-  for (size_t i = 0; i < surfels.size(); ++i) irradiance[i] = glm::vec4(1.0f + 3.0f * test::hash01(uint32_t(i)), 2.0f, 0.5f, 0.0f);
+  for (size_t i = 0; i < surfels.size(); ++i)
+    irradiance[i] = glm::vec4(1.0f + 3.0f * test::hash01(uint32_t(i)), 2.0f, 0.5f, 0.0f);
   std::vector<glm::vec3> probes;
-  for (int k = 0; k < 27; ++k) probes.push_back(glm::vec3(float(k % 3) - 1.0f, float(k / 3 % 3) - 1.0f, float(k / 9) - 1.0f) * 2.5f);
+  for (int k = 0; k < 27; ++k)
+    probes.push_back(glm::vec3(float(k % 3) - 1.0f, float(k / 3 % 3) - 1.0f, float(k / 9) - 1.0f) * 2.5f);
   auto ctx = createContext();
   VirPass pass(*ctx);
   for (int n : {8, 16}) {
@@ -399,13 +405,14 @@ TEST(VirPass, LodOcclusionCullingIsExactAndDropsHiddenSurfels) {
     const size_t differ = differingTexels(a, b);
     size_t covered = 0;
     for (size_t t = 0; t < a.distance.size(); ++t) covered += a.normal[t].w == LFGI_VIR_COVERED ? 1 : 0;
-    std::printf("VIR LOD occlusion culling, N=%d: %zu + %zu surfels, %zu probes; pairs %llu -> %llu (%llu nodes "
-                "and %llu pairs dropped as occluded), atomics %llu -> %llu; %zu of %zu texels differ; splat %.1f "
-                "-> %.1f ms\n",
-                n, inner, surfels.size() - inner, probes.size(), (unsigned long long)a.splatPairs,
-                (unsigned long long)b.splatPairs, (unsigned long long)b.occludedNodes,
-                (unsigned long long)b.occludedPairs, (unsigned long long)a.splatAtomics,
-                (unsigned long long)b.splatAtomics, differ, a.distance.size(), a.splatMs, b.splatMs);
+    std::printf(
+        "VIR LOD occlusion culling, N=%d: %zu + %zu surfels, %zu probes; pairs %llu -> %llu (%llu nodes "
+        "and %llu pairs dropped as occluded), atomics %llu -> %llu; %zu of %zu texels differ; splat %.1f "
+        "-> %.1f ms\n",
+        n, inner, surfels.size() - inner, probes.size(), (unsigned long long)a.splatPairs,
+        (unsigned long long)b.splatPairs, (unsigned long long)b.occludedNodes,
+        (unsigned long long)b.occludedPairs, (unsigned long long)a.splatAtomics,
+        (unsigned long long)b.splatAtomics, differ, a.distance.size(), a.splatMs, b.splatMs);
     EXPECT_EQ(differ, 0u);
     EXPECT_EQ(a.holeFractionBeforeFill, b.holeFractionBeforeFill);
     EXPECT_EQ(a.holeFractionAfterFill, b.holeFractionAfterFill);
@@ -414,7 +421,8 @@ TEST(VirPass, LodOcclusionCullingIsExactAndDropsHiddenSurfels) {
     EXPECT_GT(b.occludedNodes, 0u);
     EXPECT_GT(b.occludedPairs, 0u);
     // Measured 9 % (N = 8) and 19 % (N = 16) fewer pairs splatted, 13-17 % fewer atomics: the room's own
-    // far corners (beyond 8 m) and the window leave holes in the near pass's HiZ, so coarse levels rarely cull.
+    // far corners (beyond 8 m) and the window leave holes in the near pass's HiZ, so coarse levels rarely
+    // cull.
     EXPECT_LT(double(b.splatPairs - b.occludedPairs), 0.95 * double(a.splatPairs));
     EXPECT_LT(b.splatAtomics, a.splatAtomics);
   }
@@ -511,8 +519,11 @@ TEST(VirPass, LodSplatCoversExactlyTheFootprintsOfItsCut) {
       test::panelSurfels(glm::vec3(1.0f, -3.0f, 0.5f), glm::normalize(glm::vec3(0.35f, 1.0f, 0.2f)), 20, 0.2f,
                          0.2f / std::sqrt(std::numbers::pi_v<float>));
   surfels.insert(surfels.end(), panel.begin(), panel.end());
-  const std::vector<glm::vec3> probes = {
-      {0.0f, 0.0f, 0.0f}, {2.5f, -1.0f, 1.5f}, {-5.0f, 4.0f, -3.0f}, {1.0f, -1.5f, 0.5f}, {0.5f, -4.5f, 2.5f}};
+  const std::vector<glm::vec3> probes = {{0.0f, 0.0f, 0.0f},
+                                         {2.5f, -1.0f, 1.5f},
+                                         {-5.0f, 4.0f, -3.0f},
+                                         {1.0f, -1.5f, 0.5f},
+                                         {0.5f, -4.5f, 2.5f}};
   VirOptions o;
   o.resolution = 32;
   o.maxRange = 100.0f;
@@ -577,17 +588,19 @@ TEST(VirPass, LodSplatCoversExactlyTheFootprintsOfItsCut) {
           if (std::isfinite(inner) && !gpu) ++missed;
           if (!std::isfinite(outer) && gpu) ++extra;
           if (gpu && std::isfinite(outer) &&
-              !(atlas.distance[t].x >= outer * (1.0f - 1e-5f) && atlas.distance[t].x <= inner * (1.0f + 1e-5f)))
+              !(atlas.distance[t].x >= outer * (1.0f - 1e-5f) &&
+                atlas.distance[t].x <= inner * (1.0f + 1e-5f)))
             ++badDepth;
         }
     }
-    std::printf("VIR LOD splat vs brute force, N=%u, %d probes per block: %zu cut nodes (%zu rectangles) over %zu "
-                "probes, %zu texels "
-                "covered; %zu missed, %zu extra, %zu off in depth; %llu texel tests for %llu atomics, %llu of %llu "
-                "pairs through the square window\n",
-                n, blockProbes, cutNodes, rectNodes, probes.size(), covered, missed, extra, badDepth,
-                (unsigned long long)atlas.splatTexelTests, (unsigned long long)atlas.splatAtomics,
-                (unsigned long long)atlas.splatWindowPairs, (unsigned long long)atlas.splatPairs);
+    std::printf(
+        "VIR LOD splat vs brute force, N=%u, %d probes per block: %zu cut nodes (%zu rectangles) over %zu "
+        "probes, %zu texels "
+        "covered; %zu missed, %zu extra, %zu off in depth; %llu texel tests for %llu atomics, %llu of %llu "
+        "pairs through the square window\n",
+        n, blockProbes, cutNodes, rectNodes, probes.size(), covered, missed, extra, badDepth,
+        (unsigned long long)atlas.splatTexelTests, (unsigned long long)atlas.splatAtomics,
+        (unsigned long long)atlas.splatWindowPairs, (unsigned long long)atlas.splatPairs);
     EXPECT_GT(covered, probes.size() * n * n * 9 / 10);
     EXPECT_EQ(missed, 0u);
     EXPECT_EQ(extra, 0u);

@@ -27,7 +27,8 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
     fail("virProbeField: {} probe offsets for a grid of {} probes", offsets.size(), count);
   if (!active.empty() && active.size() != count)
     fail("virProbeField: {} active flags for a grid of {} probes", active.size(), count);
-  if (o.resolution < 4 || o.resolution > 64) fail("virProbeField: resolution {} outside [4, 64]", o.resolution);
+  if (o.resolution < 4 || o.resolution > 64)
+    fail("virProbeField: resolution {} outside [4, 64]", o.resolution);
   if (o.irradianceResolution < 1 || o.irradianceResolution > 64)
     fail("virProbeField: irradiance resolution {} outside [1, 64]", o.irradianceResolution);
   if (o.frames < 1 || o.frames > 64) fail("virProbeField: frames {} outside [1, 64]", o.frames);
@@ -35,11 +36,13 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
   if (surfels.empty() && !o.noSurfelsIsSky) fail("virProbeField: no surfels");
   const int n = o.resolution, m = o.irradianceResolution;
   const size_t n2 = size_t(n) * size_t(n), m2 = size_t(m) * size_t(m);
-  if (seed && (seed->probeCount() != grid.probeCount() || seed->grid.dims != grid.dims || seed->resolution != n ||
-               seed->irradianceResolution != m || seed->irradiance.size() != count * m2 * 3 ||
-               seed->distance.size() != count * n2 * 2))
-    fail("virProbeField: the seed field ({} probes, n {}, m {}) does not match the grid ({} probes, n {}, m {})",
-         seed->probeCount(), seed->resolution, seed->irradianceResolution, count, n, m);
+  if (seed && (seed->probeCount() != grid.probeCount() || seed->grid.dims != grid.dims ||
+               seed->resolution != n || seed->irradianceResolution != m ||
+               seed->irradiance.size() != count * m2 * 3 || seed->distance.size() != count * n2 * 2))
+    fail(
+        "virProbeField: the seed field ({} probes, n {}, m {}) does not match the grid ({} probes, n {}, m "
+        "{})",
+        seed->probeCount(), seed->resolution, seed->irradianceResolution, count, n, m);
 
   auto isActive = [&](size_t i) { return active.empty() || active[i] != 0; };
   glm::ivec3 lo(INT32_MAX), hi(INT32_MIN);
@@ -52,8 +55,10 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
   f.grid = grid;
   f.resolution = n;
   f.irradianceResolution = m;
-  if (o.storeOffsets) f.offsets.assign(offsets.begin(), offsets.end());
-  else f.offsets.clear();
+  if (o.storeOffsets)
+    f.offsets.assign(offsets.begin(), offsets.end());
+  else
+    f.offsets.clear();
   f.active.assign(count, 0);
   f.radiance.assign(count * n2 * 3, 0.0f);
   f.distance.assign(count * n2 * 2, 0.0f);
@@ -78,7 +83,8 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
   for (int64_t k = 0; k < sub.probeCount(); ++k) {
     const size_t i = size_t(grid.linearIndex(lo + sub.probeCoord(k)));
     toFull.push_back(i);
-    const glm::vec3 p = grid.probePosition(grid.probeCoord(int64_t(i))) + (offsets.empty() ? glm::vec3(0.0f) : offsets[i]);
+    const glm::vec3 p =
+        grid.probePosition(grid.probeCoord(int64_t(i))) + (offsets.empty() ? glm::vec3(0.0f) : offsets[i]);
     probes.positions.push_back(p);
     probes.active.push_back(isActive(i) ? 1 : 0);
     boxLo = glm::min(boxLo, p);
@@ -90,7 +96,8 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
     const glm::vec3 d = glm::max(glm::max(boxLo - p, p - boxHi), glm::vec3(0.0f));
     if (glm::dot(d, d) <= o.maxRange * o.maxRange) near_.push_back(s);
   }
-  if (near_.empty() && !o.noSurfelsIsSky) fail("virProbeField: no surfel within {} m of the active probes", o.maxRange);
+  if (near_.empty() && !o.noSurfelsIsSky)
+    fail("virProbeField: no surfel within {} m of the active probes", o.maxRange);
 
   VirOptions vo = o.vir;
   vo.resolution = n;
@@ -103,7 +110,8 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
   std::vector<glm::vec3> skyL(n2);
   for (size_t t = 0; t < n2; ++t)
     skyL[t] = shared::skyRadiance(
-        sky, shared::octTexelDirection(glm::uvec2(uint32_t(t % size_t(n)), uint32_t(t / size_t(n))), uint32_t(n)));
+        sky,
+        shared::octTexelDirection(glm::uvec2(uint32_t(t % size_t(n)), uint32_t(t / size_t(n))), uint32_t(n)));
 
   CellLighting state;
   if (!near_.empty()) {
@@ -121,7 +129,8 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
           pl.irradiance[k * m2 + t] = glm::vec4(e[0], e[1], e[2], 0.0f);
         }
         for (size_t t = 0; t < n2; ++t)
-          pl.moments[k * n2 + t] = glm::vec2(seed->distance[(i * n2 + t) * 2], seed->distance[(i * n2 + t) * 2 + 1]);
+          pl.moments[k * n2 + t] =
+              glm::vec2(seed->distance[(i * n2 + t) * 2], seed->distance[(i * n2 + t) * 2 + 1]);
       }
       state.frames = 1;  // relightFrame reads state.probes as the last frame's lighting
       st.seeded = true;
@@ -143,7 +152,8 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
     const std::vector<double> omega = octTexelSolidAngles(n);
     skyIrradiance.resize(m2 * 3);
     for (size_t t = 0; t < m2; ++t) {
-      const glm::vec3 e = bruteForceIrradiance(map, n, octTexelDirection(int(t % size_t(m)), int(t / size_t(m)), m), omega);
+      const glm::vec3 e =
+          bruteForceIrradiance(map, n, octTexelDirection(int(t % size_t(m)), int(t / size_t(m)), m), omega);
       for (int c = 0; c < 3; ++c) skyIrradiance[t * 3 + size_t(c)] = e[c];
     }
   }

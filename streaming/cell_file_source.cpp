@@ -31,7 +31,9 @@ uint64_t usSince(Clock::time_point t0) {
   return uint64_t(std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - t0).count());
 }
 
-int irradianceResolutionFor(int n, int option) { return option > 0 ? option : std::max(2, n / 2); }
+int irradianceResolutionFor(int n, int option) {
+  return option > 0 ? option : std::max(2, n / 2);
+}
 
 size_t fieldBytesFor(int64_t probes, int n, int m) {
   const size_t P = size_t(probes), tn = size_t(n) * size_t(n), tm = size_t(m) * size_t(m);
@@ -50,8 +52,8 @@ void checkCellFits(const CellFile& c, glm::ivec2 cell, uint64_t worldSeed, const
   const glm::vec3 a = c.grid.origin, b = c.grid.boxMax();
   const float eps = 1e-3f * layout.cellSize;
   if (a.x < lo.x - eps || a.z < lo.y - eps || b.x > hi.x + eps || b.z > hi.y + eps)
-    fail("{}: probe box x [{}, {}] z [{}, {}] is not inside the cell's square x [{}, {}] z [{}, {}]", path.string(),
-         a.x, b.x, a.z, b.z, lo.x, hi.x, lo.y, hi.y);
+    fail("{}: probe box x [{}, {}] z [{}, {}] is not inside the cell's square x [{}, {}] z [{}, {}]",
+         path.string(), a.x, b.x, a.z, b.z, lo.x, hi.x, lo.y, hi.y);
 }
 
 // Kernel K[t][s] = max(0, n_t . w_s) * omega_s of bruteForceIrradiance, per (n, m), built once.
@@ -114,10 +116,12 @@ void CellFileSourceOptions::validate() const {
     fail("CellFileSourceOptions.irradianceResolution = {} outside [0, 64]", irradianceResolution);
   if (shOnlyResolution < 0 || shOnlyResolution > 128)
     fail("CellFileSourceOptions.shOnlyResolution = {} outside [0, 128]", shOnlyResolution);
-  if (!(weather >= 0.0f && weather <= 1.0f)) fail("CellFileSourceOptions.weather = {} outside [0, 1]", weather);
+  if (!(weather >= 0.0f && weather <= 1.0f))
+    fail("CellFileSourceOptions.weather = {} outside [0, 1]", weather);
 }
 
-void cellFileFallbackKeys(const CellFile& cell, float weather, std::vector<float>& hours, std::vector<ShL1>& sh) {
+void cellFileFallbackKeys(const CellFile& cell, float weather, std::vector<float>& hours,
+                          std::vector<ShL1>& sh) {
   const size_t entries = fallbackEntries(cell);
   hours.clear();
   sh.clear();
@@ -150,7 +154,8 @@ int decodedResolution(const CellFile& cell, int shOnlyResolution) {
 void convolveIrradiance(ProbeField& f, int64_t first, int64_t count) {
   const int n = f.resolution, m = f.irradianceResolution;
   const size_t tn = size_t(n) * size_t(n), tm = size_t(m) * size_t(m);
-  if (first < 0 || count < 0 || first + count > f.probeCount() || f.radiance.size() < size_t(f.probeCount()) * tn * 3 ||
+  if (first < 0 || count < 0 || first + count > f.probeCount() ||
+      f.radiance.size() < size_t(f.probeCount()) * tn * 3 ||
       f.irradiance.size() < size_t(f.probeCount()) * tm * 3)
     fail("convolveIrradiance: probes [{}, {}) or array sizes disagree with the field's {} probes", first,
          first + count, f.probeCount());
@@ -179,7 +184,9 @@ void cellLatents(const CellFile& cell, std::span<const uint8_t> active, std::vec
   const int64_t P = cell.grid.probeCount();
   if (!active.empty() && active.size() != size_t(P))
     fail("{}: {} active flags for {} probes", name, active.size(), P);
-  const int64_t A = active.empty() ? P : int64_t(std::count_if(active.begin(), active.end(), [](uint8_t a) { return a != 0; }));
+  const int64_t A =
+      active.empty() ? P
+                     : int64_t(std::count_if(active.begin(), active.end(), [](uint8_t a) { return a != 0; }));
   const size_t L = size_t(arch.latentDim);
   if (arch.latentSource == LatentSource::Stored) {
     latents = dequantizeLatents(cell.generator->latents);
@@ -191,7 +198,8 @@ void cellLatents(const CellFile& cell, std::span<const uint8_t> active, std::vec
       if (!active.empty() && !active[size_t(i)]) continue;
       const glm::vec3 p = cell.grid.probePosition(cell.grid.probeCoord(i));
       glm::vec3 q;
-      for (int a = 0; a < 3; ++a) q[a] = ext[a] > 0.0f ? std::clamp((p[a] - lo[a]) / ext[a], 0.0f, 1.0f) : 0.5f;
+      for (int a = 0; a < 3; ++a)
+        q[a] = ext[a] > 0.0f ? std::clamp((p[a] - lo[a]) / ext[a], 0.0f, 1.0f) : 0.5f;
       positionLatent(q, arch.fourierOctaves, std::span<float>(latents).subspan(k * L, L));
       ++k;
     }
@@ -201,8 +209,8 @@ void cellLatents(const CellFile& cell, std::span<const uint8_t> active, std::vec
 }
 
 void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, int irradianceResolution,
-                     int shOnlyResolution, ProbeField& out, const std::string& name, GeneratorBackend* backend,
-                     const ResolvedSharedModel* shared) {
+                     int shOnlyResolution, ProbeField& out, const std::string& name,
+                     GeneratorBackend* backend, const ResolvedSharedModel* shared) {
   const int n = decodedResolution(cell, shOnlyResolution);
   if (n < 1 || n > 128) fail("{}: decoded resolution {} outside [1, 128]", name, n);
   const int m = irradianceResolutionFor(n, irradianceResolution);
@@ -214,8 +222,10 @@ void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, 
   out.offsets.clear();
   out.normal.clear();
   out.albedo.clear();
-  if (cell.active.empty()) out.active.assign(size_t(P), 1);
-  else out.active.assign(cell.active.begin(), cell.active.end());
+  if (cell.active.empty())
+    out.active.assign(size_t(P), 1);
+  else
+    out.active.assign(cell.active.begin(), cell.active.end());
   out.radiance.resize(size_t(P) * tn * 3);
   out.distance.resize(size_t(P) * tn * 2);
   out.irradiance.resize(size_t(P) * tm * 3);
@@ -243,7 +253,7 @@ void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, 
     stage.irradianceResolution = m;
     stage.normal.clear();
     stage.albedo.clear();
-    int64_t next = 0;           // next probe index to place
+    int64_t next = 0;  // next probe index to place
     size_t firstInactive = size_t(-1);
     auto placeUpTo = [&](int64_t end, size_t& k) {  // scatter staged probes, SH for the inactive ones
       for (; next < end; ++next) {
@@ -259,7 +269,8 @@ void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, 
     };
     const size_t raw = size_t(kGeneratorChannels) * tn;
     if (arch.outChannels() != kGeneratorChannels)
-      fail("{}: the model emits {} channels, a probe field needs {}", name, arch.outChannels(), kGeneratorChannels);
+      fail("{}: the model emits {} channels, a probe field needs {}", name, arch.outChannels(),
+           kGeneratorChannels);
     auto sink = [&](size_t, size_t cnt, std::span<const float> rawOut) {
       stage.grid.dims = {int(cnt), 1, 1};
       stage.radiance.resize(cnt * tn * 3);
@@ -302,7 +313,8 @@ void decodeCellField(const CellFile& cell, float timeOfDayHours, float weather, 
 CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::move(options)) {
   options_.validate();
   if (options_.cellsDir.empty()) options_.cellsDir = options_.worldDir / "baked" / "cells";
-  if (options_.sharedModel.empty()) options_.sharedModel = options_.cellsDir.parent_path() / "shared_model.vdb";
+  if (options_.sharedModel.empty())
+    options_.sharedModel = options_.cellsDir.parent_path() / "shared_model.vdb";
   const worlds::WorldParams params = worlds::readWorldManifest(options_.worldDir);
   const int cells = int(std::lround(params.sizeM / params.cellM));
   layout_ = {{0.0f, 0.0f}, float(params.cellM), {cells, cells}};
@@ -357,7 +369,8 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
         inf.state = CellFileState::Corrupt;
         inf.error = e.what();
         ++corruptCells_;
-        if (logged++ < 8) spdlog::warn("streaming: {} (the cell streams its neighbours' mean fallback)", inf.error);
+        if (logged++ < 8)
+          spdlog::warn("streaming: {} (the cell streams its neighbours' mean fallback)", inf.error);
       }
     }
   if (validCells_ == 0)
@@ -412,10 +425,12 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
         break;
       }
     }
-  for (const auto& range : keyRange_) fallbackFollowsTimeOfDay_ = fallbackFollowsTimeOfDay_ || range.second > 1;
+  for (const auto& range : keyRange_)
+    fallbackFollowsTimeOfDay_ = fallbackFollowsTimeOfDay_ || range.second > 1;
   if (missingCells_ > 0)
-    spdlog::warn("streaming: {} of {} cells have no cell file in {} (they stream their neighbours' mean fallback)",
-                 missingCells_, N, options_.cellsDir.string());
+    spdlog::warn(
+        "streaming: {} of {} cells have no cell file in {} (they stream their neighbours' mean fallback)",
+        missingCells_, N, options_.cellsDir.string());
   spdlog::info("streaming: cell files in {}: {} valid, {} missing, {} corrupt; slot {} bytes",
                options_.cellsDir.string(), validCells_, missingCells_, corruptCells_, maxCellBytes_);
   // The decoder: the timing input is the real first generator cell (its own model, latents and the noon
@@ -447,8 +462,8 @@ const ResolvedSharedModel* CellFileSource::sharedFor(const CellFile& file, const
     }
   });
   if (!shared_)
-    fail("{}: refers to shared model {:016x}, which cannot be used: {}", path.string(), file.generator->shared->modelHash,
-         sharedError_);
+    fail("{}: refers to shared model {:016x}, which cannot be used: {}", path.string(),
+         file.generator->shared->modelHash, sharedError_);
   return &*shared_;
 }
 
@@ -468,7 +483,8 @@ ShL1 CellFileSource::keyFallback(glm::ivec2 cell, float timeOfDayHours) const {
 }
 
 ShL1 CellFileSource::fallback(glm::ivec2 cell) const {
-  if (!layout_.contains(cell)) fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, layout_.cells.x, layout_.cells.y);
+  if (!layout_.contains(cell))
+    fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, layout_.cells.x, layout_.cells.y);
   return keyFallback(cell, timeOfDay_.load(std::memory_order_relaxed));
 }
 
@@ -481,8 +497,8 @@ void CellFileSource::readAndDecode(glm::ivec2 cell, float timeOfDayHours, ProbeF
   checkCellFits(file, cell, worldSeed_, layout_, path);
   const auto t1 = Clock::now();
   readUs_.fetch_add(usSince(t0));
-  decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution, options_.shOnlyResolution,
-                  out, path.string(), backend_.get(), sharedFor(file, path));
+  decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution,
+                  options_.shOnlyResolution, out, path.string(), backend_.get(), sharedFor(file, path));
   recordDecode(t1, file);
 }
 
@@ -494,7 +510,8 @@ void CellFileSource::recordDecode(std::chrono::steady_clock::time_point t0, cons
 }
 
 void CellFileSource::load(glm::ivec2 cell, ProbeField& out) {
-  if (!layout_.contains(cell)) fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, layout_.cells.x, layout_.cells.y);
+  if (!layout_.contains(cell))
+    fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, layout_.cells.x, layout_.cells.y);
   readAndDecode(cell, timeOfDay_.load(), out);
   loads_.fetch_add(1);
 }
@@ -515,21 +532,24 @@ bool CellFileSource::relight(glm::ivec2 cell, ProbeField& field, float timeOfDay
     const auto t1 = Clock::now();
     readUs_.fetch_add(usSince(t0));
     // In place: past readCellFile's checks and this size check, decoding cannot fail halfway.
-    if (file.grid.probeCount() != field.probeCount() || decodedResolution(file, options_.shOnlyResolution) != field.resolution)
+    if (file.grid.probeCount() != field.probeCount() ||
+        decodedResolution(file, options_.shOnlyResolution) != field.resolution)
       fail("{}: changed size since the cell was loaded", path.string());
-    decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution, options_.shOnlyResolution,
-                    field, path.string(), backend_.get(), sharedFor(file, path));
+    decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution,
+                    options_.shOnlyResolution, field, path.string(), backend_.get(), sharedFor(file, path));
     recordDecode(t1, file);
     return true;
   } catch (const Error& e) {
-    spdlog::warn("streaming: relight of cell {},{} failed, keeping its lighting: {}", cell.x, cell.y, e.what());
+    spdlog::warn("streaming: relight of cell {},{} failed, keeping its lighting: {}", cell.x, cell.y,
+                 e.what());
     return false;
   }
 }
 
 void CellFileSource::relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out,
                                  float timeOfDayHours) {
-  if (!layout_.contains(cell)) fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, layout_.cells.x, layout_.cells.y);
+  if (!layout_.contains(cell))
+    fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, layout_.cells.x, layout_.cells.y);
   if (!dependsOnTimeOfDay(cell)) {
     out = current;  // copy-assignment keeps out's capacity when it fits: no allocation once warm
     return;

@@ -9,8 +9,8 @@
 // probe count and model resolution. A file must also
 // name its own cell, the world's seed and a probe grid inside the cell's square, else it counts as
 // corrupt. A cell with no file or a corrupt one is logged and gets the mean fallback of its nearest ring
-// of valid cells (8 neighbours first, then wider rings), per key: a smooth guess, never a hole. No valid cell at
-// all is an lfgi::Error naming the directory.
+// of valid cells (8 neighbours first, then wider rings), per key: a smooth guess, never a hole. No valid cell
+// at all is an lfgi::Error naming the directory.
 //
 // load() (IO threads, concurrently): readCellFile again (every check: a file corrupted or deleted after
 // construction throws lfgi::Error naming the file, the manager logs it and keeps the fallback) then a
@@ -57,14 +57,14 @@
 namespace lfgi::streaming {
 
 struct CellFileSourceOptions {
-  std::filesystem::path worldDir;      // holds world.json (the layout)
-  std::filesystem::path cellsDir;      // empty: worldDir / "baked" / "cells"
+  std::filesystem::path worldDir;  // holds world.json (the layout)
+  std::filesystem::path cellsDir;  // empty: worldDir / "baked" / "cells"
   // The world's shared model (core/shared_model.h) that version-3 cells refer to; empty: cellsDir's
   // parent / "shared_model.vdb" (where `lfgi bake --codec shared` writes it).
   std::filesystem::path sharedModel;
-  int irradianceResolution = 0;        // m of the decoded irradiance maps; 0: max(2, n / 2)
-  int shOnlyResolution = 0;            // n for cells without a network; 0: the largest generator n, else 8
-  float weather = 0.0f;                // generator conditioning, [0, 1]
+  int irradianceResolution = 0;  // m of the decoded irradiance maps; 0: max(2, n / 2)
+  int shOnlyResolution = 0;      // n for cells without a network; 0: the largest generator n, else 8
+  float weather = 0.0f;          // generator conditioning, [0, 1]
   // Generator decode backend. Gpu without a Vulkan device: the constructor throws lfgi::Error; Auto: logs
   // why and decodes on the CPU.
   DecoderChoice decoder = DecoderChoice::Cpu;
@@ -77,13 +77,13 @@ enum class CellFileState : uint8_t { Valid, Missing, Corrupt };
 
 struct CellFileInfo {
   CellFileState state = CellFileState::Missing;
-  std::string error;          // Missing / Corrupt: why
-  bool network = false;       // a generator is stored
-  int64_t probes = 0;         // grid probe count
+  std::string error;     // Missing / Corrupt: why
+  bool network = false;  // a generator is stored
+  int64_t probes = 0;    // grid probe count
   int64_t activeProbes = 0;
-  int resolution = 0;         // n the decoded field will have
-  int fallbackKeys = 0;       // lighting keys of the fallback at the source's weather (Valid cells)
-  size_t fieldBytes = 0;      // ProbeField::bytes() of the decoded cell
+  int resolution = 0;     // n the decoded field will have
+  int fallbackKeys = 0;   // lighting keys of the fallback at the source's weather (Valid cells)
+  size_t fieldBytes = 0;  // ProbeField::bytes() of the decoded cell
 };
 
 class CellFileSource final : public CellSource {
@@ -104,7 +104,8 @@ class CellFileSource final : public CellSource {
   // so is an SH-only cell with several fallback keys; a cell that does not depend on the time of day (no
   // network, one key): `out` = `current`. Throws lfgi::Error
   // naming the file (the manager logs it and keeps the old lighting).
-  void relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out, float timeOfDayHours) override;
+  void relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out,
+                   float timeOfDayHours) override;
   // Synchronous in-place relight (tests, tools): a generator cell (or an SH-only one with several
   // fallback keys) is re-read and re-decoded under the new time of day into `field` (same size: no
   // allocation); a cell that does not depend on it is left as is. A file that fails now is logged and the
@@ -127,8 +128,8 @@ class CellFileSource final : public CellSource {
   GpuGeneratorBackend* gpuBackend() const { return gpuBackend_; }
   // One entry per successful decode (load / relightInto / relight) so far, in completion order (any thread).
   struct DecodeSample {
-    float ms = 0.0f;          // decode time (after the file read), network + post-processing
-    int64_t probes = 0;       // active probes through the network (0: SH-only cell)
+    float ms = 0.0f;     // decode time (after the file read), network + post-processing
+    int64_t probes = 0;  // active probes through the network (0: SH-only cell)
   };
   std::vector<DecodeSample> decodeSamples() const;
 
@@ -137,9 +138,10 @@ class CellFileSource final : public CellSource {
   void readAndDecode(glm::ivec2 cell, float timeOfDayHours, ProbeField& out);
   void recordDecode(std::chrono::steady_clock::time_point t0, const CellFile& file);
   bool dependsOnTimeOfDay(glm::ivec2 cell) const;
-  // The shared model a shared-model cell decodes with (null for other cells); loaded once (std::call_once) on first
-  // use, normally during construction, and immutable afterwards. Throws lfgi::Error naming the cell file and the shared model
-  // file when it is missing or unreadable (a wrong hash is resolveCellWeights' error).
+  // The shared model a shared-model cell decodes with (null for other cells); loaded once (std::call_once) on
+  // first use, normally during construction, and immutable afterwards. Throws lfgi::Error naming the cell
+  // file and the shared model file when it is missing or unreadable (a wrong hash is resolveCellWeights'
+  // error).
   const ResolvedSharedModel* sharedFor(const CellFile& file, const std::filesystem::path& path);
   ShL1 keyFallback(glm::ivec2 cell, float timeOfDayHours) const;
 
@@ -168,7 +170,8 @@ class CellFileSource final : public CellSource {
 };
 
 // The keys cellFileFallback interpolates at `weather`: their hours (ascending) and cell SH.
-void cellFileFallbackKeys(const CellFile& cell, float weather, std::vector<float>& hours, std::vector<ShL1>& sh);
+void cellFileFallbackKeys(const CellFile& cell, float weather, std::vector<float>& hours,
+                          std::vector<ShL1>& sh);
 // Linear interpolation between the keys (hours ascending) bracketing timeOfDayHours, clamped outside.
 ShL1 interpolateFallback(std::span<const float> hours, std::span<const ShL1> sh, float timeOfDayHours);
 
@@ -178,12 +181,13 @@ int decodedResolution(const CellFile& cell, int shOnlyResolution);
 // Decodes a read cell file into `out` (grid, resolutions, active, radiance, distance, irradiance; no
 // normal / albedo / offsets), reusing out's capacity:
 //   generator cells: the active probes (latent order) through the network (backend) with
-//     conditioningVector(timeOfDayHours, weather), then decodeChannels (core/generator.h); position latents from the probe's lattice
-//     position (the cell file keeps no relocation offsets, so a relocated probe's latent differs from
-//     the bake's by its offset); irradiance = convolveIrradiance of the decoded radiance;
+//     conditioningVector(timeOfDayHours, weather), then decodeChannels (core/generator.h); position latents
+//     from the probe's lattice position (the cell file keeps no relocation offsets, so a relocated probe's
+//     latent differs from the bake's by its offset); irradiance = convolveIrradiance of the decoded radiance;
 //   cells without a network, and the inactive probes of any cell: the probe's SH L1 (its per-probe
-//     entry, else the cell's) at timeOfDayHours and weather (the keys blended as cellFileFallback) evaluated: radiance max(0, shEvaluate) at texel centres, irradiance
-//     shIrradiance at texel-centre normals, distance moments (range, range^2) (nothing occludes).
+//     entry, else the cell's) at timeOfDayHours and weather (the keys blended as cellFileFallback) evaluated:
+//     radiance max(0, shEvaluate) at texel centres, irradiance shIrradiance at texel-centre normals, distance
+//     moments (range, range^2) (nothing occludes).
 // Throws lfgi::Error (starting with `name`) if the model cannot decode to a probe field.
 // backend: the generator network's backend (null: CpuGeneratorBackend); everything else is the same code
 // for every backend.

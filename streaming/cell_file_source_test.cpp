@@ -2,15 +2,15 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
 #include <thread>
-#include <chrono>
-#include <cstdlib>
-#include <cstdio>
 
 #include <fmt/format.h>
 
@@ -76,14 +76,17 @@ CellFile makeCell(int x, int z) {
     }
     CellGenerator g;
     g.weights = quantizeWeights(test::uniformRandomWeights(a, rng, 0.2f), WeightPrecision::Int8);
-    if (kind == Kind::Stored) g.latents = quantizeLatents(test::randomLatents(size_t(n), a.latentDim, unsigned(x + 7 * z)), a.latentDim, 8);
+    if (kind == Kind::Stored)
+      g.latents =
+          quantizeLatents(test::randomLatents(size_t(n), a.latentDim, unsigned(x + 7 * z)), a.latentDim, 8);
     c.generator = std::move(g);
   }
   c.outputScale = {2.0f, 48.0f};
   const glm::vec3 dc(0.6f + 0.1f * float(x), 0.5f + 0.1f * float(z), 0.55f);
   if (kind == Kind::ShPerProbe) {
     c.fallback.kind = CellFallback::Kind::PerProbe;
-    for (int64_t i = 0; i < n; ++i) pushSh(c.fallback.shHalf, dc * (1.0f + 0.05f * float(i)), {0.1f, 0.3f, -0.1f});
+    for (int64_t i = 0; i < n; ++i)
+      pushSh(c.fallback.shHalf, dc * (1.0f + 0.05f * float(i)), {0.1f, 0.3f, -0.1f});
   } else {
     pushSh(c.fallback.shHalf, dc, {0.05f, 0.25f, 0.0f});
   }
@@ -98,7 +101,8 @@ fs::path makeWorld(const std::string& name) {
   fs::create_directories(dir / "baked" / "cells");
   worlds::writeWorldManifest(dir, worlds::WorldParams{kSeed, 3 * kCell, kCell});
   for (int z = 0; z < 3; ++z)
-    for (int x = 0; x < 3; ++x) writeCellFile(dir / "baked" / "cells" / fmt::format("cell_{}_{}.vdb", x, z), makeCell(x, z));
+    for (int x = 0; x < 3; ++x)
+      writeCellFile(dir / "baked" / "cells" / fmt::format("cell_{}_{}.vdb", x, z), makeCell(x, z));
   return dir;
 }
 
@@ -123,7 +127,9 @@ void flipByte(const fs::path& file, size_t at) {
   f.write(&b, 1);
 }
 
-bool sameBits(const float* a, const float* b, size_t n) { return std::memcmp(a, b, n * sizeof(float)) == 0; }
+bool sameBits(const float* a, const float* b, size_t n) {
+  return std::memcmp(a, b, n * sizeof(float)) == 0;
+}
 
 TEST(CellFileSource, LoadEqualsADirectDecode) {
   const fs::path world = makeWorld("direct");
@@ -174,8 +180,10 @@ TEST(CellFileSource, LoadEqualsADirectDecode) {
         int64_t k = 0;
         for (int64_t i = 0; i < 32; ++i) {
           if (!f.isActive(i)) continue;
-          EXPECT_TRUE(sameBits(&f.radiance[size_t(i) * tn * 3], &d.radiance[size_t(k) * tn * 3], tn * 3)) << i;
-          EXPECT_TRUE(sameBits(&f.distance[size_t(i) * tn * 2], &d.distance[size_t(k) * tn * 2], tn * 2)) << i;
+          EXPECT_TRUE(sameBits(&f.radiance[size_t(i) * tn * 3], &d.radiance[size_t(k) * tn * 3], tn * 3))
+              << i;
+          EXPECT_TRUE(sameBits(&f.distance[size_t(i) * tn * 2], &d.distance[size_t(k) * tn * 2], tn * 2))
+              << i;
           for (size_t t = 0; t < tm * 3; ++t) {
             const float want = d.irradiance[size_t(k) * tm * 3 + t];
             EXPECT_NEAR(f.irradiance[size_t(i) * tm * 3 + t], want, 1e-5f * std::abs(want) + 1e-6f) << i;
@@ -195,7 +203,9 @@ TEST(CellFileSource, LoadEqualsADirectDecode) {
         ShL1 sh = cellSh;
         if (own)
           for (int b = 0; b < 4; ++b)
-            for (int ch = 0; ch < 3; ++ch) sh.c[size_t(b)][ch] = halfToFloat(file.fallback.shHalf[size_t(k) * 12 + size_t(b) * 3 + size_t(ch)]);
+            for (int ch = 0; ch < 3; ++ch)
+              sh.c[size_t(b)][ch] =
+                  halfToFloat(file.fallback.shHalf[size_t(k) * 12 + size_t(b) * 3 + size_t(ch)]);
         for (int t = 0; t < 16; ++t) {
           const glm::vec3 e = shIrradiance(sh, octTexelDirection(t % 4, t / 4, 4));
           EXPECT_EQ(f.irradiance[size_t(i) * tm * 3 + size_t(t) * 3], std::max(e.x, 0.0f)) << i;
@@ -224,7 +234,8 @@ TEST(CellFileSource, ChunkedDecodeOfALargeCellEqualsOneDecode) {
   const int64_t A = c.activeProbeCount();
   ASSERT_GT(A, 1024 + 256);
   const GeneratorWeights w = dequantizeWeights(c.generator->weights);
-  c.generator->latents = quantizeLatents(test::randomLatents(size_t(A), w.arch.latentDim, 5), w.arch.latentDim, 8);
+  c.generator->latents =
+      quantizeLatents(test::randomLatents(size_t(A), w.arch.latentDim, 5), w.arch.latentDim, 8);
   ProbeField f;
   decodeCellField(c, 9.0f, 0.25f, 0, 8, f);
   GeneratorCpu dec(w);
@@ -288,7 +299,8 @@ TEST(CellFileSource, MissingAndCorruptFilesGetTheirNeighboursFallback) {
   const fs::path world = makeWorld("broken");
   fs::remove(cellFile(world, 0, 2));
   flipByte(cellFile(world, 2, 0), 300);
-  fs::copy_file(cellFile(world, 1, 1), cellFile(world, 1, 2), fs::copy_options::overwrite_existing);  // wrong cell
+  fs::copy_file(cellFile(world, 1, 1), cellFile(world, 1, 2),
+                fs::copy_options::overwrite_existing);  // wrong cell
   CellFileSource source(options(world));
   EXPECT_EQ(source.validCells(), 6);
   EXPECT_EQ(source.missingCells(), 1);
@@ -296,10 +308,11 @@ TEST(CellFileSource, MissingAndCorruptFilesGetTheirNeighboursFallback) {
   EXPECT_EQ(source.info({0, 2}).state, CellFileState::Missing);
   EXPECT_EQ(source.info({2, 0}).state, CellFileState::Corrupt);
   EXPECT_NE(source.info({2, 0}).error.find("cell_2_0.vdb"), std::string::npos) << source.info({2, 0}).error;
-  EXPECT_NE(source.info({1, 2}).error.find("holds cell 1,1, expected 1,2"), std::string::npos) << source.info({1, 2}).error;
+  EXPECT_NE(source.info({1, 2}).error.find("holds cell 1,1, expected 1,2"), std::string::npos)
+      << source.info({1, 2}).error;
   // Cell (0, 2)'s valid 8-neighbours: (0, 1) and (1, 1) ((1, 2) is corrupt).
-  const ShL1 a = cellFileFallback(makeCell(0, 1), 12.0f, 0.0f), b = cellFileFallback(makeCell(1, 1), 12.0f, 0.0f),
-             m = source.fallback({0, 2});
+  const ShL1 a = cellFileFallback(makeCell(0, 1), 12.0f, 0.0f),
+             b = cellFileFallback(makeCell(1, 1), 12.0f, 0.0f), m = source.fallback({0, 2});
   for (int k = 0; k < 4; ++k) EXPECT_EQ(m.c[size_t(k)], (a.c[size_t(k)] + b.c[size_t(k)]) / 2.0f);
   ProbeField f;
   try {
@@ -359,7 +372,8 @@ ShL1 storedKeySh(const CellFile& c, size_t key) {
   for (size_t e = 0; e < entries; ++e)
     for (int k = 0; k < 4; ++k)
       for (int ch = 0; ch < 3; ++ch)
-        sh.c[size_t(k)][ch] += halfToFloat(c.fallback.shHalf[(key * entries + e) * 12 + size_t(k) * 3 + size_t(ch)]);
+        sh.c[size_t(k)][ch] +=
+            halfToFloat(c.fallback.shHalf[(key * entries + e) * 12 + size_t(k) * 3 + size_t(ch)]);
   for (glm::vec3& v : sh.c) v /= float(entries);
   return sh;
 }
@@ -467,9 +481,11 @@ TEST(CellFileSource, MissingCellsGetTheirRingsMeanFallbackPerKey) {
   const CellFile a = makeKeyedCell(0, 1), b = makeKeyedCell(1, 1), v = makeCell(1, 2);
   for (float h : {6.0f, 8.0f, 10.0f, 12.0f, 15.0f, 17.5f, 20.0f}) {
     source.setTimeOfDay(h);
-    const ShL1 fa = cellFileFallback(a, h, 0.0f), fb = cellFileFallback(b, h, 0.0f), fv = cellFileFallback(v, h, 0.0f);
+    const ShL1 fa = cellFileFallback(a, h, 0.0f), fb = cellFileFallback(b, h, 0.0f),
+               fv = cellFileFallback(v, h, 0.0f);
     ShL1 mean;
-    for (int k = 0; k < 4; ++k) mean.c[size_t(k)] = (fa.c[size_t(k)] + fb.c[size_t(k)] + fv.c[size_t(k)]) / 3.0f;
+    for (int k = 0; k < 4; ++k)
+      mean.c[size_t(k)] = (fa.c[size_t(k)] + fb.c[size_t(k)] + fv.c[size_t(k)]) / 3.0f;
     expectShNear(source.fallback({0, 2}), mean, 1e-5f, fmt::format("missing cell at {} h", h));
     // The version-1 cell: its one key at every hour.
     expectShNear(source.fallback({1, 2}), storedKeySh(v, 0), 1e-6f, fmt::format("version-1 cell at {} h", h));
@@ -540,7 +556,8 @@ TEST(CellFileStreaming, ManagerFallbackFollowsTheTimeOfDay) {
   // Every key is the 12 h SH scaled by 0.5 / 1 / 1.5: the evening fallback is 3x the morning one.
   EXPECT_NEAR(s175.irradiance.x, 3.0f * s8.irradiance.x, 5e-3f * s175.irradiance.x);
   source.setTimeOfDay(17.5f);
-  EXPECT_NEAR(s175.irradiance.y, shIrradiance(source.fallback({2, 2}), {0, 1, 0}).y, 1e-4f * s175.irradiance.y);
+  EXPECT_NEAR(s175.irradiance.y, shIrradiance(source.fallback({2, 2}), {0, 1, 0}).y,
+              1e-4f * s175.irradiance.y);
 }
 
 StreamingConfig fileConfig(size_t cellBytes) {
@@ -651,7 +668,6 @@ TEST(CellFileStreaming, CorruptAndMissingFilesMidFlightKeepTheFallback) {
   EXPECT_GT(s.irradiance.x, 0.0f);
 }
 
-
 // ---- The GPU decoder (streaming/generator_backend.h) ----
 
 CellFileSourceOptions gpuOptions(const fs::path& world, DecoderChoice d = DecoderChoice::Gpu) {
@@ -677,7 +693,8 @@ void expectFieldsClose(const ProbeField& gpu, const ProbeField& cpu, const std::
   ASSERT_EQ(gpu.radiance.size(), cpu.radiance.size()) << what;
   ASSERT_EQ(gpu.distance.size(), cpu.distance.size()) << what;
   ASSERT_EQ(gpu.irradiance.size(), cpu.irradiance.size()) << what;
-  const double r = test::relMaxError(gpu.radiance, cpu.radiance), d = test::relMaxError(gpu.distance, cpu.distance),
+  const double r = test::relMaxError(gpu.radiance, cpu.radiance),
+               d = test::relMaxError(gpu.distance, cpu.distance),
                e = test::relMaxError(gpu.irradiance, cpu.irradiance);
   std::printf("  %s: max rel error radiance %.2e, distance %.2e, irradiance %.2e\n", what.c_str(), r, d, e);
   EXPECT_LT(r, kGpuFieldTolerance) << what;
@@ -697,7 +714,8 @@ TEST(CellFileSourceGpu, GpuLoadEqualsTheCpuLoadWithinTolerance) {
   std::vector<ProbeField> fields(9);
   int generatorCells = 0;
   for (int pass = 0; pass < 2; ++pass) {
-    const uint64_t allocations = gpu.gpuBackend()->bufferAllocations(), uploads = gpu.gpuBackend()->modelUploads();
+    const uint64_t allocations = gpu.gpuBackend()->bufferAllocations(),
+                   uploads = gpu.gpuBackend()->modelUploads();
     for (int z = 0; z < 3; ++z)
       for (int x = 0; x < 3; ++x) {
         ProbeField& g = fields[size_t(z * 3 + x)];
@@ -739,7 +757,8 @@ TEST(CellFileSourceGpu, MultiBatchDecodeOfALargeCellMatchesTheCpu) {
   for (size_t i = 0; i < c.active.size(); i += 7) c.active[i] = 0;
   const int64_t A = c.activeProbeCount();
   const GeneratorWeights w = dequantizeWeights(c.generator->weights);
-  c.generator->latents = quantizeLatents(test::randomLatents(size_t(A), w.arch.latentDim, 5), w.arch.latentDim, 8);
+  c.generator->latents =
+      quantizeLatents(test::randomLatents(size_t(A), w.arch.latentDim, 5), w.arch.latentDim, 8);
   GpuBackendOptions go;
   go.batchProbes = 256;
   ASSERT_GT(A, 4 * 256);
@@ -764,7 +783,7 @@ TEST(CellFileSourceGpu, RelightIntoWithTheGpuEqualsAFreshGpuLoad) {
   EXPECT_EQ(staged.radiance, fresh.radiance);
   EXPECT_EQ(staged.distance, fresh.distance);
   EXPECT_EQ(staged.irradiance, fresh.irradiance);
-  EXPECT_NE(staged.irradiance, before.irradiance);  // the conditioning reached the device
+  EXPECT_NE(staged.irradiance, before.irradiance);   // the conditioning reached the device
   EXPECT_EQ(morning.irradiance, before.irradiance);  // the resident field is untouched
   // The in-place relight agrees too.
   EXPECT_TRUE(source.relight({1, 1}, morning, 16.0f));
@@ -808,14 +827,17 @@ TEST(CellFileSourceGpu, NoDeviceGpuIsAnErrorAndAutoFallsBackToTheCpu) {
   }
   std::unique_ptr<CellFileSource> autoSource;
   EXPECT_NO_THROW(autoSource = std::make_unique<CellFileSource>(gpuOptions(world, DecoderChoice::Auto)));
-  if (old) setenv("LFGI_VK_DEVICE", saved.c_str(), 1);
-  else unsetenv("LFGI_VK_DEVICE");
+  if (old)
+    setenv("LFGI_VK_DEVICE", saved.c_str(), 1);
+  else
+    unsetenv("LFGI_VK_DEVICE");
   EXPECT_NE(error.find("decoder gpu: no usable Vulkan device"), std::string::npos) << error;
   EXPECT_NE(error.find("no-such-device-xyz"), std::string::npos) << error;
   ASSERT_TRUE(autoSource);
   EXPECT_EQ(autoSource->selection().backend, "cpu");
   EXPECT_EQ(autoSource->gpuBackend(), nullptr);
-  EXPECT_NE(autoSource->selection().reason.find("no Vulkan device"), std::string::npos) << autoSource->selection().reason;
+  EXPECT_NE(autoSource->selection().reason.find("no Vulkan device"), std::string::npos)
+      << autoSource->selection().reason;
   ProbeField f;
   autoSource->load({1, 1}, f);
   EXPECT_NO_THROW(f.validate());
@@ -826,7 +848,8 @@ TEST(CellFileSourceGpu, NoDeviceGpuIsAnErrorAndAutoFallsBackToTheCpu) {
 // device at once (serialised by the backend): no hole, budget held, every far cell arrives.
 TEST(CellFileStreamingGpu, FlightWithTheGpuDecoderHasNoHolesAndStaysWithinBudget) {
   const fs::path world = makeWorld("gpu_flight");
-  auto fly = [&](DecoderChoice d, int ioThreads, std::vector<StreamingEvent>* events, glm::vec3* finalSample) {
+  auto fly = [&](DecoderChoice d, int ioThreads, std::vector<StreamingEvent>* events,
+                 glm::vec3* finalSample) {
     CellFileSource source(gpuOptions(world, d));
     StreamingConfig c = fileConfig(source.maxCellBytes());
     c.ioThreads = ioThreads;
@@ -847,7 +870,8 @@ TEST(CellFileStreamingGpu, FlightWithTheGpuDecoderHasNoHolesAndStaysWithinBudget
           const glm::vec3 p(in.position.x + dx, 1.0f, in.position.z + dz);
           if (m.layout().contains(m.layout().cellOf(p))) missing += m.sample(p, {0, 1, 0}).missing;
         }
-      if (ioThreads > 0 && f >= 90 && m.isResident({2, 1}) && m.sample({2 * kCell + 30.0f, 1.0f, kCell + 30.0f}, {0, 1, 0}).fallbackWeight == 0.0f)
+      if (ioThreads > 0 && f >= 90 && m.isResident({2, 1}) &&
+          m.sample({2 * kCell + 30.0f, 1.0f, kCell + 30.0f}, {0, 1, 0}).fallbackWeight == 0.0f)
         break;
       if (ioThreads > 0 && f >= 90) std::this_thread::sleep_for(std::chrono::milliseconds(5));
       ++f;
@@ -866,7 +890,8 @@ TEST(CellFileStreamingGpu, FlightWithTheGpuDecoderHasNoHolesAndStaysWithinBudget
   fly(DecoderChoice::Cpu, 0, &cpuEvents, &cpuE);
   fly(DecoderChoice::Gpu, 0, &gpuEvents, &gpuE);
   EXPECT_EQ(gpuEvents, cpuEvents);
-  for (int k = 0; k < 3; ++k) EXPECT_NEAR(gpuE[k], cpuE[k], kGpuFieldTolerance * std::abs(cpuE[k]) + 1e-6) << k;
+  for (int k = 0; k < 3; ++k)
+    EXPECT_NEAR(gpuE[k], cpuE[k], kGpuFieldTolerance * std::abs(cpuE[k]) + 1e-6) << k;
   // With IO threads the lighting a cell holds depends on when its relight landed: invariants only.
   fly(DecoderChoice::Gpu, 2, nullptr, &threadedE);
   EXPECT_TRUE(std::isfinite(threadedE.x + threadedE.y + threadedE.z));

@@ -41,7 +41,8 @@ SyntheticCellSource::SyntheticCellSource(SyntheticSourceOptions options) : optio
   if (!(l.cellSize > 0.0f) || l.cells.x < 1 || l.cells.y < 1) fail("SyntheticCellSource: bad world layout");
   float perAxis = l.cellSize / options_.probeSpacing;
   if (!(options_.probeSpacing > 0.0f) || perAxis != std::floor(perAxis))
-    fail("SyntheticCellSource: probe spacing {} m does not divide the {} m cell", options_.probeSpacing, l.cellSize);
+    fail("SyntheticCellSource: probe spacing {} m does not divide the {} m cell", options_.probeSpacing,
+         l.cellSize);
   if (options_.layers < 1 || options_.resolution < 1 || options_.irradianceResolution < 1)
     fail("SyntheticCellSource: layers and resolutions must be >= 1");
   ProbeField probe;

@@ -25,9 +25,9 @@
 namespace lfgi::streaming {
 
 struct WorldLayout {
-  glm::vec2 originXZ{0.0f};   // world-space x, z of cell (0, 0)'s min corner
-  float cellSize = 64.0f;     // metres
-  glm::ivec2 cells{1, 1};     // cells along x and z
+  glm::vec2 originXZ{0.0f};  // world-space x, z of cell (0, 0)'s min corner
+  float cellSize = 64.0f;    // metres
+  glm::ivec2 cells{1, 1};    // cells along x and z
 
   bool contains(glm::ivec2 c) const { return c.x >= 0 && c.y >= 0 && c.x < cells.x && c.y < cells.y; }
   // The cell owning world point (x, z) (half-open boxes; may be outside the world).
@@ -64,7 +64,8 @@ class CellSource {
   // resident field (read-only: the game thread keeps shading with it meanwhile). Throws lfgi::Error like
   // load() (the manager logs it and keeps the old lighting). Default: load(cell, out), which decodes under
   // the time of day last set (setTimeOfDay): right for sources whose cells do not depend on it.
-  virtual void relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out, float timeOfDayHours) {
+  virtual void relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out,
+                           float timeOfDayHours) {
     (void)current;
     (void)timeOfDayHours;
     load(cell, out);
@@ -85,11 +86,11 @@ class CellSource {
 // distance maps are filled with matching constants. Options inject slow loads and corrupt cells.
 struct SyntheticSourceOptions {
   WorldLayout layout{{0.0f, 0.0f}, 64.0f, {64, 64}};
-  float probeSpacing = 8.0f;   // divides cellSize
-  int layers = 3;              // probe layers from y = 0.5 m
-  int resolution = 4;          // radiance / distance maps
+  float probeSpacing = 8.0f;  // divides cellSize
+  int layers = 3;             // probe layers from y = 0.5 m
+  int resolution = 4;         // radiance / distance maps
   int irradianceResolution = 4;
-  int loadDelayUs = 0;         // simulated IO + decode time per load (and per relight)
+  int loadDelayUs = 0;  // simulated IO + decode time per load (and per relight)
   // Time-of-day dependence (tests of relight): every value is scaled by 1 + timeOfDayGain * (h - 12) / 12
   // for the time of day h a load decodes under (setTimeOfDay) or a relight targets. 0: independent.
   float timeOfDayGain = 0.0f;
@@ -105,7 +106,8 @@ class SyntheticCellSource final : public CellSource {
   void load(glm::ivec2 cell, ProbeField& out) override;
   void setTimeOfDay(float hours) override { timeOfDay_.store(hours); }
   // Fills `out` as load() would at timeOfDayHours (counted in relights(), not loads()).
-  void relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out, float timeOfDayHours) override;
+  void relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out,
+                   float timeOfDayHours) override;
 
   // The exact field the probes sample: E(p, n) (at noon, or with timeOfDayGain = 0).
   static glm::vec3 exactIrradiance(glm::vec3 p, glm::vec3 n);

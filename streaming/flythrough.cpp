@@ -14,7 +14,9 @@ namespace lfgi::streaming {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
 
 glm::vec2 catmullRom(glm::vec2 p0, glm::vec2 p1, glm::vec2 p2, glm::vec2 p3, float t) {
   float t2 = t * t, t3 = t2 * t;
@@ -35,7 +37,8 @@ PathTable buildPath(const WorldLayout& layout, const FlythroughOptions& o) {
   PathTable table;
   if (o.path == "line") {
     table.closed = false;
-    for (int i = 0; i < 4; ++i) ctrl.push_back(layout.originXZ + glm::vec2((0.1f + 0.8f * float(i) / 3.0f) * size.x, 0.5f * size.y));
+    for (int i = 0; i < 4; ++i)
+      ctrl.push_back(layout.originXZ + glm::vec2((0.1f + 0.8f * float(i) / 3.0f) * size.x, 0.5f * size.y));
   } else {
     // A closed loop with radial wiggles (fixed, so every run flies the same path).
     const float wiggle[8] = {0.0f, 0.12f, -0.08f, 0.1f, -0.12f, 0.06f, 0.1f, -0.05f};
@@ -87,7 +90,8 @@ void FlythroughOptions::validate() const {
   if (!(shadeDistance > 0.0f)) fail("shadeDistance {} must be > 0", shadeDistance);
   if (!(weatherStart >= 0.0f && weatherStart <= 1.0f && weatherEnd >= 0.0f && weatherEnd <= 1.0f))
     fail("weather {} -> {}: expected overcast in [0, 1]", weatherStart, weatherEnd);
-  if (sampleRaysX < 1 || sampleRaysY < 1) fail("sample ray grid {}x{} must be >= 1x1", sampleRaysX, sampleRaysY);
+  if (sampleRaysX < 1 || sampleRaysY < 1)
+    fail("sample ray grid {}x{} must be >= 1x1", sampleRaysX, sampleRaysY);
   streaming.validate();
 }
 
@@ -98,13 +102,17 @@ glm::vec3 flythroughPosition(const WorldLayout& layout, const FlythroughOptions&
 }
 
 double flightPathLength(const WorldLayout& layout, const FlythroughOptions& options) {
-  if (options.path != "loop" && options.path != "line") fail("--path '{}': expected loop or line", options.path);
+  if (options.path != "loop" && options.path != "line")
+    fail("--path '{}': expected loop or line", options.path);
   return buildPath(layout, options).length.back();
 }
 
-std::vector<glm::ivec2> flightPathCells(const WorldLayout& layout, const FlythroughOptions& options, float radius) {
-  if (options.path != "loop" && options.path != "line") fail("--path '{}': expected loop or line", options.path);
-  if (!(radius >= 0.0f) || !std::isfinite(radius)) fail("path radius {} m: expected a finite value >= 0", radius);
+std::vector<glm::ivec2> flightPathCells(const WorldLayout& layout, const FlythroughOptions& options,
+                                        float radius) {
+  if (options.path != "loop" && options.path != "line")
+    fail("--path '{}': expected loop or line", options.path);
+  if (!(radius >= 0.0f) || !std::isfinite(radius))
+    fail("path radius {} m: expected a finite value >= 0", radius);
   const PathTable t = buildPath(layout, options);
   std::vector<uint8_t> seen(size_t(layout.cells.x) * size_t(layout.cells.y), 0);
   std::vector<glm::ivec2> out;
@@ -127,7 +135,8 @@ std::vector<glm::ivec2> flightPathCells(const WorldLayout& layout, const Flythro
         }
       }
     // Nearest first among the cells this point reaches first (the start's own cell leads the list).
-    std::stable_sort(fresh.begin(), fresh.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::stable_sort(fresh.begin(), fresh.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
     for (const auto& f : fresh) out.push_back(f.second);
   };
   visit(t.points.front());
@@ -140,7 +149,8 @@ std::vector<glm::ivec2> flightPathCells(const WorldLayout& layout, const Flythro
 }
 
 FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
-                                const std::function<void(const FlythroughFrame&)>& perFrame, TraceWriter* trace) {
+                                const std::function<void(const FlythroughFrame&)>& perFrame,
+                                TraceWriter* trace) {
   o.validate();
   const WorldLayout layout = source.layout();
   const PathTable path = buildPath(layout, o);
@@ -208,22 +218,30 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
         if (!layout.contains(layout.cellOf(q))) continue;  // off the world's edge: nothing to light
         IrradianceSample smp = manager.sample(q, {0.0f, 1.0f, 0.0f});
         ++fr.visibleSamples;
-        if (smp.missing || !std::isfinite(smp.irradiance.x + smp.irradiance.y + smp.irradiance.z)) ++fr.missingSamples;
-        else if (smp.fallbackWeight > 0.01f) ++fr.fallbackSamples;
+        if (smp.missing || !std::isfinite(smp.irradiance.x + smp.irradiance.y + smp.irradiance.z))
+          ++fr.missingSamples;
+        else if (smp.fallbackWeight > 0.01f)
+          ++fr.fallbackSamples;
       }
     fr.shadeMs = msSince(ts);
     fr.frameMs = msSince(t0);
     if (trace) {
       double u = fr.stats.updateMs * 1e3;
       trace->complete("update", "streaming", frameStartUs, u,
-                      {{"frame", f}, {"requested", fr.stats.requested}, {"activated", fr.stats.activated},
-                       {"evicted", fr.stats.evicted}, {"relit", fr.stats.relit}});
-      trace->complete("shade samples", "shade", frameStartUs + u, fr.shadeMs * 1e3, {{"visible", fr.visibleSamples}});
+                      {{"frame", f},
+                       {"requested", fr.stats.requested},
+                       {"activated", fr.stats.activated},
+                       {"evicted", fr.stats.evicted},
+                       {"relit", fr.stats.relit}});
+      trace->complete("shade samples", "shade", frameStartUs + u, fr.shadeMs * 1e3,
+                      {{"visible", fr.visibleSamples}});
       trace->counter("resident MB", frameStartUs, {{"resident", double(fr.stats.bytesResident) / 1e6}});
       trace->counter("cells", frameStartUs, {{"resident", fr.stats.resident}, {"loading", fr.stats.loading}});
       trace->counter("fallback %", frameStartUs, {{"fallback", 100.0 * fr.fallbackFraction()}});
       trace->counter("stage ms", frameStartUs,
-                     {{"io", fr.stats.ioMs}, {"activate", fr.stats.activateMs}, {"relight", fr.stats.relightMs},
+                     {{"io", fr.stats.ioMs},
+                      {"activate", fr.stats.activateMs},
+                      {"relight", fr.stats.relightMs},
                       {"shade", fr.shadeMs}});
     }
     visible += fr.visibleSamples;

@@ -20,21 +20,22 @@
 namespace lfgi::streaming {
 
 struct FlythroughOptions {
-  std::string path = "loop";     // "loop" (closed spline over the world) or "line" (west -> east)
-  float speed = 50.0f;           // m/s
-  float seconds = 60.0f;         // simulated
+  std::string path = "loop";  // "loop" (closed spline over the world) or "line" (west -> east)
+  float speed = 50.0f;        // m/s
+  float seconds = 60.0f;      // simulated
   float fps = 60.0f;
-  float altitude = 12.0f;        // m above y = 0
-  float pitchDeg = -12.0f;       // view pitch
+  float altitude = 12.0f;                 // m above y = 0
+  float pitchDeg = -12.0f;                // view pitch
   float todStart = 6.0f, todEnd = 20.0f;  // time-of-day sweep over the flight (hours)
-  float weatherStart = 0.0f, weatherEnd = 0.0f;  // overcast sweep over the flight, [0, 1] (FrameInput::weather)
+  float weatherStart = 0.0f,
+        weatherEnd = 0.0f;       // overcast sweep over the flight, [0, 1] (FrameInput::weather)
   float shadeDistance = 120.0f;  // m: visible samples farther away use the far-field fallback by design
   int sampleRaysX = 24, sampleRaysY = 12;  // view rays of the visible-sample grid (90 x 50 deg)
   // Pace frames to 1/fps of wall time (sleep the rest of each frame), so IO-thread loads and relights race
   // the real clock as in a game; off: frames run back to back (with IO threads, loads arrive late in
   // simulated time when frames are cheap: a pessimistic model).
   bool realtime = false;
-  bool preload = true;           // load everything around the start before the first frame (uncounted)
+  bool preload = true;  // load everything around the start before the first frame (uncounted)
   StreamingConfig streaming;
   // StreamingManager::onRelight for the flight: game-thread hook after a relit field is swapped in (the
   // re-decode itself is the source's relightInto, run by the manager); empty: none.
@@ -45,21 +46,21 @@ struct FlythroughOptions {
 
 struct FlythroughFrame {
   FrameStats stats;
-  int index = 0;             // flight frame, 0-based (stats.frame also counts preload updates)
+  int index = 0;  // flight frame, 0-based (stats.frame also counts preload updates)
   double timeS = 0.0;
   glm::vec3 position{0.0f};
   float timeOfDay = 0.0f;
   int visibleSamples = 0;
-  int fallbackSamples = 0;   // samples with fallback weight > 1 %
-  int missingSamples = 0;    // samples with no GI at all (must be 0)
-  double shadeMs = 0.0;      // CPU time sampling the visible points
-  double frameMs = 0.0;      // update + shade
+  int fallbackSamples = 0;  // samples with fallback weight > 1 %
+  int missingSamples = 0;   // samples with no GI at all (must be 0)
+  double shadeMs = 0.0;     // CPU time sampling the visible points
+  double frameMs = 0.0;     // update + shade
   double fallbackFraction() const { return visibleSamples ? double(fallbackSamples) / visibleSamples : 0.0; }
 };
 
 struct FlythroughSummary {
-  int frames = 0;             // frames flown (fewer than planned when interrupted)
-  bool interrupted = false;   // stopped by InterruptGuard (Ctrl-C)
+  int frames = 0;            // frames flown (fewer than planned when interrupted)
+  bool interrupted = false;  // stopped by InterruptGuard (Ctrl-C)
   int framesMissingGi = 0;
   double fallbackFraction = 0.0;  // over all visible samples of the run
   double p50FrameMs = 0.0, p95FrameMs = 0.0, p99FrameMs = 0.0;
@@ -90,6 +91,7 @@ double flightPathLength(const WorldLayout& layout, const FlythroughOptions& opti
 // first, so a bake of this list interrupted half way covers the first half of the flight). Only the path
 // matters (not speed, time or fps). `lfgi bake --path` bakes these; `radius` >= shadeDistance keeps every
 // visible sample on baked cells. Throws lfgi::Error for a bad path name or radius < 0.
-std::vector<glm::ivec2> flightPathCells(const WorldLayout& layout, const FlythroughOptions& options, float radius);
+std::vector<glm::ivec2> flightPathCells(const WorldLayout& layout, const FlythroughOptions& options,
+                                        float radius);
 
 }  // namespace lfgi::streaming

@@ -104,16 +104,20 @@ TEST(Flythrough, PathCellsCoverEveryCameraPositionAndNothingFar) {
       for (int z = 0; z < layout.cells.y; ++z)
         for (int x = 0; x < layout.cells.x; ++x)
           if (layout.distanceToCell(p, {x, z}) <= radius - 0.5f) {
-            EXPECT_TRUE(set.count({x, z})) << path << ": cell " << x << "," << z << " at s = " << s << " missing";
+            EXPECT_TRUE(set.count({x, z}))
+                << path << ": cell " << x << "," << z << " at s = " << s << " missing";
             near.insert({x, z});
           } else if (layout.distanceToCell(p, {x, z}) <= radius + 0.5f) {
             near.insert({x, z});
           }
     }
     // ... and nothing farther: every listed cell is within the radius of some point of the path.
-    for (auto c : set) EXPECT_TRUE(near.count(c)) << path << ": cell " << c.first << "," << c.second << " is far from the path";
+    for (auto c : set)
+      EXPECT_TRUE(near.count(c)) << path << ": cell " << c.first << "," << c.second
+                                 << " is far from the path";
     // A wider radius lists a superset; radius 0 lists only the cells the path crosses.
-    const std::vector<glm::ivec2> wide = flightPathCells(layout, o, 2.0f * radius), crossed = flightPathCells(layout, o, 0.0f);
+    const std::vector<glm::ivec2> wide = flightPathCells(layout, o, 2.0f * radius),
+                                  crossed = flightPathCells(layout, o, 0.0f);
     EXPECT_GT(wide.size(), cells.size()) << path;
     EXPECT_LT(crossed.size(), cells.size()) << path;
   }

@@ -21,10 +21,11 @@ size_t rawFloatsPerProbe(const GeneratorArch& a) {
   return size_t(a.outChannels()) * R * R;
 }
 
-void checkSizes(const GeneratorArch& a, std::span<const float> latents, std::span<const float> cond, size_t count,
-                const char* backend) {
+void checkSizes(const GeneratorArch& a, std::span<const float> latents, std::span<const float> cond,
+                size_t count, const char* backend) {
   if (latents.size() != count * size_t(a.latentDim))
-    fail("{} generator backend: {} latent floats for {} probes of {}", backend, latents.size(), count, a.latentDim);
+    fail("{} generator backend: {} latent floats for {} probes of {}", backend, latents.size(), count,
+         a.latentDim);
   if (cond.size() != size_t(a.condDim))
     fail("{} generator backend: {} conditioning floats, the model takes {}", backend, cond.size(), a.condDim);
 }
@@ -33,9 +34,12 @@ void checkSizes(const GeneratorArch& a, std::span<const float> latents, std::spa
 
 const char* decoderChoiceName(DecoderChoice choice) {
   switch (choice) {
-    case DecoderChoice::Cpu: return "cpu";
-    case DecoderChoice::Gpu: return "gpu";
-    case DecoderChoice::Auto: return "auto";
+    case DecoderChoice::Cpu:
+      return "cpu";
+    case DecoderChoice::Gpu:
+      return "gpu";
+    case DecoderChoice::Auto:
+      return "auto";
   }
   return "?";
 }
@@ -47,8 +51,8 @@ DecoderChoice parseDecoderChoice(const std::string& text) {
   fail("decoder '{}': expected cpu, gpu or auto", text);
 }
 
-void CpuGeneratorBackend::decode(const ModelRef& model, std::span<const float> latents, std::span<const float> cond,
-                                 size_t count, const RawBatchSink& sink) {
+void CpuGeneratorBackend::decode(const ModelRef& model, std::span<const float> latents,
+                                 std::span<const float> cond, size_t count, const RawBatchSink& sink) {
   const GeneratorArch& a = model.weights.arch;
   checkSizes(a, latents, cond, count, "cpu");
   GeneratorCpu decoder(model.weights);
@@ -90,7 +94,9 @@ GpuGeneratorBackend::~GpuGeneratorBackend() {
   pass_.reset();
 }
 
-std::string GpuGeneratorBackend::deviceName() const { return ctx_->info.name; }
+std::string GpuGeneratorBackend::deviceName() const {
+  return ctx_->info.name;
+}
 
 uint64_t GpuGeneratorBackend::bufferAllocations() const {
   const std::lock_guard lock(mutex_);
@@ -119,7 +125,8 @@ GpuGeneratorBackend::Batch& GpuGeneratorBackend::batchFor(const GeneratorArch& a
   std::unique_ptr<Batch>* slot = nullptr;
   for (auto& b : batches_)
     if (b->arch.layers() == arch.layers()) slot = &b;
-  if (slot && scratchFits((*slot)->arch, arch) && (*slot)->latentFloats >= L && (*slot)->rawFloats >= per) return **slot;
+  if (slot && scratchFits((*slot)->arch, arch) && (*slot)->latentFloats >= L && (*slot)->rawFloats >= per)
+    return **slot;
   auto b = std::make_unique<Batch>();
   b->arch = arch;
   b->capacity = cap;
@@ -165,13 +172,14 @@ std::shared_ptr<gpu::GeneratorGpuModel> GpuGeneratorBackend::modelFor(const Mode
   return model;
 }
 
-void GpuGeneratorBackend::decode(const ModelRef& model, std::span<const float> latents, std::span<const float> cond,
-                                 size_t count, const RawBatchSink& sink) {
+void GpuGeneratorBackend::decode(const ModelRef& model, std::span<const float> latents,
+                                 std::span<const float> cond, size_t count, const RawBatchSink& sink) {
   const GeneratorArch& a = model.weights.arch;
   checkSizes(a, latents, cond, count, "gpu");
   if (count == 0) return;
   const size_t L = size_t(a.latentDim), per = rawFloatsPerProbe(a);
-  const gpu::GeneratorKernel kernel = options_.tiledKernel ? gpu::GeneratorKernel::Tiled : gpu::GeneratorKernel::RowStrip;
+  const gpu::GeneratorKernel kernel =
+      options_.tiledKernel ? gpu::GeneratorKernel::Tiled : gpu::GeneratorKernel::RowStrip;
   // The device part of each batch under the mutex; the raw outputs are copied out so that the sink's
   // post-processing runs unlocked (another thread's batch may use the device meanwhile).
   thread_local std::vector<float> raw;
@@ -184,7 +192,8 @@ void GpuGeneratorBackend::decode(const ModelRef& model, std::span<const float> l
       if (!gm) gm = modelFor(model);
       Batch& b = batchFor(a);
       n = uint32_t(std::min<size_t>(b.capacity, count - p0));
-      const VkDeviceSize latBytes = VkDeviceSize(n) * L * sizeof(float), outBytes = VkDeviceSize(n) * per * sizeof(float);
+      const VkDeviceSize latBytes = VkDeviceSize(n) * L * sizeof(float),
+                         outBytes = VkDeviceSize(n) * per * sizeof(float);
       std::copy_n(latents.data() + p0 * L, size_t(n) * L, static_cast<float*>(b.latentUpload.mapped()));
       gpu::submitAndWait(*ctx_, [&](VkCommandBuffer cmd) {
         const VkBufferCopy up{0, 0, latBytes};
@@ -222,8 +231,9 @@ uint64_t generatorModelKey(const GeneratorWeights& w) {
   return h == 0 ? 1 : h;
 }
 
-double measureProbesPerSecond(GeneratorBackend& backend, const ModelRef& model, std::span<const float> latents,
-                              std::span<const float> cond, size_t count, int reps) {
+double measureProbesPerSecond(GeneratorBackend& backend, const ModelRef& model,
+                              std::span<const float> latents, std::span<const float> cond, size_t count,
+                              int reps) {
   const RawBatchSink none = [](size_t, size_t, std::span<const float>) {};
   backend.decode(model, latents, cond, count, none);  // warm-up: pipelines, buffers, caches
   double best = 1e30;
@@ -236,8 +246,9 @@ double measureProbesPerSecond(GeneratorBackend& backend, const ModelRef& model, 
 }
 
 std::unique_ptr<GeneratorBackend> chooseGeneratorBackend(DecoderChoice choice, const GeneratorWeights* model,
-                                                         std::span<const float> latents, std::span<const float> cond,
-                                                         size_t count, DecoderSelection& sel,
+                                                         std::span<const float> latents,
+                                                         std::span<const float> cond, size_t count,
+                                                         DecoderSelection& sel,
                                                          const GpuBackendOptions& gpuOptions) {
   sel = {};
   sel.requested = choice;
@@ -276,7 +287,8 @@ std::unique_ptr<GeneratorBackend> chooseGeneratorBackend(DecoderChoice choice, c
   // 512 .. 2048 probes: a cell's worth (a smaller cell's latents repeat), so fixed per-call costs (thread
   // start-up, one submission) weigh as they do in a load.
   const size_t L = size_t(model->arch.latentDim);
-  if (count == 0 || latents.size() < count * L) fail("decoder auto: {} latent floats for {} probes", latents.size(), count);
+  if (count == 0 || latents.size() < count * L)
+    fail("decoder auto: {} latent floats for {} probes", latents.size(), count);
   const size_t n = std::clamp<size_t>(count, 512, 2048);
   std::vector<float> z(n * L);
   for (size_t i = 0; i < n; ++i) std::copy_n(latents.data() + (i % count) * L, L, z.data() + i * L);

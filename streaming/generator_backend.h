@@ -71,16 +71,16 @@ class GeneratorBackend {
   virtual const char* name() const = 0;  // "cpu" | "gpu"
   // Decodes `count` probes (latents: count * latentDim floats, cond: condDim floats for all of them) and
   // hands every batch to sink in probe order. Throws lfgi::Error on size mismatches or device errors.
-  virtual void decode(const ModelRef& model, std::span<const float> latents, std::span<const float> cond, size_t count,
-                      const RawBatchSink& sink) = 0;
+  virtual void decode(const ModelRef& model, std::span<const float> latents, std::span<const float> cond,
+                      size_t count, const RawBatchSink& sink) = 0;
 };
 
 class CpuGeneratorBackend final : public GeneratorBackend {
  public:
   const char* name() const override { return "cpu"; }
   // Batches of whole GeneratorCpu chunks, ~1024 probes.
-  void decode(const ModelRef& model, std::span<const float> latents, std::span<const float> cond, size_t count,
-              const RawBatchSink& sink) override;
+  void decode(const ModelRef& model, std::span<const float> latents, std::span<const float> cond,
+              size_t count, const RawBatchSink& sink) override;
 };
 
 struct GpuBackendOptions {
@@ -101,8 +101,8 @@ class GpuGeneratorBackend final : public GeneratorBackend {
   GpuGeneratorBackend& operator=(const GpuGeneratorBackend&) = delete;
 
   const char* name() const override { return "gpu"; }
-  void decode(const ModelRef& model, std::span<const float> latents, std::span<const float> cond, size_t count,
-              const RawBatchSink& sink) override;
+  void decode(const ModelRef& model, std::span<const float> latents, std::span<const float> cond,
+              size_t count, const RawBatchSink& sink) override;
 
   gpu::Context& context() { return *ctx_; }
   std::string deviceName() const;
@@ -117,7 +117,7 @@ class GpuGeneratorBackend final : public GeneratorBackend {
     std::shared_ptr<gpu::GeneratorGpuModel> model;
   };
   std::shared_ptr<gpu::GeneratorGpuModel> modelFor(const ModelRef& ref);  // mutex_ held
-  Batch& batchFor(const GeneratorArch& arch);  // mutex_ held
+  Batch& batchFor(const GeneratorArch& arch);                             // mutex_ held
 
   GpuBackendOptions options_;
   std::unique_ptr<gpu::Context> owned_;
@@ -136,8 +136,8 @@ struct DecoderSelection {
   std::string device;           // the Vulkan device's name when a GPU backend exists, else empty
   double cpuProbesPerS = 0.0;   // raw network decode rate measured (Auto only; 0: not measured)
   double gpuProbesPerS = 0.0;
-  size_t measuredProbes = 0;    // probes per timed decode
-  std::string reason;           // why this backend (measured rates, forced, or the fallback's reason)
+  size_t measuredProbes = 0;  // probes per timed decode
+  std::string reason;         // why this backend (measured rates, forced, or the fallback's reason)
 };
 
 // Builds the backend for `choice`:
@@ -148,12 +148,14 @@ struct DecoderSelection {
 //     tried and the reason says so.
 // selection receives what was measured and picked.
 std::unique_ptr<GeneratorBackend> chooseGeneratorBackend(DecoderChoice choice, const GeneratorWeights* model,
-                                                         std::span<const float> latents, std::span<const float> cond,
-                                                         size_t count, DecoderSelection& selection,
+                                                         std::span<const float> latents,
+                                                         std::span<const float> cond, size_t count,
+                                                         DecoderSelection& selection,
                                                          const GpuBackendOptions& gpuOptions = {});
 
 // Probes/s of backend's raw decode of count probes (one untimed warm-up decode, then the best of `reps`).
-double measureProbesPerSecond(GeneratorBackend& backend, const ModelRef& model, std::span<const float> latents,
-                              std::span<const float> cond, size_t count, int reps = 2);
+double measureProbesPerSecond(GeneratorBackend& backend, const ModelRef& model,
+                              std::span<const float> latents, std::span<const float> cond, size_t count,
+                              int reps = 2);
 
 }  // namespace lfgi::streaming

@@ -58,8 +58,9 @@ Visible sampleVisible(const StreamingManager& m, glm::vec3 cam) {
   Visible v;
   for (int j = 0; j < 6; ++j)
     for (int i = -3; i <= 2; ++i) {
-      const IrradianceSample s = m.sample(glm::vec3(cam.x + 10.0f * float(i), 0.5f, cam.z + 10.0f + 10.0f * float(j)),
-                                          glm::vec3(0.0f, 1.0f, 0.0f));
+      const IrradianceSample s =
+          m.sample(glm::vec3(cam.x + 10.0f * float(i), 0.5f, cam.z + 10.0f + 10.0f * float(j)),
+                   glm::vec3(0.0f, 1.0f, 0.0f));
       ++v.samples;
       v.fallback += s.fallbackWeight > 0.01f;
       v.missing += s.missing;
@@ -100,7 +101,7 @@ BurstRun runBurst(int ioThreads, int burstFrames, int normalFrames, bool sleepPe
   r.requestsPerFrameBurst = double(requests) / double(burstFrames);
   requests = 0;
   const glm::vec3 v(0.0f, 0.0f, 50.0f);  // a normal flight: 50 m/s north
-  p.z = std::min(p.z, 600.0f);            // room to fly
+  p.z = std::min(p.z, 600.0f);           // room to fly
   for (int f = 0; f < normalFrames; ++f) {
     check(m.update(frameAt(p, v)));
     const Visible vis = sampleVisible(m, p);
@@ -120,9 +121,10 @@ BurstRun runBurst(int ioThreads, int burstFrames, int normalFrames, bool sleepPe
 
 TEST(StreamingBurst, TeleportEveryFrameStaysInBudgetAndRecoversInBoundedFrames) {
   const BurstRun r = runBurst(0, 240, 1200, false);
-  std::printf("[ measure  ] burst (inline IO, 4 loads/frame): %.2f requests/frame during the burst vs %.3f in normal "
-              "flight; fallback < 1 %% after %d frames; peak %zu bytes\n",
-              r.requestsPerFrameBurst, r.requestsPerFrameNormal, r.recoveryFrames, r.peakBytes);
+  std::printf(
+      "[ measure  ] burst (inline IO, 4 loads/frame): %.2f requests/frame during the burst vs %.3f in normal "
+      "flight; fallback < 1 %% after %d frames; peak %zu bytes\n",
+      r.requestsPerFrameBurst, r.requestsPerFrameNormal, r.recoveryFrames, r.peakBytes);
   // The burst is a real burst: >= 10x the normal flight's request rate.
   EXPECT_GE(r.requestsPerFrameBurst, 10.0 * r.requestsPerFrameNormal);
   EXPECT_EQ(r.missing, 0);
@@ -140,7 +142,8 @@ TEST(StreamingBurst, ThreadedIoUnderBurstKeepsBudgetAndEventuallyRecovers) {
   // IO threads with 0.3 ms loads: arrival frames depend on timing, so only the invariants (budget, no
   // missing GI) and eventual recovery are asserted (1200 frames of >= 1 ms each is >= 100x the IO work).
   const BurstRun r = runBurst(2, 120, 1200, true);
-  std::printf("[ measure  ] burst (2 IO threads, 0.3 ms loads): fallback < 1 %% after %d frames\n", r.recoveryFrames);
+  std::printf("[ measure  ] burst (2 IO threads, 0.3 ms loads): fallback < 1 %% after %d frames\n",
+              r.recoveryFrames);
   EXPECT_EQ(r.missing, 0);
   EXPECT_GT(r.recoveryFrames, 0) << "never back under 1 % fallback";
 }

@@ -29,21 +29,30 @@ float hoursApart(float a, float b) {
 void StreamingConfig::validate() const {
   if (!(decodeRadius > 0.0f)) fail("StreamingConfig.decodeRadius = {} must be > 0", decodeRadius);
   if (!(keepRadius >= decodeRadius))
-    fail("StreamingConfig.keepRadius = {} must be >= decodeRadius = {} (hysteresis)", keepRadius, decodeRadius);
+    fail("StreamingConfig.keepRadius = {} must be >= decodeRadius = {} (hysteresis)", keepRadius,
+         decodeRadius);
   if (!(prefetchSeconds >= 0.0f)) fail("StreamingConfig.prefetchSeconds = {} must be >= 0", prefetchSeconds);
-  if (!(maxPrefetchDistance >= 0.0f)) fail("StreamingConfig.maxPrefetchDistance = {} must be >= 0", maxPrefetchDistance);
-  if (!(viewWeight >= 0.0f && viewWeight < 1.0f)) fail("StreamingConfig.viewWeight = {} outside [0, 1)", viewWeight);
+  if (!(maxPrefetchDistance >= 0.0f))
+    fail("StreamingConfig.maxPrefetchDistance = {} must be >= 0", maxPrefetchDistance);
+  if (!(viewWeight >= 0.0f && viewWeight < 1.0f))
+    fail("StreamingConfig.viewWeight = {} outside [0, 1)", viewWeight);
   if (ioThreads < 0 || ioThreads > 64) fail("StreamingConfig.ioThreads = {} outside [0, 64]", ioThreads);
   if (maxIoInFlight < 1) fail("StreamingConfig.maxIoInFlight = {} must be >= 1", maxIoInFlight);
-  if (maxInlineLoadsPerFrame < 1) fail("StreamingConfig.maxInlineLoadsPerFrame = {} must be >= 1", maxInlineLoadsPerFrame);
-  if (maxActivationsPerFrame < 1) fail("StreamingConfig.maxActivationsPerFrame = {} must be >= 1", maxActivationsPerFrame);
-  if (!(activateBudgetMs >= 0.0)) fail("StreamingConfig.activateBudgetMs = {} must be >= 0", activateBudgetMs);
+  if (maxInlineLoadsPerFrame < 1)
+    fail("StreamingConfig.maxInlineLoadsPerFrame = {} must be >= 1", maxInlineLoadsPerFrame);
+  if (maxActivationsPerFrame < 1)
+    fail("StreamingConfig.maxActivationsPerFrame = {} must be >= 1", maxActivationsPerFrame);
+  if (!(activateBudgetMs >= 0.0))
+    fail("StreamingConfig.activateBudgetMs = {} must be >= 0", activateBudgetMs);
   if (!(fadeSeconds >= 0.0f)) fail("StreamingConfig.fadeSeconds = {} must be >= 0", fadeSeconds);
-  if (maxRelightsPerFrame < 0) fail("StreamingConfig.maxRelightsPerFrame = {} must be >= 0", maxRelightsPerFrame);
-  if (maxRelightsInFlight < 1) fail("StreamingConfig.maxRelightsInFlight = {} must be >= 1", maxRelightsInFlight);
+  if (maxRelightsPerFrame < 0)
+    fail("StreamingConfig.maxRelightsPerFrame = {} must be >= 0", maxRelightsPerFrame);
+  if (maxRelightsInFlight < 1)
+    fail("StreamingConfig.maxRelightsInFlight = {} must be >= 1", maxRelightsInFlight);
   if (!(relightThresholdWeather >= 0.0f))
     fail("StreamingConfig.relightThresholdWeather = {} must be >= 0", relightThresholdWeather);
-  if (!(relightFadeSeconds >= 0.0f)) fail("StreamingConfig.relightFadeSeconds = {} must be >= 0", relightFadeSeconds);
+  if (!(relightFadeSeconds >= 0.0f))
+    fail("StreamingConfig.relightFadeSeconds = {} must be >= 0", relightFadeSeconds);
 }
 
 StreamingManager::StreamingManager(CellSource& source, const StreamingConfig& config)
@@ -55,14 +64,16 @@ StreamingManager::StreamingManager(CellSource& source, const StreamingConfig& co
   const size_t staging = config_.maxRelightsPerFrame > 0 ? size_t(config_.maxRelightsInFlight) : 0;
   const size_t total = config_.memoryBudgetBytes / cellBytes;
   if (total < 1 + staging)
-    fail("StreamingConfig.memoryBudgetBytes = {} is smaller than one cell plus {} relight staging field(s) "
-         "({} bytes each; see maxRelightsInFlight)",
-         config_.memoryBudgetBytes, staging, cellBytes);
+    fail(
+        "StreamingConfig.memoryBudgetBytes = {} is smaller than one cell plus {} relight staging field(s) "
+        "({} bytes each; see maxRelightsInFlight)",
+        config_.memoryBudgetBytes, staging, cellBytes);
   const size_t slots = total - staging;
   const size_t cells = size_t(layout_.cells.x) * size_t(layout_.cells.y);
   fallback_.resize(cells);
   for (int z = 0; z < layout_.cells.y; ++z)
-    for (int x = 0; x < layout_.cells.x; ++x) fallback_[size_t(layout_.linear({x, z}))] = source_.fallback({x, z});
+    for (int x = 0; x < layout_.cells.x; ++x)
+      fallback_[size_t(layout_.linear({x, z}))] = source_.fallback({x, z});
   cellSlot_.assign(cells, -1);
   failed_.assign(cells, 0);
   slots_.resize(slots);
@@ -89,11 +100,13 @@ float StreamingManager::priorityOf(glm::ivec2 cell, const FrameInput& in, glm::v
   // A cell near the prediction counts as if it were half the look-ahead farther away: the camera's own
   // surroundings come first, what lies ahead next.
   const float lookahead = glm::length(predicted - in.position);
-  float d = std::min(layout_.distanceToCell(in.position, cell), layout_.distanceToCell(predicted, cell) + 0.5f * lookahead);
+  float d = std::min(layout_.distanceToCell(in.position, cell),
+                     layout_.distanceToCell(predicted, cell) + 0.5f * lookahead);
   glm::vec2 centre = layout_.cellMin(cell) + 0.5f * layout_.cellSize;
   glm::vec2 to = centre - glm::vec2(in.position.x, in.position.z), view(in.direction.x, in.direction.z);
   float cosView = 0.0f;
-  if (glm::length(to) > 1e-3f && glm::length(view) > 1e-3f) cosView = glm::dot(glm::normalize(to), glm::normalize(view));
+  if (glm::length(to) > 1e-3f && glm::length(view) > 1e-3f)
+    cosView = glm::dot(glm::normalize(to), glm::normalize(view));
   return d * (1.0f - config_.viewWeight * std::max(0.0f, cosView));
 }
 
@@ -103,8 +116,8 @@ void StreamingManager::runLoad(int s) {
   try {
     source_.load(slot.cell, slot.field);
     if (slot.field.bytes() > source_.maxCellBytes())
-      fail("cell {},{}: {} bytes exceed the source's slot size {}", slot.cell.x, slot.cell.y, slot.field.bytes(),
-           source_.maxCellBytes());
+      fail("cell {},{}: {} bytes exceed the source's slot size {}", slot.cell.x, slot.cell.y,
+           slot.field.bytes(), source_.maxCellBytes());
   } catch (const std::exception& e) {
     slot.error = e.what();
     if (slot.error.empty()) slot.error = "unknown error";
@@ -143,8 +156,8 @@ void StreamingManager::finishRelight(int i, FrameStats& stats) {
     slot.cancelled = false;
     slot.fade = 0.0f;
   } else if (!st.error.empty()) {
-    spdlog::warn("streaming: relight of cell {},{} failed, keeping its lighting: {}", slot.cell.x, slot.cell.y,
-                 st.error);
+    spdlog::warn("streaming: relight of cell {},{} failed, keeping its lighting: {}", slot.cell.x,
+                 slot.cell.y, st.error);
     slot.litTimeOfDay = st.timeOfDay;  // no retry every frame: the next try waits for the next threshold
     slot.litWeather = st.weather;
   } else {
@@ -187,8 +200,10 @@ void StreamingManager::ioWorker() {
       s = ioQueue_.front();
       ioQueue_.pop_front();
     }
-    if (s >= 0) runLoad(s);
-    else runRelight(-1 - s);
+    if (s >= 0)
+      runLoad(s);
+    else
+      runRelight(-1 - s);
     {
       std::lock_guard lock(ioMutex_);
       ioDone_.push_back(s);
@@ -285,20 +300,23 @@ FrameStats StreamingManager::update(const FrameInput& in) {
   // fallbacks when it moved (a cheap interpolation per cell, game thread; no allocation).
   if (source_.fallbackFollowsTimeOfDay() && !(in.timeOfDayHours == fallbackTimeOfDay_)) {
     for (int z = 0; z < layout_.cells.y; ++z)
-      for (int x = 0; x < layout_.cells.x; ++x) fallback_[size_t(layout_.linear({x, z}))] = source_.fallback({x, z});
+      for (int x = 0; x < layout_.cells.x; ++x)
+        fallback_[size_t(layout_.linear({x, z}))] = source_.fallback({x, z});
     fallbackTimeOfDay_ = in.timeOfDayHours;
   }
   // Straight-line extrapolation, capped: on a curved path a long look-ahead lands off the path (at 400 m/s
   // on a 1.4 km radius loop, 2 s ahead is ~230 m off it) and would spend IO on cells never visited.
   glm::vec3 ahead = in.velocity * config_.prefetchSeconds;
-  if (float len = glm::length(ahead); len > config_.maxPrefetchDistance) ahead *= config_.maxPrefetchDistance / len;
+  if (float len = glm::length(ahead); len > config_.maxPrefetchDistance)
+    ahead *= config_.maxPrefetchDistance / len;
   const glm::vec3 predicted = in.position + ahead;
 
   // Fade in what is visible (before this frame's activations, which start at 0).
   for (size_t s = 0; s < slots_.size(); ++s) {
     Slot& slot = slots_[s];
     if (slot.state != SlotState::Active) continue;
-    slot.fade = config_.fadeSeconds > 0.0f ? std::min(1.0f, slot.fade + in.dtSeconds / config_.fadeSeconds) : 1.0f;
+    slot.fade =
+        config_.fadeSeconds > 0.0f ? std::min(1.0f, slot.fade + in.dtSeconds / config_.fadeSeconds) : 1.0f;
     // Relight cross-fade (swaps of this frame start at 0 below).
     if (slot.blendFrom >= 0) {
       slot.relightBlend = std::min(1.0f, slot.relightBlend + in.dtSeconds / config_.relightFadeSeconds);
@@ -310,7 +328,8 @@ FrameStats StreamingManager::update(const FrameInput& in) {
   for (size_t s = 0; s < slots_.size(); ++s) {
     Slot& slot = slots_[s];
     if (slot.state == SlotState::Free || slot.state == SlotState::Draining) continue;
-    float d = std::min(layout_.distanceToCell(in.position, slot.cell), layout_.distanceToCell(predicted, slot.cell));
+    float d = std::min(layout_.distanceToCell(in.position, slot.cell),
+                       layout_.distanceToCell(predicted, slot.cell));
     slot.priority = priorityOf(slot.cell, in, predicted);
     if (d <= config_.keepRadius) continue;
     if (slot.state == SlotState::Loading) {
@@ -326,7 +345,8 @@ FrameStats StreamingManager::update(const FrameInput& in) {
   wanted_.clear();
   const float r = config_.decodeRadius;
   glm::vec3 lo = glm::min(in.position, predicted) - r, hi = glm::max(in.position, predicted) + r;
-  glm::ivec2 c0 = glm::max(layout_.cellOf(lo), glm::ivec2(0)), c1 = glm::min(layout_.cellOf(hi), layout_.cells - 1);
+  glm::ivec2 c0 = glm::max(layout_.cellOf(lo), glm::ivec2(0)),
+             c1 = glm::min(layout_.cellOf(hi), layout_.cells - 1);
   for (int z = c0.y; z <= c1.y; ++z)
     for (int x = c0.x; x <= c1.x; ++x) {
       glm::ivec2 c{x, z};
@@ -340,7 +360,8 @@ FrameStats StreamingManager::update(const FrameInput& in) {
       wanted_.push_back({priorityOf(c, in, predicted), c});
     }
   std::sort(wanted_.begin(), wanted_.end(), [this](const Candidate& a, const Candidate& b) {
-    return a.priority != b.priority ? a.priority < b.priority : layout_.linear(a.cell) < layout_.linear(b.cell);
+    return a.priority != b.priority ? a.priority < b.priority
+                                    : layout_.linear(a.cell) < layout_.linear(b.cell);
   });
 
   int inFlight = 0;
@@ -380,7 +401,8 @@ FrameStats StreamingManager::update(const FrameInput& in) {
     if (n > 0 && msSince(ta) >= config_.activateBudgetMs) break;
     int best = -1;
     for (size_t s = 0; s < slots_.size(); ++s)
-      if (slots_[s].state == SlotState::Loaded && (best < 0 || slots_[s].priority < slots_[size_t(best)].priority))
+      if (slots_[s].state == SlotState::Loaded &&
+          (best < 0 || slots_[s].priority < slots_[size_t(best)].priority))
         best = int(s);
     if (best < 0) break;
     Slot& slot = slots_[size_t(best)];
@@ -410,7 +432,8 @@ FrameStats StreamingManager::update(const FrameInput& in) {
     int best = -1;
     for (size_t s = 0; s < slots_.size(); ++s) {
       const Slot& slot = slots_[s];
-      const bool stale = slot.stale || hoursApart(slot.litTimeOfDay, in.timeOfDayHours) > config_.relightThresholdHours ||
+      const bool stale = slot.stale ||
+                         hoursApart(slot.litTimeOfDay, in.timeOfDayHours) > config_.relightThresholdHours ||
                          std::fabs(slot.litWeather - in.weather) > config_.relightThresholdWeather;
       if (slot.state == SlotState::Active && slot.relight < 0 && slot.blendFrom < 0 && stale &&
           (best < 0 || slot.priority < slots_[size_t(best)].priority))
@@ -443,8 +466,10 @@ FrameStats StreamingManager::update(const FrameInput& in) {
     if (slot.state == SlotState::Active) ++stats.resident;
     if (slot.state == SlotState::Loading || slot.state == SlotState::Loaded) ++stats.loading;
     // A loading slot's field belongs to its IO thread: count it at the slot size (an upper bound).
-    if (slot.state == SlotState::Loading) stats.bytesResident += source_.maxCellBytes();
-    else if (slot.state != SlotState::Free) stats.bytesResident += slot.field.bytes();
+    if (slot.state == SlotState::Loading)
+      stats.bytesResident += source_.maxCellBytes();
+    else if (slot.state != SlotState::Free)
+      stats.bytesResident += slot.field.bytes();
   }
   // A staging field in use belongs to its IO thread (or holds a cross-fade's old lighting): count it at
   // the slot size too.
@@ -511,7 +536,8 @@ const ProbeField* StreamingManager::previousLighting(glm::ivec2 cell) const {
 }
 
 // The cell's value at p: full field blended with the (bilinear-over-cell-centres) fallback by fade.
-glm::vec3 StreamingManager::cellValue(glm::ivec2 cell, glm::vec3 p, glm::vec3 n, float& fallbackWeight) const {
+glm::vec3 StreamingManager::cellValue(glm::ivec2 cell, glm::vec3 p, glm::vec3 n,
+                                      float& fallbackWeight) const {
   // Fallback: bilinear between the irradiance of the 4 nearest cell centres (no step at borders).
   glm::vec2 g = (glm::vec2(p.x, p.z) - layout_.originXZ) / layout_.cellSize - 0.5f;
   glm::ivec2 b = glm::ivec2(glm::floor(g));

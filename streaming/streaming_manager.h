@@ -28,8 +28,8 @@
 //      maxRelightsInFlight / relightFadeSeconds.
 // Every cell's coarse fallback (SH L1, CellSource::fallback) is resident from construction on, so a point
 // inside the world is never without GI; a source whose fallback follows the time of day
-// (CellSource::fallbackFollowsTimeOfDay) has it re-read by update() whenever FrameInput's time moves. A cell whose load fails is logged, keeps its fallback and is
-// never requested again.
+// (CellSource::fallbackFollowsTimeOfDay) has it re-read by update() whenever FrameInput's time moves. A cell
+// whose load fails is logged, keeps its fallback and is never requested again.
 //
 // Seams: sample() interpolates across a cell border between the owning cell's last probe layer and the
 // neighbour's field at the border (or the neighbour's fallback if it is not resident), so neighbouring
@@ -62,16 +62,16 @@
 namespace lfgi::streaming {
 
 struct StreamingConfig {
-  float decodeRadius = 160.0f;        // m, xz distance to a cell's square
-  float keepRadius = 224.0f;          // m, > decodeRadius
-  float prefetchSeconds = 2.0f;       // predicted position = position + velocity * this,
-  float maxPrefetchDistance = 160.0f; // ... at most this far ahead (m)
-  float viewWeight = 0.5f;            // priority = distance * (1 - viewWeight * max(0, cos(view, to cell)))
+  float decodeRadius = 160.0f;         // m, xz distance to a cell's square
+  float keepRadius = 224.0f;           // m, > decodeRadius
+  float prefetchSeconds = 2.0f;        // predicted position = position + velocity * this,
+  float maxPrefetchDistance = 160.0f;  // ... at most this far ahead (m)
+  float viewWeight = 0.5f;             // priority = distance * (1 - viewWeight * max(0, cos(view, to cell)))
   size_t memoryBudgetBytes = size_t(256) << 20;
-  int ioThreads = 2;                  // 0: inline loads (deterministic)
-  int maxIoInFlight = 8;              // requests queued or loading at once
-  int maxInlineLoadsPerFrame = 4;     // ioThreads = 0 only
-  double activateBudgetMs = 2.0;      // per frame, game-thread time for onActivate
+  int ioThreads = 2;               // 0: inline loads (deterministic)
+  int maxIoInFlight = 8;           // requests queued or loading at once
+  int maxInlineLoadsPerFrame = 4;  // ioThreads = 0 only
+  double activateBudgetMs = 2.0;   // per frame, game-thread time for onActivate
   int maxActivationsPerFrame = 8;
   float fadeSeconds = 0.5f;
   float relightThresholdHours = 0.25f;
@@ -83,12 +83,12 @@ struct StreamingConfig {
   // A freshly activated cell is stale at once (relit at the first chance): for relights that are better
   // than the load's lighting (VIR relight of codec cells at an unseen time or weather).
   bool relightOnActivate = false;
-  int maxRelightsPerFrame = 1;        // relights started per frame (0: no relight)
-  int maxRelightsInFlight = 1;        // staging fields (each maxCellBytes of the budget)
+  int maxRelightsPerFrame = 1;  // relights started per frame (0: no relight)
+  int maxRelightsInFlight = 1;  // staging fields (each maxCellBytes of the budget)
   // IO threads: start no relight while a load is in flight (loads fill holes, relights only refresh;
   // on 2 IO threads a relight would otherwise halve the load bandwidth of a fast flight).
   bool relightsYieldToLoads = true;
-  bool recordEvents = false;          // keep an event log (tests, profiler)
+  bool recordEvents = false;  // keep an event log (tests, profiler)
   // Throws lfgi::Error naming the bad field.
   void validate() const;
 };
@@ -104,8 +104,8 @@ struct FrameInput {
 
 struct FrameStats {
   uint64_t frame = 0;
-  int resident = 0;          // active (visible) cells
-  int loading = 0;           // queued, loading or loaded-not-yet-active
+  int resident = 0;  // active (visible) cells
+  int loading = 0;   // queued, loading or loaded-not-yet-active
   int requested = 0, activated = 0, evicted = 0, relit = 0, failed = 0;  // this frame (relit: swapped in)
   int relighting = 0;        // relights started and not yet swapped in / dropped
   int relightBlending = 0;   // cells cross-fading from their previous lighting (relightFadeSeconds)
@@ -180,24 +180,24 @@ class StreamingManager {
     float fade = 0.0f;
     float litTimeOfDay = 0.0f;
     float litWeather = 0.0f;
-    bool stale = false;       // relightOnActivate: relight at the first chance
-    int blendFrom = -1;       // staging index holding the lighting before the last swap, or -1
+    bool stale = false;  // relightOnActivate: relight at the first chance
+    int blendFrom = -1;  // staging index holding the lighting before the last swap, or -1
     float relightBlend = 1.0f;
     float priority = 0.0f;
     bool cancelled = false;
-    int relight = -1;    // staging index of the relight reading this slot's field, or -1
-    std::string error;   // set by the IO thread on failure
+    int relight = -1;   // staging index of the relight reading this slot's field, or -1
+    std::string error;  // set by the IO thread on failure
     double ioMs = 0.0;
   };
   struct Staging {
     bool busy = false;
-    bool blending = false;   // holds slot `slot`'s previous lighting for the relight cross-fade
+    bool blending = false;  // holds slot `slot`'s previous lighting for the relight cross-fade
     int slot = -1;
     float timeOfDay = 0.0f;
     float weather = 0.0f;
     bool cancelled = false;  // the slot was evicted: drop the result
     ProbeField field;
-    std::string error;       // set by the IO thread on failure
+    std::string error;  // set by the IO thread on failure
     double ioMs = 0.0;
   };
   struct Candidate {
@@ -222,9 +222,10 @@ class StreamingManager {
   StreamingConfig config_;
   WorldLayout layout_;
   std::vector<ShL1> fallback_;
-  float fallbackTimeOfDay_ = std::numeric_limits<float>::quiet_NaN();  // fallback_ read at (NaN: not since construction)
-  std::vector<int32_t> cellSlot_;  // per cell: slot index or -1
-  std::vector<uint8_t> failed_;    // per cell
+  float fallbackTimeOfDay_ =
+      std::numeric_limits<float>::quiet_NaN();  // fallback_ read at (NaN: not since construction)
+  std::vector<int32_t> cellSlot_;               // per cell: slot index or -1
+  std::vector<uint8_t> failed_;                 // per cell
   std::vector<Slot> slots_;
   std::vector<Staging> staging_;
   std::vector<Candidate> wanted_;  // reused every frame

@@ -161,7 +161,8 @@ TEST(StreamingManager, NeighbouringCellsAgreeAtTheirBorder) {
     }
   }
   // Corner of four cells, approached from inside the lower-left one.
-  IrradianceSample a = m.sample({512.0f - 1e-3f, 6.0f, 512.0f - 1e-3f}, {0, 1, 0}), b = m.sample({512, 6, 512}, {0, 1, 0});
+  IrradianceSample a = m.sample({512.0f - 1e-3f, 6.0f, 512.0f - 1e-3f}, {0, 1, 0}),
+                   b = m.sample({512, 6, 512}, {0, 1, 0});
   EXPECT_NEAR(a.irradiance.y, b.irradiance.y, 1e-3f * b.irradiance.y);
 }
 
@@ -188,8 +189,9 @@ TEST(StreamingManager, VelocityPrefetchRequestsCellsAhead) {
   c.prefetchSeconds = 3.0f;
   c.maxPrefetchDistance = 400.0f;
   StreamingManager m(source, c);
-  for (int f = 0; f < 10; ++f) m.update(at({100.0f, 20.0f, 500.0f}, {100.0f, 0.0f, 0.0f}));  // predicted x = 400
-  EXPECT_TRUE(m.isResident({6, 7}));   // x 384..448: 284 m ahead of the camera, near the prediction
+  for (int f = 0; f < 10; ++f)
+    m.update(at({100.0f, 20.0f, 500.0f}, {100.0f, 0.0f, 0.0f}));  // predicted x = 400
+  EXPECT_TRUE(m.isResident({6, 7}));  // x 384..448: 284 m ahead of the camera, near the prediction
   StreamingManager still(source, inlineConfig());
   for (int f = 0; f < 10; ++f) still.update(at({100.0f, 20.0f, 500.0f}));
   EXPECT_FALSE(still.isResident({6, 7}));

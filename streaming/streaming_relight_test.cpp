@@ -146,7 +146,9 @@ TEST(StreamingRelight, RelightRunsOffTheGameThreadAndOldLightingShadesMeanwhile)
   c.maxRelightsPerFrame = 2;
   StreamingManager m(source, c);
   std::vector<std::thread::id> onRelightThreads;
-  m.onRelight = [&](glm::ivec2, ProbeField&, float) { onRelightThreads.push_back(std::this_thread::get_id()); };
+  m.onRelight = [&](glm::ivec2, ProbeField&, float) {
+    onRelightThreads.push_back(std::this_thread::get_id());
+  };
   const glm::vec3 p(300.0f, 5.0f, 300.0f), up(0.0f, 1.0f, 0.0f);
   settle(m, p, 8.0f);
   const glm::vec3 before = m.sample(p, up).irradiance;
@@ -202,7 +204,8 @@ TEST(StreamingRelight, EvictionDuringARelightIsSafe) {
   settle(m, p, 14.0f);
   EXPECT_TRUE(m.isResident(relitCell));
   const glm::vec3 e = m.sample(p, up).irradiance;
-  EXPECT_NEAR(e.x, source.inner().timeOfDayScale(14.0f) * SyntheticCellSource::exactIrradiance(p, up).x, 0.02f * e.x);
+  EXPECT_NEAR(e.x, source.inner().timeOfDayScale(14.0f) * SyntheticCellSource::exactIrradiance(p, up).x,
+              0.02f * e.x);
   s = m.update(at(p, 14.0f));
   EXPECT_EQ(s.bytesResident, size_t(s.resident) * source.maxCellBytes());
 }
@@ -273,7 +276,8 @@ TEST(StreamingRelight, RelightsYieldToLoadsInFlight) {
     StreamingManager m(source, c);
     const glm::vec3 p(300.0f, 5.0f, 300.0f);
     settle(m, p, 8.0f);
-    FrameStats s = m.update(at(p + glm::vec3(64.0f, 0.0f, 0.0f), 14.0f));  // a new column of cells + stale ones
+    FrameStats s =
+        m.update(at(p + glm::vec3(64.0f, 0.0f, 0.0f), 14.0f));  // a new column of cells + stale ones
     ASSERT_GT(s.requested, 0);
     EXPECT_EQ(s.relighting, yield ? 0 : 1);
     m.drainIo();

@@ -19,7 +19,9 @@ namespace lfgi::streaming {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
 
 constexpr size_t kMaxRecords = 512;  // seed records kept (cells); the oldest is dropped beyond
 
@@ -67,7 +69,8 @@ void VirRelightOptions::validate() const {
   worlds::validateSkyState(sky);
   if (!(weather >= 0.0f && weather <= 1.0f)) fail("VirRelightOptions.weather = {} outside [0, 1]", weather);
   if (frames < 1 || frames > 64) fail("VirRelightOptions.frames = {} outside [1, 64]", frames);
-  if (seededFrames < 1 || seededFrames > 64) fail("VirRelightOptions.seededFrames = {} outside [1, 64]", seededFrames);
+  if (seededFrames < 1 || seededFrames > 64)
+    fail("VirRelightOptions.seededFrames = {} outside [1, 64]", seededFrames);
   if (!(maxRange > 0.0f)) fail("VirRelightOptions.maxRange = {} must be > 0", maxRange);
 }
 
@@ -83,7 +86,8 @@ VirRelightSource::VirRelightSource(CellSource& inner, gpu::Context& ctx, VirReli
 VirRelightSource::~VirRelightSource() = default;
 
 void VirRelightSource::setWeather(float overcast) {
-  if (!(overcast >= 0.0f && overcast <= 1.0f)) fail("VirRelightSource: weather (overcast) {} outside [0, 1]", overcast);
+  if (!(overcast >= 0.0f && overcast <= 1.0f))
+    fail("VirRelightSource: weather (overcast) {} outside [0, 1]", overcast);
   weather_.store(overcast);
 }
 
@@ -127,8 +131,10 @@ std::shared_ptr<const CellSurfels> VirRelightSource::surfelsOf(glm::ivec2 cell) 
 void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out,
                                           float timeOfDayHours, float weather) {
   const WorldLayout lay = inner_.layout();
-  if (!lay.contains(cell)) fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, lay.cells.x, lay.cells.y);
-  if (!(weather >= 0.0f && weather <= 1.0f)) fail("cell {},{}: weather (overcast) {} outside [0, 1]", cell.x, cell.y, weather);
+  if (!lay.contains(cell))
+    fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, lay.cells.x, lay.cells.y);
+  if (!(weather >= 0.0f && weather <= 1.0f))
+    fail("cell {},{}: weather (overcast) {} outside [0, 1]", cell.x, cell.y, weather);
   const auto t0 = Clock::now();
   worlds::SkyState state = options_.sky;
   state.timeOfDayHours = std::clamp(std::fmod(std::fmod(timeOfDayHours, 24.0f) + 24.0f, 24.0f), 0.0f, 24.0f);
@@ -140,23 +146,25 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
   const size_t n2 = size_t(n) * size_t(n), m2 = size_t(m) * size_t(m);
   if (current.irradiance.size() != count * m2 * 3 || current.distance.size() != count * n2 * 2 ||
       current.radiance.size() != count * n2 * 3)
-    fail("cell {},{}: the resident field's arrays do not match its grid ({} probes, n {}, m {})", cell.x, cell.y, count,
-         n, m);
+    fail("cell {},{}: the resident field's arrays do not match its grid ({} probes, n {}, m {})", cell.x,
+         cell.y, count, n, m);
 
   std::lock_guard gpuLock(gpuMutex_);
   std::shared_ptr<const CellSurfels> cs = surfelsOf(cell);
   std::span<const glm::vec3> offsets;
-  if (cs->offsets.size() == count) offsets = cs->offsets;
+  if (cs->offsets.size() == count)
+    offsets = cs->offsets;
   else if (!cs->offsets.empty())
-    spdlog::warn("streaming: cell {},{}: {} probe offsets for a grid of {} probes, relit at lattice points", cell.x,
-                 cell.y, cs->offsets.size(), count);
+    spdlog::warn("streaming: cell {},{}: {} probe offsets for a grid of {} probes, relit at lattice points",
+                 cell.x, cell.y, cs->offsets.size(), count);
 
   // Seed: current is our own last result for this cell -> its irradiance without the discs we added.
   const ProbeField* seed = nullptr;
   {
     std::unique_lock lock(cacheMutex_);
     auto it = records_.find(key);
-    if (it != records_.end() && it->second.hash == lightingHash(current) && it->second.discVisible.size() == count) {
+    if (it != records_.end() && it->second.hash == lightingHash(current) &&
+        it->second.discVisible.size() == count) {
       const Record rec = it->second;
       lock.unlock();
       scratch_.grid = current.grid;
@@ -171,7 +179,8 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
           if (!(rec.discVisible[i] & (1u << d))) continue;
           const glm::vec3 dir = glm::normalize(glm::vec3(discs[d].first)), e(discs[d].second);
           for (size_t t = 0; t < m2; ++t) {
-            const float c = std::max(glm::dot(octTexelDirection(int(t % size_t(m)), int(t / size_t(m)), m), dir), 0.0f);
+            const float c =
+                std::max(glm::dot(octTexelDirection(int(t % size_t(m)), int(t / size_t(m)), m), dir), 0.0f);
             for (int ch = 0; ch < 3; ++ch) {
               float& v = scratch_.irradiance[(i * m2 + t) * 3 + size_t(ch)];
               v = std::max(0.0f, v - e[ch] * c);
@@ -192,7 +201,8 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
   vo.noSurfelsIsSky = true;
   vo.checkInterrupt = false;
   vo.relight.chebyshev = options_.gatherChebyshev;
-  relighter_->run(cs->surfels, current.grid, offsets, current.active, sky.params, vo, out, seed, &fieldStats_);
+  relighter_->run(cs->surfels, current.grid, offsets, current.active, sky.params, vo, out, seed,
+                  &fieldStats_);
   // Geometry as the cell holds it: same active flags, offsets and optional channels; inactive probes keep
   // current's values.
   out.active.assign(current.active.begin(), current.active.end());
@@ -201,15 +211,19 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
   out.albedo.assign(current.albedo.begin(), current.albedo.end());
   for (size_t i = 0; i < count; ++i) {
     if (current.isActive(int64_t(i))) continue;
-    std::copy_n(current.radiance.begin() + ptrdiff_t(i * n2 * 3), n2 * 3, out.radiance.begin() + ptrdiff_t(i * n2 * 3));
-    std::copy_n(current.distance.begin() + ptrdiff_t(i * n2 * 2), n2 * 2, out.distance.begin() + ptrdiff_t(i * n2 * 2));
+    std::copy_n(current.radiance.begin() + ptrdiff_t(i * n2 * 3), n2 * 3,
+                out.radiance.begin() + ptrdiff_t(i * n2 * 3));
+    std::copy_n(current.distance.begin() + ptrdiff_t(i * n2 * 2), n2 * 2,
+                out.distance.begin() + ptrdiff_t(i * n2 * 2));
     std::copy_n(current.irradiance.begin() + ptrdiff_t(i * m2 * 3), m2 * 3,
                 out.irradiance.begin() + ptrdiff_t(i * m2 * 3));
   }
-  spdlog::info("streaming: VIR relight of cell {},{} at {:.2f} h overcast {:.2f}: {} probes, {} surfels, {} frame(s){}, "
-               "{:.0f} ms ({:.0f} ms on the device)",
-               cell.x, cell.y, timeOfDayHours, weather, fieldStats_.probes, fieldStats_.surfels, vo.frames,
-               seed ? " seeded" : "", msSince(t0), fieldStats_.gpuMs);
+  spdlog::info(
+      "streaming: VIR relight of cell {},{} at {:.2f} h overcast {:.2f}: {} probes, {} surfels, {} "
+      "frame(s){}, "
+      "{:.0f} ms ({:.0f} ms on the device)",
+      cell.x, cell.y, timeOfDayHours, weather, fieldStats_.probes, fieldStats_.surfels, vo.frames,
+      seed ? " seeded" : "", msSince(t0), fieldStats_.gpuMs);
   Record rec;
   rec.hash = lightingHash(out);
   rec.sky = sky.params;

@@ -54,7 +54,9 @@ namespace lfgi::streaming {
 struct CellSurfels {
   std::vector<worlds::Surfel> surfels;
   std::vector<glm::vec3> offsets;
-  size_t bytes() const { return surfels.size() * sizeof(worlds::Surfel) + offsets.size() * sizeof(glm::vec3); }
+  size_t bytes() const {
+    return surfels.size() * sizeof(worlds::Surfel) + offsets.size() * sizeof(glm::vec3);
+  }
 };
 // Throws lfgi::Error naming the cell / file when the cell's surfels cannot be had.
 using SurfelProvider = std::function<CellSurfels(glm::ivec2 cell)>;
@@ -66,11 +68,11 @@ using SurfelProvider = std::function<CellSurfels(glm::ivec2 cell)>;
 SurfelProvider worldSurfelProvider(const std::filesystem::path& worldDir);
 
 struct VirRelightOptions {
-  worlds::SkyState sky{};         // latitude, day, turbidity; time of day and overcast come per relight
-  float weather = 0.0f;           // overcast for relightInto without one (setWeather changes it)
-  int frames = 3;                 // relight frames from a codec field: direct + 2 bounces
-  int seededFrames = 2;           // frames when seeded by the previous VIR result
-  float maxRange = 64.0f;         // m, VIR splat range
+  worlds::SkyState sky{};  // latitude, day, turbidity; time of day and overcast come per relight
+  float weather = 0.0f;    // overcast for relightInto without one (setWeather changes it)
+  int frames = 3;          // relight frames from a codec field: direct + 2 bounces
+  int seededFrames = 2;    // frames when seeded by the previous VIR result
+  float maxRange = 64.0f;  // m, VIR splat range
   size_t surfelCacheBytes = size_t(256) << 20;
   // Chebyshev weights in the surfels' gather of probe irradiance (gpu::RelightOptions::chebyshev). On
   // (default, as the bake's VIR probes): no bounce leaks through walls, but measured on a ground plane
@@ -102,7 +104,8 @@ class VirRelightSource final : public CellSource {
   void load(glm::ivec2 cell, ProbeField& out) override { inner_.load(cell, out); }
   void setTimeOfDay(float hours) override { inner_.setTimeOfDay(hours); }
   void setWeather(float overcast);  // [0, 1], lfgi::Error otherwise
-  void relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out, float timeOfDayHours) override {
+  void relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out,
+                   float timeOfDayHours) override {
     relightWeatherInto(cell, current, out, timeOfDayHours, weather_.load());
   }
   void relightWeatherInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out, float timeOfDayHours,
@@ -128,7 +131,7 @@ class VirRelightSource final : public CellSource {
   ProbeField scratch_;
   gpu::VirFieldStats fieldStats_;
 
-  mutable std::mutex cacheMutex_;  // cache, records, stats
+  mutable std::mutex cacheMutex_;                                          // cache, records, stats
   std::list<std::pair<int64_t, std::shared_ptr<const CellSurfels>>> lru_;  // front: most recent
   size_t cacheBytes_ = 0;
   std::map<int64_t, Record> records_;

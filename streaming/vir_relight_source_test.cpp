@@ -3,8 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <cmath>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <map>
@@ -86,16 +86,20 @@ glm::vec3 planeIrradiance(const worlds::SkyModel& sky, glm::vec3 n) {
       for (int c = 0; c < 3; ++c) upper[size_t(j * N + i) * 3 + size_t(c)] = L[c];
     }
   const glm::vec3 up(0.0f, 1.0f, 0.0f);
-  const glm::vec3 ePlane = bruteForceIrradiance(upper, N, up) + sky.sun.irradiance(up) + sky.moon.irradiance(up);
+  const glm::vec3 ePlane =
+      bruteForceIrradiance(upper, N, up) + sky.sun.irradiance(up) + sky.moon.irradiance(up);
   std::vector<float> map = upper;
   for (int j = 0; j < N; ++j)
     for (int i = 0; i < N; ++i)
       if (octTexelDirection(i, j, N).y <= 0.0f)
-        for (int c = 0; c < 3; ++c) map[size_t(j * N + i) * 3 + size_t(c)] = kAlbedo * ePlane[c] / std::numbers::pi_v<float>;
+        for (int c = 0; c < 3; ++c)
+          map[size_t(j * N + i) * 3 + size_t(c)] = kAlbedo * ePlane[c] / std::numbers::pi_v<float>;
   return bruteForceIrradiance(map, N, n);
 }
 
-float lum(glm::vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+float lum(glm::vec3 c) {
+  return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z;
+}
 
 glm::vec3 texel(const ProbeField& f, size_t probe, size_t t) {
   const size_t m2 = size_t(f.irradianceResolution) * size_t(f.irradianceResolution);
@@ -175,9 +179,10 @@ TEST(VirRelightSource, PlaneUnderOvercastSkyMatchesAnalyticIrradiance) {
         }
       }
     const double rmsUp = std::sqrt(sqUp / nUp), rmsAll = std::sqrt(sqAll / nAll);
-    std::printf("plane under overcast sky, gather Chebyshev %s: upper texels rel RMS %.4f worst %.4f; all texels "
-                "rel RMS %.4f worst %.4f; lowest downward got/exact %.3f\n",
-                chebyshev ? "on" : "off", rmsUp, worstUp, rmsAll, worstAll, minDownRatio);
+    std::printf(
+        "plane under overcast sky, gather Chebyshev %s: upper texels rel RMS %.4f worst %.4f; all texels "
+        "rel RMS %.4f worst %.4f; lowest downward got/exact %.3f\n",
+        chebyshev ? "on" : "off", rmsUp, worstUp, rmsAll, worstAll, minDownRatio);
     EXPECT_LT(rmsUp, 0.04);
     EXPECT_LT(worstUp, 0.06);
     // The bounce is there (black ground would give got/exact ~0.17 downwards, the sky part alone), with
@@ -200,7 +205,10 @@ TEST(VirRelightSource, UnseenTimesAreFiniteAndFollowTheSun) {
     const char* name;
     float hours, overcast;
   };
-  const Case cases[] = {{"noon", 12.0f, 0.0f}, {"dusk", 18.5f, 0.0f}, {"20h", 20.0f, 0.0f}, {"6h", 6.0f, 0.0f},
+  const Case cases[] = {{"noon", 12.0f, 0.0f},
+                        {"dusk", 18.5f, 0.0f},
+                        {"20h", 20.0f, 0.0f},
+                        {"6h", 6.0f, 0.0f},
                         {"overcast", 12.0f, 1.0f}};
   for (const auto& [name, hours, overcast] : cases) {
     ProbeField out;
@@ -236,9 +244,9 @@ TEST(VirRelightSource, SeedFromItsOwnResultKeepsTheAnswer) {
   VirRelightSource source(inner, *ctx, o, planeProvider(40.0f, 1.0f));
   ProbeField codec, noon, seeded, fresh;
   source.load({0, 0}, codec);
-  source.relightWeatherInto({0, 0}, codec, noon, 12.0f, 0.0f);    // unseeded (codec field)
-  source.relightWeatherInto({0, 0}, noon, seeded, 13.0f, 0.0f);   // seeded by its own noon result
-  source.relightWeatherInto({0, 0}, codec, fresh, 13.0f, 0.0f);   // unseeded
+  source.relightWeatherInto({0, 0}, codec, noon, 12.0f, 0.0f);   // unseeded (codec field)
+  source.relightWeatherInto({0, 0}, noon, seeded, 13.0f, 0.0f);  // seeded by its own noon result
+  source.relightWeatherInto({0, 0}, codec, fresh, 13.0f, 0.0f);  // unseeded
   const VirRelightStats st = source.stats();
   EXPECT_EQ(st.relights, 3u);
   EXPECT_EQ(st.seeded, 1u);

@@ -31,7 +31,8 @@ inline double relMaxError(const std::vector<float>& a, const std::vector<float>&
 }
 
 // Every weight and bias uniform in [-amplitude, amplitude], drawn from rng in layer order.
-inline GeneratorWeights uniformRandomWeights(const GeneratorArch& arch, std::mt19937& rng, float amplitude = 0.5f) {
+inline GeneratorWeights uniformRandomWeights(const GeneratorArch& arch, std::mt19937& rng,
+                                             float amplitude = 0.5f) {
   std::uniform_real_distribution<float> u(-amplitude, amplitude);
   auto fill = [&](size_t n) {
     std::vector<float> v(n);

@@ -67,7 +67,8 @@ inline std::vector<shared::Surfel> inwardBoxSurfels(float h, float spacing) {
 
 // A square panel of cells x cells surfels (radius r, albedo 0.5) on a lattice of the given spacing, centred
 // on `centre` in the plane of unit normal n (lattice axes: n x z normalised, and n x that), facing along n.
-inline std::vector<shared::Surfel> panelSurfels(glm::vec3 centre, glm::vec3 n, int cells, float spacing, float r) {
+inline std::vector<shared::Surfel> panelSurfels(glm::vec3 centre, glm::vec3 n, int cells, float spacing,
+                                                float r) {
   const glm::vec3 u = glm::normalize(glm::cross(n, glm::vec3(0.0f, 0.0f, 1.0f))), v = glm::cross(n, u);
   const float half = 0.5f * float(cells - 1);
   std::vector<shared::Surfel> out;

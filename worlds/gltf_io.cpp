@@ -237,10 +237,12 @@ class GltfImporter {
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(&keepEncodedImage, nullptr);
     const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
-    if (binary && bytes.size() >= 8) {  // GLB header: magic, u32 container version (2 for glTF 2.0), u32 length
+    if (binary &&
+        bytes.size() >= 8) {  // GLB header: magic, u32 container version (2 for glTF 2.0), u32 length
       uint32_t container = 0;
       std::memcpy(&container, bytes.data() + 4, 4);
-      if (container != 2) error(fmt::format("binary glTF container version {} (this importer reads 2)", container));
+      if (container != 2)
+        error(fmt::format("binary glTF container version {} (this importer reads 2)", container));
     }
     std::string baseDir = file_.parent_path().string();
     if (baseDir.empty()) baseDir = ".";
@@ -274,7 +276,8 @@ class GltfImporter {
     // glTF 2.0 spec, asset: a loader must refuse a major version it does not know, or a minVersion newer
     // than what it implements (tinygltf parses glTF 1.0 or 3.x JSON as if it were 2.0).
     const std::string& version = model_.asset.version;
-    if (version.rfind("2.", 0) != 0) error(fmt::format("glTF asset.version '{}' (this importer reads 2.x)", version));
+    if (version.rfind("2.", 0) != 0)
+      error(fmt::format("glTF asset.version '{}' (this importer reads 2.x)", version));
     const std::string& minVersion = model_.asset.minVersion;
     if (!minVersion.empty() && minVersion != "2.0")
       error(fmt::format("glTF asset.minVersion '{}' (this importer implements 2.0)", minVersion));

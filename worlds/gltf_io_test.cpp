@@ -616,7 +616,8 @@ TEST(GltfErrors, WrongVersionsAreRefused) {
     if (!minVersion.empty()) j["asset"]["minVersion"] = minVersion;
     const fs::path file = dir / ("v" + version + "_" + minVersion + ".gltf");
     writeText(file, j.dump());
-    expectErrorNames(errorOf([&] { importGltf(file); }), file, minVersion.empty() ? "asset.version '" + version : "asset.minVersion");
+    expectErrorNames(errorOf([&] { importGltf(file); }), file,
+                     minVersion.empty() ? "asset.version '" + version : "asset.minVersion");
   }
   std::vector<char> glb = readBytes(kScenes / "cornell_box/CornellBox.glb");
   glb[4] = 1;

@@ -11,16 +11,26 @@ namespace lfgi::worlds {
 
 std::string_view categoryName(SurfaceCategory c) {
   switch (c) {
-    case SurfaceCategory::kTerrain: return "terrain";
-    case SurfaceCategory::kRoad: return "road";
-    case SurfaceCategory::kWall: return "wall";
-    case SurfaceCategory::kInterior: return "interior";
-    case SurfaceCategory::kRoof: return "roof";
-    case SurfaceCategory::kGlass: return "glass";
-    case SurfaceCategory::kEmissive: return "emissive";
-    case SurfaceCategory::kProp: return "prop";
-    case SurfaceCategory::kImported: return "imported";
-    case SurfaceCategory::kCount: break;
+    case SurfaceCategory::kTerrain:
+      return "terrain";
+    case SurfaceCategory::kRoad:
+      return "road";
+    case SurfaceCategory::kWall:
+      return "wall";
+    case SurfaceCategory::kInterior:
+      return "interior";
+    case SurfaceCategory::kRoof:
+      return "roof";
+    case SurfaceCategory::kGlass:
+      return "glass";
+    case SurfaceCategory::kEmissive:
+      return "emissive";
+    case SurfaceCategory::kProp:
+      return "prop";
+    case SurfaceCategory::kImported:
+      return "imported";
+    case SurfaceCategory::kCount:
+      break;
   }
   return "unknown";
 }
@@ -86,8 +96,10 @@ void TriangleMesh::append(const TriangleMesh& o) {
   if (uvs.empty() && !o.uvs.empty()) uvs.assign(positions.size(), glm::vec2(0.0f));
   positions.insert(positions.end(), o.positions.begin(), o.positions.end());
   if (!uvs.empty()) {
-    if (o.uvs.empty()) uvs.insert(uvs.end(), o.positions.size(), glm::vec2(0.0f));
-    else uvs.insert(uvs.end(), o.uvs.begin(), o.uvs.end());
+    if (o.uvs.empty())
+      uvs.insert(uvs.end(), o.positions.size(), glm::vec2(0.0f));
+    else
+      uvs.insert(uvs.end(), o.uvs.begin(), o.uvs.end());
   }
   for (uint32_t i : o.indices) indices.push_back(vbase + i);
   for (uint32_t m : o.triangleMaterial) triangleMaterial.push_back(mbase + m);
@@ -135,7 +147,8 @@ void TriangleMesh::validate(std::string_view what) const {
     fail("{}: {} uvs for {} positions", what, uvs.size(), positions.size());
   for (size_t i = 0; i < indices.size(); ++i)
     if (indices[i] >= positions.size())
-      fail("{}: index {} at position {} is out of range ({} vertices)", what, indices[i], i, positions.size());
+      fail("{}: index {} at position {} is out of range ({} vertices)", what, indices[i], i,
+           positions.size());
   for (size_t t = 0; t < triangleMaterial.size(); ++t)
     if (triangleMaterial[t] >= materials.size())
       fail("{}: triangle {} uses material {} of {}", what, t, triangleMaterial[t], materials.size());
@@ -156,8 +169,8 @@ uint64_t TriangleMesh::contentHash() const {
   add(indices.data(), indices.size() * sizeof(uint32_t));
   add(triangleMaterial.data(), triangleMaterial.size() * sizeof(uint32_t));
   for (const Material& m : materials) {
-    const float params[8] = {m.albedo.r, m.albedo.g, m.albedo.b, m.emission.r, m.emission.g, m.emission.b,
-                             m.roughness, m.metallic};
+    const float params[8] = {m.albedo.r,   m.albedo.g,   m.albedo.b,  m.emission.r,
+                             m.emission.g, m.emission.b, m.roughness, m.metallic};
     add(params, sizeof(params));
     const int32_t ints[3] = {m.albedoTexture, int32_t(m.category), m.doubleSided ? 1 : 0};
     add(ints, sizeof(ints));

@@ -46,7 +46,7 @@ struct Material {
   glm::vec3 emission{0.0f};  // linear emitted radiance, W/(sr m^2) in scene units
   float roughness = 1.0f;
   float metallic = 0.0f;
-  int albedoTexture = -1;    // index into TriangleMesh::textures, multiplied with albedo
+  int albedoTexture = -1;  // index into TriangleMesh::textures, multiplied with albedo
   SurfaceCategory category = SurfaceCategory::kImported;
   bool doubleSided = false;
 };
@@ -68,8 +68,8 @@ struct Aabb {
 
 struct TriangleMesh {
   std::vector<glm::vec3> positions;
-  std::vector<glm::vec2> uvs;            // empty, or one per position
-  std::vector<uint32_t> indices;         // 3 per triangle, into positions
+  std::vector<glm::vec2> uvs;              // empty, or one per position
+  std::vector<uint32_t> indices;           // 3 per triangle, into positions
   std::vector<uint32_t> triangleMaterial;  // one per triangle, into materials
   std::vector<Material> materials;
   std::vector<Texture> textures;

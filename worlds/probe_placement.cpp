@@ -8,7 +8,9 @@
 
 namespace lfgi::worlds {
 
-glm::vec3 PlacedProbes::position(int64_t i) const { return grid.probePosition(grid.probeCoord(i)) + offsets[size_t(i)]; }
+glm::vec3 PlacedProbes::position(int64_t i) const {
+  return grid.probePosition(grid.probeCoord(i)) + offsets[size_t(i)];
+}
 
 std::vector<glm::vec3> fibonacciSphere(int n) {
   std::vector<glm::vec3> dirs(size_t(std::max(n, 1)));
@@ -32,7 +34,8 @@ float chooseProbeSpacing(double surfaceArea, double footprintArea) {
   return float(s);
 }
 
-ProbeGrid cellProbeGrid(glm::vec2 cellMinXZ, float cellSize, float spacing, float bottomY, float topY, int minLayers) {
+ProbeGrid cellProbeGrid(glm::vec2 cellMinXZ, float cellSize, float spacing, float bottomY, float topY,
+                        int minLayers) {
   if (!(spacing > 0.0f) || !(cellSize > 0.0f) || std::fmod(cellSize, spacing) != 0.0f)
     fail("probe grid: spacing {} must be > 0 and divide the cell size {}", spacing, cellSize);
   if (!std::isfinite(bottomY) || !std::isfinite(topY) || topY < bottomY)
@@ -56,8 +59,8 @@ struct RayStats {
   glm::vec3 nearestBackDir{0.0f}, nearestFrontDir{0.0f};
 };
 
-RayStats castRays(const TriangleMesh& mesh, const TriangleBvh& bvh, glm::vec3 p, const std::vector<glm::vec3>& dirs,
-                  float range) {
+RayStats castRays(const TriangleMesh& mesh, const TriangleBvh& bvh, glm::vec3 p,
+                  const std::vector<glm::vec3>& dirs, float range) {
   RayStats s;
   for (const glm::vec3& d : dirs) {
     auto hit = bvh.intersect(p, d, range);

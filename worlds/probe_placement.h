@@ -18,18 +18,18 @@
 namespace lfgi::worlds {
 
 enum ProbeFlag : uint8_t {
-  kProbeRelocated = 1 << 0,     // moved away from the grid position (offset != 0)
-  kProbeDisabledSolid = 1 << 1, // inside solid and could not be moved out within the limit: no probe
-  kProbeSkyOnly = 1 << 2,       // every upward ray escapes and every hit is terrain: sky + ground only
+  kProbeRelocated = 1 << 0,      // moved away from the grid position (offset != 0)
+  kProbeDisabledSolid = 1 << 1,  // inside solid and could not be moved out within the limit: no probe
+  kProbeSkyOnly = 1 << 2,        // every upward ray escapes and every hit is terrain: sky + ground only
 };
 
 struct ProbePlacementOptions {
-  int raysPerProbe = 64;              // Fibonacci-sphere directions (same set for every probe)
-  float backfaceFraction = 0.25f;     // > this fraction of hits on back faces => inside solid (RTXGI's
-                                      // threshold, but of hits, not of rays; see placeProbes)
-  float minFrontDistance = 0.1f;      // fraction of spacing: closer front faces push the probe away
-  float maxOffset = 0.45f;            // fraction of spacing: a larger move disables the probe instead
-  float skyTestRange = 1e4f;          // m: rays longer than this count as escaping to the sky
+  int raysPerProbe = 64;           // Fibonacci-sphere directions (same set for every probe)
+  float backfaceFraction = 0.25f;  // > this fraction of hits on back faces => inside solid (RTXGI's
+                                   // threshold, but of hits, not of rays; see placeProbes)
+  float minFrontDistance = 0.1f;   // fraction of spacing: closer front faces push the probe away
+  float maxOffset = 0.45f;         // fraction of spacing: a larger move disables the probe instead
+  float skyTestRange = 1e4f;       // m: rays longer than this count as escaping to the sky
 };
 
 struct PlacedProbes {

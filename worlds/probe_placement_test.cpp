@@ -18,7 +18,8 @@ TEST(TriangleBvh, MatchesBruteForceClosestHit) {
   uint32_t mat = m.addMaterial({});
   for (int i = 0; i < 3000; ++i) {
     glm::vec3 c(u(rng), u(rng), u(rng));
-    m.addTriangle(c, c + glm::vec3(u(rng), u(rng), u(rng)) * 0.1f, c + glm::vec3(u(rng), u(rng), u(rng)) * 0.1f, mat);
+    m.addTriangle(c, c + glm::vec3(u(rng), u(rng), u(rng)) * 0.1f,
+                  c + glm::vec3(u(rng), u(rng), u(rng)) * 0.1f, mat);
   }
   TriangleBvh bvh(m);
   auto dirs = fibonacciSphere(50);
@@ -80,7 +81,7 @@ Scene testScene() {
   uint32_t t = s.mesh.addMaterial(terrain), w = s.mesh.addMaterial(wall);
   s.mesh.addQuad({-200, 0, -200}, {-200, 0, 200}, {200, 0, 200}, {200, 0, -200}, t);  // faces +Y
   const Aabb boxes[] = {
-      {{0.3f, 0.0f, 0.3f}, {9.7f, 7.3f, 9.7f}},    // a big solid block
+      {{0.3f, 0.0f, 0.3f}, {9.7f, 7.3f, 9.7f}},     // a big solid block
       {{12.3f, 0.0f, 0.0f}, {12.9f, 5.0f, 16.0f}},  // a 0.6 m thick wall slab
   };
   for (const Aabb& b : boxes) {
@@ -100,7 +101,8 @@ TEST(ProbePlacement, NoActiveProbeInsideSolid) {
   ProbeGrid grid = cellProbeGrid({-16.0f, -16.0f}, 32.0f, 2.0f, -1.0f, 8.0f);
   int initiallyInside = 0;
   for (int64_t i = 0; i < grid.probeCount(); ++i)
-    for (const Aabb& b : s.solids) initiallyInside += strictlyInside(b, grid.probePosition(grid.probeCoord(i)));
+    for (const Aabb& b : s.solids)
+      initiallyInside += strictlyInside(b, grid.probePosition(grid.probeCoord(i)));
   ASSERT_GT(initiallyInside, 40) << "the test must start with probes inside solids";
 
   PlacedProbes placed = placeProbes(s.mesh, bvh, grid);
@@ -109,7 +111,8 @@ TEST(ProbePlacement, NoActiveProbeInsideSolid) {
   for (int64_t i = 0; i < grid.probeCount(); ++i) {
     if (placed.flags[size_t(i)] & kProbeDisabledSolid) continue;
     glm::vec3 p = placed.position(i);
-    for (const Aabb& b : s.solids) EXPECT_FALSE(strictlyInside(b, p)) << "probe " << i << " at " << p.x << "," << p.y << "," << p.z;
+    for (const Aabb& b : s.solids)
+      EXPECT_FALSE(strictlyInside(b, p)) << "probe " << i << " at " << p.x << "," << p.y << "," << p.z;
     EXPECT_GE(p.y, 0.0f) << "probe " << i << " below the terrain";
     EXPECT_LE(glm::length(placed.offsets[size_t(i)]), 0.45f * 2.0f + 1e-5f);
     ++checked;
@@ -152,7 +155,7 @@ TEST(ProbePlacement, Deterministic) {
 }
 
 TEST(ProbePlacement, SpacingFromDensity) {
-  EXPECT_EQ(chooseProbeSpacing(4096.0, 4096.0), 8.0f);       // open land
+  EXPECT_EQ(chooseProbeSpacing(4096.0, 4096.0), 8.0f);  // open land
   EXPECT_EQ(chooseProbeSpacing(4 * 4096.0, 4096.0), 4.0f);
   EXPECT_EQ(chooseProbeSpacing(16 * 4096.0, 4096.0), 2.0f);  // interiors
   EXPECT_EQ(chooseProbeSpacing(1e9, 4096.0), 1.0f);

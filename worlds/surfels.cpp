@@ -5,8 +5,8 @@
 #include <draco/point_cloud/point_cloud_builder.h>
 
 #include <algorithm>
-#include <cstring>
 #include <cmath>
+#include <cstring>
 #include <numbers>
 #include <unordered_map>
 
@@ -24,7 +24,9 @@ uint64_t mix64(uint64_t x) {
   x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
   return x ^ (x >> 31);
 }
-double unitFloat(uint64_t h) { return double(h >> 11) * (1.0 / 9007199254740992.0); }
+double unitFloat(uint64_t h) {
+  return double(h >> 11) * (1.0 / 9007199254740992.0);
+}
 
 constexpr float kRadiusUnit = 1e-4f;  // radius stored as uint16 in 0.1 mm units (max 6.55 m)
 
@@ -41,7 +43,9 @@ constexpr size_t kMaxSurfelsPerByte = 64;
 
 }  // namespace
 
-float surfelSpacingForProbeSpacing(float probeSpacingM) { return std::clamp(probeSpacingM * 0.25f, 0.05f, 2.0f); }
+float surfelSpacingForProbeSpacing(float probeSpacingM) {
+  return std::clamp(probeSpacingM * 0.25f, 0.05f, 2.0f);
+}
 
 std::vector<Surfel> sampleSurfels(const TriangleMesh& mesh, const SurfelOptions& options) {
   const double s = options.spacing;
@@ -99,16 +103,21 @@ std::vector<Surfel> sampleSurfels(const TriangleMesh& mesh, const SurfelOptions&
       const glm::dvec2 v0(glm::dot(q0, t1), glm::dot(q0, t2)), v1(glm::dot(q1, t1), glm::dot(q1, t2)),
           v2(glm::dot(q2, t1), glm::dot(q2, t2));
       const auto quant = [](double x, double step) { return uint64_t(int64_t(std::llround(x / step))); };
-      const uint64_t plane = mix64(options.seed ^ mix64(quant(nd.x, 1e-4) ^ mix64(quant(nd.y, 1e-4) ^
-                                   mix64(quant(nd.z, 1e-4) ^ mix64(quant(glm::dot(nd, q0), 1e-3))))));
-      planeKey = mix64(plane ^ mix64(uint64_t(mesh.triangleMaterial[t]) + 7));  // radius group: plane x material
-      const double offX = unitFloat(mix64(plane ^ 0x1234567ull)), offY = unitFloat(mix64(plane ^ 0x89abcdefull));
+      const uint64_t plane = mix64(
+          options.seed ^
+          mix64(quant(nd.x, 1e-4) ^
+                mix64(quant(nd.y, 1e-4) ^ mix64(quant(nd.z, 1e-4) ^ mix64(quant(glm::dot(nd, q0), 1e-3))))));
+      planeKey =
+          mix64(plane ^ mix64(uint64_t(mesh.triangleMaterial[t]) + 7));  // radius group: plane x material
+      const double offX = unitFloat(mix64(plane ^ 0x1234567ull)),
+                   offY = unitFloat(mix64(plane ^ 0x89abcdefull));
       const glm::dvec2 lo = glm::min(v0, glm::min(v1, v2)), hi = glm::max(v0, glm::max(v1, v2));
       // Barycentrics of a plane point: p = v0 + u (v1 - v0) + v (v2 - v0).
       const glm::dvec2 e1 = v1 - v0, e2 = v2 - v0;
       const double det = e1.x * e2.y - e1.y * e2.x;
       if (std::abs(det) > 0.0) {
-        const long j0 = long(std::ceil(lo.y / rowPitch - offY)), j1 = long(std::floor(hi.y / rowPitch - offY));
+        const long j0 = long(std::ceil(lo.y / rowPitch - offY)),
+                   j1 = long(std::floor(hi.y / rowPitch - offY));
         for (long j = j0; j <= j1; ++j) {
           const double y = (double(j) + offY) * rowPitch;
           const double shift = offX + 0.5 * double(j & 1);
@@ -161,18 +170,22 @@ std::vector<Surfel> sampleSurfels(const TriangleMesh& mesh, const SurfelOptions&
     }
   }
   for (const auto& [i, pl] : surfelPlane)
-    out[i].positionRadius.w = float(std::sqrt(planes[pl].area / (double(planes[pl].count) * std::numbers::pi)));
+    out[i].positionRadius.w =
+        float(std::sqrt(planes[pl].area / (double(planes[pl].count) * std::numbers::pi)));
   return out;
 }
 
 double surfelArea(std::span<const Surfel> surfels) {
   double sum = 0.0;
-  for (const Surfel& s : surfels) sum += std::numbers::pi * double(s.positionRadius.w) * double(s.positionRadius.w);
+  for (const Surfel& s : surfels)
+    sum += std::numbers::pi * double(s.positionRadius.w) * double(s.positionRadius.w);
   return sum;
 }
 
-std::vector<std::byte> encodeSurfels(std::span<const Surfel> surfels, int positionBits, SurfelCodecStats* stats) {
-  if (positionBits < 8 || positionBits > 30) fail("surfel position bits must be in [8, 30] (got {})", positionBits);
+std::vector<std::byte> encodeSurfels(std::span<const Surfel> surfels, int positionBits,
+                                     SurfelCodecStats* stats) {
+  if (positionBits < 8 || positionBits > 30)
+    fail("surfel position bits must be in [8, 30] (got {})", positionBits);
   const size_t n = surfels.size();
   if (n > kMaxSurfels) fail("too many surfels to encode ({}; the decoder's limit is {})", n, kMaxSurfels);
   std::vector<std::byte> bytes(kHeaderBytes);
@@ -226,17 +239,21 @@ std::vector<std::byte> encodeSurfels(std::span<const Surfel> surfels, int positi
 }
 
 std::vector<Surfel> decodeSurfels(std::span<const std::byte> bytes, std::string_view what) {
-  if (bytes.size() < kHeaderBytes) fail("{}: surfel data truncated ({} bytes, header needs {})", what, bytes.size(), kHeaderBytes);
+  if (bytes.size() < kHeaderBytes)
+    fail("{}: surfel data truncated ({} bytes, header needs {})", what, bytes.size(), kHeaderBytes);
   uint32_t header[3];
   std::memcpy(header, bytes.data(), kHeaderBytes);
   if (header[0] != kSurfelMagic) fail("{}: not lfgi surfel data (bad magic)", what);
-  if (header[1] != kSurfelVersion) fail("{}: surfel data version {} (this build reads {})", what, header[1], kSurfelVersion);
+  if (header[1] != kSurfelVersion)
+    fail("{}: surfel data version {} (this build reads {})", what, header[1], kSurfelVersion);
   const uint32_t count = header[2];
   if (count == 0) {
-    if (bytes.size() != kHeaderBytes) fail("{}: {} trailing bytes after an empty surfel cloud", what, bytes.size() - kHeaderBytes);
+    if (bytes.size() != kHeaderBytes)
+      fail("{}: {} trailing bytes after an empty surfel cloud", what, bytes.size() - kHeaderBytes);
     return {};
   }
-  if (bytes.size() == kHeaderBytes) fail("{}: surfel data truncated (no Draco stream for {} surfels)", what, count);
+  if (bytes.size() == kHeaderBytes)
+    fail("{}: surfel data truncated (no Draco stream for {} surfels)", what, count);
   // Draco trusts the point count in its stream and sizes every attribute buffer by it before reading a
   // point, so one flipped bit there asks for gigabytes (found by the seeded bit-flip test: the process was
   // OOM-killed). encodeSurfels always writes the same layout: "DRACO", bitstream 2.x, point cloud (0),
@@ -247,15 +264,18 @@ std::vector<Surfel> decodeSurfels(std::span<const std::byte> bytes, std::string_
   if (dracoBytes < 15 || std::memcmp(d, "DRACO", 5) != 0)
     fail("{}: corrupt surfel data (no Draco header after the lfgi header)", what);
   if (d[5] != 2 || d[7] != 0 || d[8] != 1 || d[9] != 0 || d[10] != 0)
-    fail("{}: corrupt surfel data (Draco bitstream {}.{}, geometry {}, method {}, flags {}; expected a 2.x kd-tree "
-         "point cloud without metadata)", what, d[5], d[6], d[7], d[8], int(d[9]) | int(d[10]) << 8);
+    fail(
+        "{}: corrupt surfel data (Draco bitstream {}.{}, geometry {}, method {}, flags {}; expected a 2.x "
+        "kd-tree "
+        "point cloud without metadata)",
+        what, d[5], d[6], d[7], d[8], int(d[9]) | int(d[10]) << 8);
   int32_t dracoCount = 0;
   std::memcpy(&dracoCount, d + 11, 4);
   if (dracoCount < 0 || uint32_t(dracoCount) != count)
     fail("{}: surfel data holds {} points, header says {}", what, dracoCount, count);
   if (count > kMaxSurfels || count > kMaxSurfelsPerByte * dracoBytes)
-    fail("{}: {} surfels in {} bytes of Draco data is corrupt or too many (limits: {}, {} per byte)", what, count,
-         dracoBytes, kMaxSurfels, kMaxSurfelsPerByte);
+    fail("{}: {} surfels in {} bytes of Draco data is corrupt or too many (limits: {}, {} per byte)", what,
+         count, dracoBytes, kMaxSurfels, kMaxSurfelsPerByte);
   draco::DecoderBuffer buffer;
   buffer.Init(reinterpret_cast<const char*>(bytes.data() + kHeaderBytes), bytes.size() - kHeaderBytes);
   draco::Decoder decoder;

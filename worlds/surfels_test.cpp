@@ -24,7 +24,7 @@ TriangleMesh testScene() {
   lamp.albedo = glm::vec3(0.8f);
   lamp.emission = glm::vec3(120.0f, 100.0f, 80.0f);
   uint32_t g = m.addMaterial(grey), l = m.addMaterial(lamp);
-  m.addBox({0, 0, 0}, {10, 3, 6}, g);      // 216 m^2 in large triangles
+  m.addBox({0, 0, 0}, {10, 3, 6}, g);          // 216 m^2 in large triangles
   m.addBox({2, 3, 2}, {2.3f, 3.2f, 2.3f}, l);  // small emitter
   // A fan of 2,000 tiny triangles (each far below one surfel's area): the unbiased branch.
   for (int i = 0; i < 2000; ++i) {
@@ -43,15 +43,16 @@ TEST(Surfels, DiscAreaMatchesMeshAreaWithinOnePercent) {
     double absErr = std::abs(surfelArea(s) - m.totalArea());
     EXPECT_LT(absErr / m.totalArea(), 0.01) << "spacing " << spacing << ": " << s.size() << " surfels";
     EXPECT_LE(absErr, double(spacing) * spacing * 1.0001) << "bound: one surfel's area";
-    EXPECT_NEAR(double(s.size()), m.totalArea() / (spacing * spacing), 0.02 * m.totalArea() / (spacing * spacing));
+    EXPECT_NEAR(double(s.size()), m.totalArea() / (spacing * spacing),
+                0.02 * m.totalArea() / (spacing * spacing));
   }
 }
 
 // VIR point-samples the discs along texel rays, so a surface must be covered without gaps at the splat's
-// footprintScale (1.3 by default). A long pavement strip (60 x 3 m in two triangles) and a wall split into 40 thin
-// triangles: every point inside (one spacing from the outline) lies in some disc of radius 1.5 r. The
-// per-triangle R2 points this sampler used before left 13 % of these points uncovered at 1.5 (25 % at 1.2): they
-// were stretched with each triangle. The hexagonal lattice (shared by coplanar triangles, one radius per
+// footprintScale (1.3 by default). A long pavement strip (60 x 3 m in two triangles) and a wall split into 40
+// thin triangles: every point inside (one spacing from the outline) lies in some disc of radius 1.5 r. The
+// per-triangle R2 points this sampler used before left 13 % of these points uncovered at 1.5 (25 % at 1.2):
+// they were stretched with each triangle. The hexagonal lattice (shared by coplanar triangles, one radius per
 // plane) covers all of it, with margin: at footprintScale 1.2 too.
 TEST(Surfels, DiscsCoverLongAndSplitPlanesWithoutGaps) {
   TriangleMesh m;
@@ -157,7 +158,8 @@ TEST(SurfelCodec, DracoRoundTripWithinQuantisation) {
   std::vector<Surfel> out = decodeSurfels(bytes, "test");
   ASSERT_EQ(out.size(), in.size());
   std::printf("Draco: %zu surfels, %zu raw bytes -> %zu bytes, ratio %.2f (%.2f B/surfel)\n", in.size(),
-              stats.rawBytes, stats.encodedBytes, stats.ratio(), double(stats.encodedBytes) / double(in.size()));
+              stats.rawBytes, stats.encodedBytes, stats.ratio(),
+              double(stats.encodedBytes) / double(in.size()));
   EXPECT_GT(stats.ratio(), 3.0);
   // Match each decoded surfel to the nearest input (order is not preserved) through a hash grid.
   Aabb box;
@@ -224,7 +226,8 @@ TEST(SurfelCodec, TruncatedAndCorruptDataGiveErrors) {
     bad[i] ^= std::byte{0x5a};
     try {
       for (const Surfel& s : decodeSurfels(bad, "flip"))
-        for (int c = 0; c < 4; ++c) ASSERT_TRUE(std::isfinite(s.positionRadius[c]) && std::isfinite(s.emission[c]));
+        for (int c = 0; c < 4; ++c)
+          ASSERT_TRUE(std::isfinite(s.positionRadius[c]) && std::isfinite(s.emission[c]));
     } catch (const Error&) {
     }
   }
@@ -244,7 +247,8 @@ TEST(SurfelCodec, EveryTruncationFlipsVersionAndHugeCount) {
     try {
       for (const Surfel& s : decodeSurfels(b, "c.surfels"))
         for (int c = 0; c < 4; ++c)
-          if (!std::isfinite(s.positionRadius[c]) || !std::isfinite(s.normal[c]) || !std::isfinite(s.emission[c]))
+          if (!std::isfinite(s.positionRadius[c]) || !std::isfinite(s.normal[c]) ||
+              !std::isfinite(s.emission[c]))
             return "non-finite surfel";
       return {};
     } catch (const Error& e) {
@@ -255,7 +259,8 @@ TEST(SurfelCodec, EveryTruncationFlipsVersionAndHugeCount) {
   };
   for (size_t len = 0; len < bytes.size(); ++len) {
     const std::string e = errorOf(std::span(bytes).first(len));
-    ASSERT_EQ(e.rfind("c.surfels: ", 0), 0u) << "length " << len << " of " << bytes.size() << ": '" << e << "'";
+    ASSERT_EQ(e.rfind("c.surfels: ", 0), 0u)
+        << "length " << len << " of " << bytes.size() << ": '" << e << "'";
   }
   const auto t1 = std::chrono::steady_clock::now();
   std::mt19937 rng(77);
@@ -269,15 +274,17 @@ TEST(SurfelCodec, EveryTruncationFlipsVersionAndHugeCount) {
     ASSERT_EQ(e.rfind("c.surfels: ", 0), 0u) << "trial " << t << ": '" << e << "'";
   }
   const auto t2 = std::chrono::steady_clock::now();
-  std::printf("[ measure  ] %zu truncations (%.0f ms) and %zu of 1000 bit-flipped clouds (%.0f ms) rejected\n", bytes.size(),
-              std::chrono::duration<double, std::milli>(t1 - t0).count(), rejected,
-              std::chrono::duration<double, std::milli>(t2 - t1).count());
+  std::printf(
+      "[ measure  ] %zu truncations (%.0f ms) and %zu of 1000 bit-flipped clouds (%.0f ms) rejected\n",
+      bytes.size(), std::chrono::duration<double, std::milli>(t1 - t0).count(), rejected,
+      std::chrono::duration<double, std::milli>(t2 - t1).count());
   auto withHeaderWord = [&](int word, uint32_t value) {
     std::vector<std::byte> b = bytes;
     std::memcpy(b.data() + 4 * word, &value, 4);
     return errorOf(b);
   };
-  EXPECT_NE(withHeaderWord(0, 0x12345678u).find("c.surfels: not lfgi surfel data (bad magic)"), std::string::npos);
+  EXPECT_NE(withHeaderWord(0, 0x12345678u).find("c.surfels: not lfgi surfel data (bad magic)"),
+            std::string::npos);
   EXPECT_NE(withHeaderWord(1, 99u).find("c.surfels: surfel data version 99"), std::string::npos);
   EXPECT_NE(withHeaderWord(2, 0xffffffffu).find("header says 4294967295"), std::string::npos);
   EXPECT_NE(withHeaderWord(2, 0u).find("trailing bytes after an empty surfel cloud"), std::string::npos);

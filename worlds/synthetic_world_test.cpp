@@ -623,7 +623,8 @@ TEST(SyntheticWorld, FarCornerCellAlone) {
   const GeneratedCell g = w.generate({63, 63});
   EXPECT_GT(g.mesh.triangleCount(), 0u);
   EXPECT_EQ(g.layout.cell, (CellCoord{63, 63}));
-  EXPECT_EQ(g.mesh.contentHash(), SyntheticWorld(WorldParams{1, 4096, 64}).generateCell({63, 63}).contentHash());
+  EXPECT_EQ(g.mesh.contentHash(),
+            SyntheticWorld(WorldParams{1, 4096, 64}).generateCell({63, 63}).contentHash());
 }
 
 }  // namespace

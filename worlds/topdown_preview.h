@@ -12,8 +12,8 @@
 namespace lfgi::worlds {
 
 struct TopDownOptions {
-  int width = 768;     // pixels across X; height follows the region's aspect
-  int threads = 0;     // 0: all cores
+  int width = 768;  // pixels across X; height follows the region's aspect
+  int threads = 0;  // 0: all cores
 };
 
 // Per pixel: the first surface below (from above the region's max Y), outgoing radiance (kcd/m^2 RGB)

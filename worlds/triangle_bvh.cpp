@@ -113,7 +113,8 @@ uint32_t TriangleBvh::build(uint32_t begin, uint32_t end, std::vector<glm::vec3>
   return index;
 }
 
-std::optional<TriangleBvh::Hit> TriangleBvh::intersect(glm::vec3 o, glm::vec3 d, float tMax, float tMin) const {
+std::optional<TriangleBvh::Hit> TriangleBvh::intersect(glm::vec3 o, glm::vec3 d, float tMax,
+                                                       float tMin) const {
   if (nodes_.empty()) return std::nullopt;
   const glm::vec3 invDir(1.0f / d.x, 1.0f / d.y, 1.0f / d.z);
   std::optional<Hit> best;
@@ -158,7 +159,7 @@ std::optional<TriangleBvh::Hit> TriangleBvh::intersect(glm::vec3 o, glm::vec3 d,
       float tl = hitBox(nodes_[left].lo, nodes_[left].hi, o, invDir, closest);
       float tr = hitBox(nodes_[right].lo, nodes_[right].hi, o, invDir, closest);
       if (sp + 2 > 128) continue;  // depth is capped at 60 in build, so this cannot happen
-      if (tl <= tr) {  // push the farther child first so the nearer is popped first
+      if (tl <= tr) {              // push the farther child first so the nearer is popped first
         if (tr != INFINITY) stack[sp++] = {right, tr};
         if (tl != INFINITY) stack[sp++] = {left, tl};
       } else {

@@ -20,9 +20,9 @@ class TriangleBvh {
   explicit TriangleBvh(const TriangleMesh& mesh);
 
   struct Hit {
-    float t = 0.0f;          // distance along the (unit) direction
-    uint32_t triangle = 0;   // index into the mesh's triangles
-    bool backface = false;   // the ray hit the back side (geometric normal points along the ray)
+    float t = 0.0f;         // distance along the (unit) direction
+    uint32_t triangle = 0;  // index into the mesh's triangles
+    bool backface = false;  // the ray hit the back side (geometric normal points along the ray)
   };
   // Closest hit with t in (tMin, tMax); dir must be unit length. Triangles are double-sided for hits.
   std::optional<Hit> intersect(glm::vec3 origin, glm::vec3 dir, float tMax = 1e30f, float tMin = 1e-5f) const;

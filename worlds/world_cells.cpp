@@ -22,7 +22,9 @@ double msSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-std::string cellName(CellCoord c) { return fmt::format("cell_{}_{}", c.x, c.z); }
+std::string cellName(CellCoord c) {
+  return fmt::format("cell_{}_{}", c.x, c.z);
+}
 
 // Solid boxes binned over XZ (cell's own and its 8 neighbours'), for the buried-surface tests below.
 class SolidIndex {
@@ -36,7 +38,8 @@ class SolidIndex {
     dims_ = glm::max(glm::ivec2(1), glm::ivec2(glm::ceil((hi_ - lo_) / bin_)));
     bins_.resize(size_t(dims_.x) * size_t(dims_.y));
     for (uint32_t i = 0; i < boxes_.size(); ++i) {
-      const glm::ivec2 a = binOf({boxes_[i].min.x, boxes_[i].min.z}), b = binOf({boxes_[i].max.x, boxes_[i].max.z});
+      const glm::ivec2 a = binOf({boxes_[i].min.x, boxes_[i].min.z}),
+                       b = binOf({boxes_[i].max.x, boxes_[i].max.z});
       for (int z = a.y; z <= b.y; ++z)
         for (int x = a.x; x <= b.x; ++x) bins_[size_t(z) * size_t(dims_.x) + size_t(x)].push_back(i);
     }
@@ -227,8 +230,11 @@ nlohmann::ordered_json cellStatsJson(const CellStats& s) {
   j["category_triangles"] = cats;
   j["probe_spacing_m"] = s.probeSpacingM;
   j["probe_dims"] = {s.probeDims.x, s.probeDims.y, s.probeDims.z};
-  j["probes"] = {{"total", s.probes},       {"active", s.probesActive},     {"relocated", s.probesRelocated},
-                 {"disabled", s.probesDisabled}, {"sky_only", s.probesSkyOnly},
+  j["probes"] = {{"total", s.probes},
+                 {"active", s.probesActive},
+                 {"relocated", s.probesRelocated},
+                 {"disabled", s.probesDisabled},
+                 {"sky_only", s.probesSkyOnly},
                  {"disabled_by_layout_check", s.probesDisabledByLayout}};
   j["buried"] = {{"triangles", s.trianglesBuried},
                  {"surfels", s.surfelsBuried},
@@ -245,7 +251,9 @@ std::filesystem::path cellJsonPath(const std::filesystem::path& dir, CellCoord c
   return dir / "cells" / (cellName(c) + ".json");
 }
 
-bool cellDone(const std::filesystem::path& dir, CellCoord c) { return std::filesystem::exists(cellJsonPath(dir, c)); }
+bool cellDone(const std::filesystem::path& dir, CellCoord c) {
+  return std::filesystem::exists(cellJsonPath(dir, c));
+}
 
 namespace {
 
@@ -271,8 +279,8 @@ void writeWorldManifest(const std::filesystem::path& dir, const WorldParams& p) 
   if (std::filesystem::exists(file)) {
     WorldParams old = readWorldManifest(dir);
     if (old.seed != p.seed || old.sizeM != p.sizeM || old.cellM != p.cellM)
-      fail("{}: holds a different world (seed {}, size {} m, cell {} m); use another directory", file.string(),
-           old.seed, old.sizeM, old.cellM);
+      fail("{}: holds a different world (seed {}, size {} m, cell {} m); use another directory",
+           file.string(), old.seed, old.sizeM, old.cellM);
     if (!p.edits.empty() && p.edits != old.edits)
       fail("{}: holds other edits ({}); add edits with `lfgi world edit`", file.string(), old.edits.size());
     return;
@@ -298,7 +306,8 @@ WorldParams readWorldManifest(const std::filesystem::path& dir) {
   if (!std::filesystem::exists(file))
     fail("{}: no world here (create one with `lfgi world generate --out {}`)", file.string(), dir.string());
   std::vector<std::byte> bytes = readFileBytes(file);
-  return parseWorldManifest(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), file.string());
+  return parseWorldManifest(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
+                            file.string());
 }
 
 WorldParams parseWorldManifest(std::string_view text, const std::string& name) {
@@ -311,8 +320,8 @@ WorldParams parseWorldManifest(std::string_view text, const std::string& name) {
     fail("{}: not an lfgi world manifest (format field)", name);
   const auto version = j.find("version");
   if (version == j.end() || !version->is_number_integer() || *version != kWorldFormatVersion)
-    fail("{}: world format version {} (this build reads {})", name, version == j.end() ? "missing" : version->dump(),
-         kWorldFormatVersion);
+    fail("{}: world format version {} (this build reads {})", name,
+         version == j.end() ? "missing" : version->dump(), kWorldFormatVersion);
   auto field = [&](const char* key) -> const nlohmann::json& {
     const auto it = j.find(key);
     if (it == j.end()) fail("{}: missing field '{}'", name, key);
@@ -320,7 +329,8 @@ WorldParams parseWorldManifest(std::string_view text, const std::string& name) {
   };
   WorldParams p;
   const nlohmann::json& seed = field("seed");
-  if (!seed.is_number_unsigned()) fail("{}: field 'seed' is {}, expected an integer in [0, 2^64)", name, seed.dump());
+  if (!seed.is_number_unsigned())
+    fail("{}: field 'seed' is {}, expected an integer in [0, 2^64)", name, seed.dump());
   p.seed = seed.get<uint64_t>();
   for (auto [key, out] : {std::pair{"size_m", &p.sizeM}, std::pair{"cell_m", &p.cellM}}) {
     const nlohmann::json& v = field(key);
@@ -356,8 +366,9 @@ void writeCell(const std::filesystem::path& dir, const BuiltCell& cell) {
               cell.probes.offsets.size() * sizeof(glm::vec3));
   writeFileAtomic(std::filesystem::path(base.string() + ".probes"), probes);
   nlohmann::ordered_json j = cellStatsJson(cell.stats);
-  j["probe_grid"] = {{"origin", {cell.probes.grid.origin.x, cell.probes.grid.origin.y, cell.probes.grid.origin.z}},
-                     {"spacing_m", cell.probes.grid.spacing.x}};
+  j["probe_grid"] = {
+      {"origin", {cell.probes.grid.origin.x, cell.probes.grid.origin.y, cell.probes.grid.origin.z}},
+      {"spacing_m", cell.probes.grid.spacing.x}};
   writeFileAtomic(cellJsonPath(dir, c), j.dump(2) + "\n");  // last: marks the cell finished
 }
 
@@ -366,13 +377,15 @@ std::optional<CellProbeFile> readCellProbes(const std::filesystem::path& dir, Ce
   if (!std::filesystem::exists(file)) return std::nullopt;
   const std::vector<std::byte> bytes = readFileBytes(file);
   uint32_t header[3] = {};
-  if (bytes.size() < sizeof(header)) fail("{}: truncated ({} bytes, header needs {})", file.string(), bytes.size(), sizeof(header));
+  if (bytes.size() < sizeof(header))
+    fail("{}: truncated ({} bytes, header needs {})", file.string(), bytes.size(), sizeof(header));
   std::memcpy(header, bytes.data(), sizeof(header));
   if (header[0] != 0x5250464cu || header[1] != 1u)
     fail("{}: not a version-1 probe file (magic {:#x}, version {})", file.string(), header[0], header[1]);
   const size_t count = header[2];
   if (bytes.size() != sizeof(header) + count * (1 + sizeof(glm::vec3)))
-    fail("{}: {} bytes, {} probes need {}", file.string(), bytes.size(), count, sizeof(header) + count * (1 + sizeof(glm::vec3)));
+    fail("{}: {} bytes, {} probes need {}", file.string(), bytes.size(), count,
+         sizeof(header) + count * (1 + sizeof(glm::vec3)));
   CellProbeFile out;
   out.flags.resize(count);
   out.offsets.resize(count);
@@ -386,8 +399,8 @@ std::optional<CellProbeFile> readCellProbes(const std::filesystem::path& dir, Ce
 nlohmann::ordered_json readCellJson(const std::filesystem::path& dir, CellCoord c) {
   const std::filesystem::path file = cellJsonPath(dir, c);
   std::vector<std::byte> bytes = readFileBytes(file);
-  auto j = nlohmann::ordered_json::parse(std::string(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
-                                         nullptr, false);
+  auto j = nlohmann::ordered_json::parse(
+      std::string(reinterpret_cast<const char*>(bytes.data()), bytes.size()), nullptr, false);
   if (j.is_discarded() || !j.is_object()) fail("{}: not valid JSON", file.string());
   return j;
 }

@@ -5,8 +5,8 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
-#include <set>
 #include <random>
+#include <set>
 #include <utility>
 
 #include "core/error.h"
@@ -77,9 +77,10 @@ TEST(WorldCells, BuriedSurfacesAreDroppedAndNoProbeSeesThem) {
   ASSERT_GT(s.surfelsBuried, 0u);
   ASSERT_EQ(gen.mesh.triangleCount(), s.triangles + s.trianglesBuried);
   const double droppedArea = gen.mesh.totalArea() - cell.mesh.totalArea() + s.surfelBuriedAreaM2;
-  std::printf("city cell %d,%d: %zu of %zu triangles and %zu of %zu surfels buried, %.0f of %.0f m^2 (%.1f %%)\n",
-              c.x, c.z, s.trianglesBuried, gen.mesh.triangleCount(), s.surfelsBuried, s.surfelsBuried + s.surfels,
-              droppedArea, gen.mesh.totalArea(), 100.0 * droppedArea / gen.mesh.totalArea());
+  std::printf(
+      "city cell %d,%d: %zu of %zu triangles and %zu of %zu surfels buried, %.0f of %.0f m^2 (%.1f %%)\n",
+      c.x, c.z, s.trianglesBuried, gen.mesh.triangleCount(), s.surfelsBuried, s.surfelsBuried + s.surfels,
+      droppedArea, gen.mesh.totalArea(), 100.0 * droppedArea / gen.mesh.totalArea());
   EXPECT_GT(droppedArea / gen.mesh.totalArea(), 0.10);
 
   // Points to check: the dropped surfels, and each dropped triangle's centroid and corners pulled 10 %
@@ -111,7 +112,8 @@ TEST(WorldCells, BuriedSurfacesAreDroppedAndNoProbeSeesThem) {
     ++droppedTriangles;
     const glm::vec3 centroid = (gen.mesh.vertex(t, 0) + gen.mesh.vertex(t, 1) + gen.mesh.vertex(t, 2)) / 3.0f;
     dropped.push_back({centroid, gen.mesh.faceNormal(t)});
-    for (int v = 0; v < 3; ++v) dropped.push_back({glm::mix(gen.mesh.vertex(t, v), centroid, 0.1f), gen.mesh.faceNormal(t)});
+    for (int v = 0; v < 3; ++v)
+      dropped.push_back({glm::mix(gen.mesh.vertex(t, v), centroid, 0.1f), gen.mesh.faceNormal(t)});
   }
   EXPECT_EQ(droppedTriangles, s.trianglesBuried);
 
@@ -120,7 +122,8 @@ TEST(WorldCells, BuriedSurfacesAreDroppedAndNoProbeSeesThem) {
   for (int dz = -1; dz <= 1; ++dz)
     for (int dx = -1; dx <= 1; ++dx)
       if ((dx != 0 || dz != 0) && w.contains({c.x + dx, c.z + dz}))
-        for (const SolidBox& b : w.describeCell({c.x + dx, c.z + dz}).solids) context.addBox(b.box.min, b.box.max, proxy);
+        for (const SolidBox& b : w.describeCell({c.x + dx, c.z + dz}).solids)
+          context.addBox(b.box.min, b.box.max, proxy);
   const TriangleBvh bvh(context);
   std::vector<glm::vec3> probes;
   for (int64_t i = 0; i < int64_t(s.probes); ++i)
@@ -136,8 +139,8 @@ TEST(WorldCells, BuriedSurfacesAreDroppedAndNoProbeSeesThem) {
       const float dist = glm::length(d);
       if (dist < range && glm::dot(d, n) > 0.0f && !bvh.intersect(o, d / dist, dist * (1.0f - 1e-4f))) {
         if (++seen <= 5)
-          ADD_FAILURE() << "dropped point " << p.x << "," << p.y << "," << p.z << " (normal " << n.x << "," << n.y
-                        << "," << n.z << ") is seen from probe " << q.x << "," << q.y << "," << q.z;
+          ADD_FAILURE() << "dropped point " << p.x << "," << p.y << "," << p.z << " (normal " << n.x << ","
+                        << n.y << "," << n.z << ") is seen from probe " << q.x << "," << q.y << "," << q.z;
         break;
       }
     }
@@ -150,8 +153,9 @@ TEST(WorldCells, BuriedSurfacesAreDroppedAndNoProbeSeesThem) {
     const glm::vec3 n(k.normal), o = glm::vec3(k.positionRadius) + n * 1e-3f;
     const auto hit = bvh.intersect(o, n, 4.0f * k.positionRadius.w);
     if (hit && hit->backface && ++inside <= 5)
-      ADD_FAILURE() << "kept surfel at " << o.x << "," << o.y << "," << o.z << " (normal " << n.x << "," << n.y << ","
-                    << n.z << ") faces the back of triangle " << hit->triangle << " at " << hit->t << " m";
+      ADD_FAILURE() << "kept surfel at " << o.x << "," << o.y << "," << o.z << " (normal " << n.x << ","
+                    << n.y << "," << n.z << ") faces the back of triangle " << hit->triangle << " at "
+                    << hit->t << " m";
   }
   EXPECT_EQ(inside, 0u) << "kept surfels facing a back face right in front (inside a solid)";
 }
@@ -262,14 +266,21 @@ TEST(WorldManifest, WrongTypesVersionsAndNumbersNameTheFile) {
       {"{\"format\":\"lfgi-world\",\"version\":1.5}", "world format version 1.5"},
       {"{\"format\":\"lfgi-world\"}", "world format version missing"},
       {"{\"format\":\"lfgi-world\",\"version\":1,\"size_m\":64,\"cell_m\":32}", "missing field 'seed'"},
-      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":-1,\"size_m\":64,\"cell_m\":32}", "field 'seed' is -1"},
-      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":1.5,\"size_m\":64,\"cell_m\":32}", "field 'seed' is 1.5"},
-      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":\"64\",\"cell_m\":32}", "field 'size_m' is \"64\""},
-      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":1e400,\"cell_m\":32}", "not valid JSON"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":-1,\"size_m\":64,\"cell_m\":32}",
+       "field 'seed' is -1"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":1.5,\"size_m\":64,\"cell_m\":32}",
+       "field 'seed' is 1.5"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":\"64\",\"cell_m\":32}",
+       "field 'size_m' is \"64\""},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":1e400,\"cell_m\":32}",
+       "not valid JSON"},
       {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":-64,\"cell_m\":32}", "size -64 m"},
-      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":1e12,\"cell_m\":64}", "more than 65536"},
-      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":64,\"cell_m\":null}", "field 'cell_m' is null"},
-      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":64,\"cell_m\":0.001}", "cell size 0.001 m"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":1e12,\"cell_m\":64}",
+       "more than 65536"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":64,\"cell_m\":null}",
+       "field 'cell_m' is null"},
+      {"{\"format\":\"lfgi-world\",\"version\":1,\"seed\":3,\"size_m\":64,\"cell_m\":0.001}",
+       "cell size 0.001 m"},
       {"[1, 2, 3]", "not valid JSON"},
       {"NaN", "not valid JSON"},
   };

@@ -31,34 +31,41 @@ void validateOne(const WorldEdit& e, double sizeM, double cellM) {
   const bool box = e.kind == WorldEditKind::kAddBox;
   for (int a = 0; a < 3; ++a)
     if (!std::isfinite(e.min[a]) || !std::isfinite(e.max[a]))
-      fail("coordinates must be finite numbers (min {},{},{}, max {},{},{})", e.min.x, e.min.y, e.min.z, e.max.x,
-           e.max.y, e.max.z);
+      fail("coordinates must be finite numbers (min {},{},{}, max {},{},{})", e.min.x, e.min.y, e.min.z,
+           e.max.x, e.max.y, e.max.z);
   if (!(e.max.x > e.min.x && e.max.z > e.min.z))
-    fail("zero or negative size: x [{}, {}], z [{}, {}] (need x0 < x1 and z0 < z1)", e.min.x, e.max.x, e.min.z,
-         e.max.z);
-  if (box && !(e.max.y > e.min.y)) fail("zero or negative height: y [{}, {}] (need y0 < y1)", e.min.y, e.max.y);
+    fail("zero or negative size: x [{}, {}], z [{}, {}] (need x0 < x1 and z0 < z1)", e.min.x, e.max.x,
+         e.min.z, e.max.z);
+  if (box && !(e.max.y > e.min.y))
+    fail("zero or negative height: y [{}, {}] (need y0 < y1)", e.min.y, e.max.y);
   if (box && e.max.y - e.min.y > 1000.0) fail("box {} m tall; at most 1000 m", e.max.y - e.min.y);
   if (e.min.x < 0.0 || e.min.z < 0.0 || e.max.x > sizeM || e.max.z > sizeM)
-    fail("x [{}, {}], z [{}, {}] is not inside the world [0, {}] x [0, {}]", e.min.x, e.max.x, e.min.z, e.max.z, sizeM,
-         sizeM);
+    fail("x [{}, {}], z [{}, {}] is not inside the world [0, {}] x [0, {}]", e.min.x, e.max.x, e.min.z,
+         e.max.z, sizeM, sizeM);
   switch (e.kind) {
     case WorldEditKind::kAddBuilding: {
       if (e.max.x - e.min.x < 4.0 || e.max.z - e.min.z < 4.0)
-        fail("footprint {} m x {} m; a building needs at least 4 m x 4 m", e.max.x - e.min.x, e.max.z - e.min.z);
+        fail("footprint {} m x {} m; a building needs at least 4 m x 4 m", e.max.x - e.min.x,
+             e.max.z - e.min.z);
       if (e.storeys < 1 || e.storeys > 40) fail("{} storeys; expected 1..40", e.storeys);
       // Containment: the footprint must lie in one cell's closed range (borders may be touched).
       const double cx = std::floor(e.min.x / cellM), cz = std::floor(e.min.z / cellM);
       if (e.max.x > (cx + 1.0) * cellM)
-        fail("footprint x [{}, {}] crosses the cell border x = {} (a building must lie in one cell; move or split it)",
-             e.min.x, e.max.x, (cx + 1.0) * cellM);
+        fail(
+            "footprint x [{}, {}] crosses the cell border x = {} (a building must lie in one cell; move or "
+            "split it)",
+            e.min.x, e.max.x, (cx + 1.0) * cellM);
       if (e.max.z > (cz + 1.0) * cellM)
-        fail("footprint z [{}, {}] crosses the cell border z = {} (a building must lie in one cell; move or split it)",
-             e.min.z, e.max.z, (cz + 1.0) * cellM);
+        fail(
+            "footprint z [{}, {}] crosses the cell border z = {} (a building must lie in one cell; move or "
+            "split it)",
+            e.min.z, e.max.z, (cz + 1.0) * cellM);
       break;
     }
     case WorldEditKind::kAddBox:
       if (!boxCategoryAllowed(e.category))
-        fail("category '{}' is not allowed for a box (allowed: {})", categoryName(e.category), boxCategoryList());
+        fail("category '{}' is not allowed for a box (allowed: {})", categoryName(e.category),
+             boxCategoryList());
       break;
     case WorldEditKind::kClearRegion:
       break;
@@ -149,7 +156,8 @@ std::vector<WorldEdit> worldEditsFromJson(const nlohmann::json& array) {
         e.min = {f[0], 0.0, f[1]};
         e.max = {f[2], 0.0, f[3]};
         if (j.contains("storeys")) {
-          if (!j["storeys"].is_number_integer()) fail("field 'storeys': {} is not an integer", j["storeys"].dump());
+          if (!j["storeys"].is_number_integer())
+            fail("field 'storeys': {} is not an integer", j["storeys"].dump());
           const int64_t s = j["storeys"].get<int64_t>();
           e.storeys = s < -1000 || s > 1000 ? -1 : int(s);
         }
@@ -187,7 +195,8 @@ WorldEdit parseWorldEdit(WorldEditKind kind, std::string_view text) {
   size_t start = 0;
   while (true) {
     const size_t end = text.find(',', start);
-    items.emplace_back(text.substr(start, end == std::string_view::npos ? std::string_view::npos : end - start));
+    items.emplace_back(
+        text.substr(start, end == std::string_view::npos ? std::string_view::npos : end - start));
     if (end == std::string_view::npos) break;
     start = end + 1;
   }
@@ -195,7 +204,8 @@ WorldEdit parseWorldEdit(WorldEditKind kind, std::string_view text) {
   const size_t maxItems = kind == WorldEditKind::kClearRegion ? 4 : coords + 1;
   if (items.size() < coords || items.size() > maxItems)
     fail("{} '{}': expected {} ({} items, got {})", flag, text, shape,
-         coords == maxItems ? std::to_string(coords) : fmt::format("{} or {}", coords, maxItems), items.size());
+         coords == maxItems ? std::to_string(coords) : fmt::format("{} or {}", coords, maxItems),
+         items.size());
   std::vector<double> v;
   for (size_t i = 0; i < coords; ++i) {
     const std::string& s = items[i];

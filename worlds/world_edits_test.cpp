@@ -18,7 +18,9 @@ namespace lfgi::worlds {
 namespace {
 
 // The README demo world: 256 m, 4 x 4 cells of 64 m (showcase layout: see synthetic_world.h).
-WorldParams demo() { return WorldParams::smallDefault(1); }
+WorldParams demo() {
+  return WorldParams::smallDefault(1);
+}
 
 WorldEdit building(double x0, double z0, double x1, double z1, int storeys) {
   WorldEdit e;
@@ -124,7 +126,8 @@ TEST(WorldEdits, BuildingOnSlopedFieldSitsAboveTheTerrain) {
   const SyntheticWorld pure(demo());
   // The steepest 16 m x 14 m footprint of a few in the field cells.
   double best = -1.0, bx = 0.0, bz = 0.0;
-  for (const CellCoord c : {CellCoord{0, 0}, CellCoord{3, 0}, CellCoord{0, 2}, CellCoord{0, 3}, CellCoord{3, 3}})
+  for (const CellCoord c :
+       {CellCoord{0, 0}, CellCoord{3, 0}, CellCoord{0, 2}, CellCoord{0, 3}, CellCoord{3, 3}})
     for (double ox = 4; ox <= 44; ox += 8)
       for (double oz = 4; oz <= 44; oz += 8) {
         const double x0 = c.x * 64.0 + ox, z0 = c.z * 64.0 + oz;
@@ -139,7 +142,8 @@ TEST(WorldEdits, BuildingOnSlopedFieldSitsAboveTheTerrain) {
   ASSERT_GT(best, 0.5) << "no sloped field footprint in the demo world";
   const SyntheticWorld edited(withEdits({building(bx, bz, bx + 16, bz + 14, 2)}));
   const CellCoord cell{int(bx / 64), int(bz / 64)};
-  EXPECT_EQ(changedCells(pure, edited), std::vector<std::string>{std::to_string(cell.x) + "," + std::to_string(cell.z)});
+  EXPECT_EQ(changedCells(pure, edited),
+            std::vector<std::string>{std::to_string(cell.x) + "," + std::to_string(cell.z)});
   const GeneratedCell g = edited.generate(cell);
   ASSERT_FALSE(g.layout.buildings.empty());
   const Building& b = g.layout.buildings.back();
@@ -242,31 +246,41 @@ TEST(WorldEdits, ClearRegionRemovesWholeBuildingsAndNothingElse) {
   const SyntheticWorld part(withEdits({clearRegion(150, 150, 152, 152)}));
   const CellLayout lp = part.describeCell({2, 2});
   EXPECT_LT(lp.buildings.size(), pure.describeCell({2, 2}).buildings.size());
-  for (const Building& b : lp.buildings) EXPECT_FALSE(overlapsXZ(b.bounds, Aabb{{150, 0, 150}, {152, 0, 152}}));
+  for (const Building& b : lp.buildings)
+    EXPECT_FALSE(overlapsXZ(b.bounds, Aabb{{150, 0, 150}, {152, 0, 152}}));
   for (const Room& r : lp.rooms) ASSERT_LT(size_t(r.building), lp.buildings.size());
 }
 
 TEST(WorldEdits, LaterClearRemovesEarlierAdditions) {
   const SyntheticWorld pure(demo());
-  const SyntheticWorld boxThenClear(withEdits({box({0.2, 0, 0.2}, {0.4, 1, 0.4}), clearRegion(0.1, 0.1, 0.5, 0.5)}));
+  const SyntheticWorld boxThenClear(
+      withEdits({box({0.2, 0, 0.2}, {0.4, 1, 0.4}), clearRegion(0.1, 0.1, 0.5, 0.5)}));
   EXPECT_TRUE(changedCells(pure, boxThenClear).empty());
-  const SyntheticWorld clearThenBox(withEdits({clearRegion(0.1, 0.1, 0.5, 0.5), box({0.2, 0, 0.2}, {0.4, 1, 0.4})}));
+  const SyntheticWorld clearThenBox(
+      withEdits({clearRegion(0.1, 0.1, 0.5, 0.5), box({0.2, 0, 0.2}, {0.4, 1, 0.4})}));
   EXPECT_EQ(changedCells(pure, clearThenBox), std::vector<std::string>{"0,0"});
 }
 
 TEST(WorldEdits, BadEditsAreRejectedNamingTheEdit) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_NE(errorOf(withEdits({box({1, 0, 1}, {2, 1, 2}), box({1, 0, nan}, {2, 1, 2})})).find("edit 1 (add-box): coordinates must be finite"),
+  EXPECT_NE(errorOf(withEdits({box({1, 0, 1}, {2, 1, 2}), box({1, 0, nan}, {2, 1, 2})}))
+                .find("edit 1 (add-box): coordinates must be finite"),
             std::string::npos);
-  EXPECT_NE(errorOf(withEdits({building(250, 10, 260, 20, 2)})).find("edit 0 (add-building): x [250, 260], z [10, 20] is not inside the world [0, 256]"),
+  EXPECT_NE(errorOf(withEdits({building(250, 10, 260, 20, 2)}))
+                .find("edit 0 (add-building): x [250, 260], z [10, 20] is not inside the world [0, 256]"),
             std::string::npos);
-  EXPECT_NE(errorOf(withEdits({clearRegion(10, 10, 10, 20)})).find("edit 0 (clear-region): zero or negative size"), std::string::npos);
-  EXPECT_NE(errorOf(withEdits({box({1, 2, 1}, {2, 2, 2})})).find("edit 0 (add-box): zero or negative height"), std::string::npos);
-  EXPECT_NE(errorOf(withEdits({building(60, 10, 70, 20, 2)})).find("edit 0 (add-building): footprint x [60, 70] crosses the cell border x = 64"),
+  EXPECT_NE(
+      errorOf(withEdits({clearRegion(10, 10, 10, 20)})).find("edit 0 (clear-region): zero or negative size"),
+      std::string::npos);
+  EXPECT_NE(errorOf(withEdits({box({1, 2, 1}, {2, 2, 2})})).find("edit 0 (add-box): zero or negative height"),
+            std::string::npos);
+  EXPECT_NE(errorOf(withEdits({building(60, 10, 70, 20, 2)}))
+                .find("edit 0 (add-building): footprint x [60, 70] crosses the cell border x = 64"),
             std::string::npos);
   EXPECT_NE(errorOf(withEdits({building(10, 10, 12, 20, 2)})).find("at least 4 m x 4 m"), std::string::npos);
   EXPECT_NE(errorOf(withEdits({building(10, 10, 20, 20, 0)})).find("0 storeys"), std::string::npos);
-  EXPECT_NE(errorOf(withEdits({box({1, 0, 1}, {2, 1, 2}, SurfaceCategory::kEmissive)})).find("category 'emissive' is not allowed"),
+  EXPECT_NE(errorOf(withEdits({box({1, 0, 1}, {2, 1, 2}, SurfaceCategory::kEmissive)}))
+                .find("category 'emissive' is not allowed"),
             std::string::npos);
   // A building that touches a cell border from inside is fine.
   EXPECT_EQ(errorOf(withEdits({building(54, 10, 64, 20, 2)})), "");
@@ -275,7 +289,8 @@ TEST(WorldEdits, BadEditsAreRejectedNamingTheEdit) {
 }
 
 TEST(WorldEdits, JsonAndCommandLineForms) {
-  const std::vector<WorldEdit> edits = {building(150.25, 148, 172, 162, 3), box({1, 2, 3}, {4, 5, 6}, SurfaceCategory::kRoof),
+  const std::vector<WorldEdit> edits = {building(150.25, 148, 172, 162, 3),
+                                        box({1, 2, 3}, {4, 5, 6}, SurfaceCategory::kRoof),
                                         clearRegion(0.1, 0.2, 30, 40)};
   const nlohmann::json j = nlohmann::json::parse(worldEditsToJson(edits).dump());
   EXPECT_EQ(worldEditsFromJson(j), edits);
@@ -292,13 +307,17 @@ TEST(WorldEdits, JsonAndCommandLineForms) {
     }
     return std::string();
   };
-  EXPECT_NE(parseError(WorldEditKind::kAddBox, "1,2,3").find("--add-box '1,2,3': expected X0,Y0,Z0,X1,Y1,Z1[,CATEGORY]"),
+  EXPECT_NE(parseError(WorldEditKind::kAddBox, "1,2,3")
+                .find("--add-box '1,2,3': expected X0,Y0,Z0,X1,Y1,Z1[,CATEGORY]"),
             std::string::npos);
-  EXPECT_NE(parseError(WorldEditKind::kClearRegion, "1,x,3,4").find("--clear-region '1,x,3,4': item 2 'x' is not a finite number"),
+  EXPECT_NE(parseError(WorldEditKind::kClearRegion, "1,x,3,4")
+                .find("--clear-region '1,x,3,4': item 2 'x' is not a finite number"),
             std::string::npos);
   EXPECT_NE(parseError(WorldEditKind::kAddBuilding, "1,2,3,4,nan").find("storeys 'nan'"), std::string::npos);
-  EXPECT_NE(parseError(WorldEditKind::kAddBox, "1,2,3,4,5,6,lava").find("box category 'lava'"), std::string::npos);
-  EXPECT_NE(parseError(WorldEditKind::kAddBox, "1,2,nan,4,5,6").find("not a finite number"), std::string::npos);
+  EXPECT_NE(parseError(WorldEditKind::kAddBox, "1,2,3,4,5,6,lava").find("box category 'lava'"),
+            std::string::npos);
+  EXPECT_NE(parseError(WorldEditKind::kAddBox, "1,2,nan,4,5,6").find("not a finite number"),
+            std::string::npos);
   auto jsonError = [](const char* text) {
     try {
       worldEditsFromJson(nlohmann::json::parse(text));
@@ -310,9 +329,11 @@ TEST(WorldEdits, JsonAndCommandLineForms) {
   EXPECT_NE(jsonError(R"([{"type": "add-box", "min": [0,0,0], "max": [1,1,1]}, {"type": "paint"}])")
                 .find("edit 1: unknown type 'paint'"),
             std::string::npos);
-  EXPECT_NE(jsonError(R"([{"type": "clear-region", "region": [0, null, 1, 1]}])").find("edit 0: field 'region': null is not a number"),
+  EXPECT_NE(jsonError(R"([{"type": "clear-region", "region": [0, null, 1, 1]}])")
+                .find("edit 0: field 'region': null is not a number"),
             std::string::npos);
-  EXPECT_NE(jsonError(R"([{"type": "add-building", "footprint": [0, 0, 1]}])").find("edit 0: missing or wrong field 'footprint'"),
+  EXPECT_NE(jsonError(R"([{"type": "add-building", "footprint": [0, 0, 1]}])")
+                .find("edit 0: missing or wrong field 'footprint'"),
             std::string::npos);
 }
 
@@ -337,7 +358,8 @@ TEST(WorldEdits, ManifestAppendsAtomicallyAndNamesTheFileInErrors) {
     appendWorldEdits(dir, {building(60, 10, 70, 20, 2)});
     ADD_FAILURE() << "crossing building accepted";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("world.json: edit 2 (add-building): footprint x [60, 70] crosses"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("world.json: edit 2 (add-building): footprint x [60, 70] crosses"),
+              std::string::npos)
         << e.what();
   }
   EXPECT_EQ(readFileText(dir / "world.json"), before);
@@ -349,7 +371,8 @@ TEST(WorldEdits, ManifestAppendsAtomicallyAndNamesTheFileInErrors) {
     readWorldManifest(dir);
     ADD_FAILURE() << "edit outside the world accepted";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("world.json: edit 1 (clear-region): x [300, 310], z [0, 10] is not inside the world"),
+    EXPECT_NE(std::string(e.what()).find(
+                  "world.json: edit 1 (clear-region): x [300, 310], z [0, 10] is not inside the world"),
               std::string::npos)
         << e.what();
   }

@@ -42,7 +42,9 @@ LFGI_INLINE vec3 octDecodeL1(vec2 p) {
 }
 
 // Point in [-1, 1]^2 -> unit direction. Inverse of octEncode.
-LFGI_INLINE vec3 octDecode(vec2 p) { return normalize(octDecodeL1(p)); }
+LFGI_INLINE vec3 octDecode(vec2 p) {
+  return normalize(octDecodeL1(p));
+}
 
 // Centre of interior texel (i, j) of an N x N map -> [-1, 1]^2.
 LFGI_INLINE vec2 octTexelCentre(uvec2 texel, uint n) {
@@ -50,7 +52,9 @@ LFGI_INLINE vec2 octTexelCentre(uvec2 texel, uint n) {
 }
 
 // Centre of interior texel (i, j) of an N x N map -> unit direction.
-LFGI_INLINE vec3 octTexelDirection(uvec2 texel, uint n) { return octDecode(octTexelCentre(texel, n)); }
+LFGI_INLINE vec3 octTexelDirection(uvec2 texel, uint n) {
+  return octDecode(octTexelCentre(texel, n));
+}
 
 // Unit direction -> interior texel of an N x N map that contains it (nearest-texel lookup).
 LFGI_INLINE uvec2 octDirectionTexel(vec3 d, uint n) {

@@ -55,7 +55,8 @@ struct GBufferParams {
 };
 LFGI_CHECK_SIZE(GBufferParams, 128)
 
-// One cell of the shading pass, in one of two states (the streaming manager's, streaming/streaming_manager.h):
+// One cell of the shading pass, in one of two states (the streaming manager's,
+// streaming/streaming_manager.h):
 //   full: its probe grid; probe k of the cell is global probe firstProbe + k, whose maps start at
 //     (firstProbe + k) * texels of the map kind (bordered octahedral maps, see ShadeParams); its fade in
 //     [0, 1] weighs the probes against the fallback (1: fully faded in);
@@ -81,11 +82,12 @@ LFGI_CHECK_OFFSET(ShadeCell, fallback, 96)
 struct ShadeParams {
   SkyParams sky;
   GpuCamera camera;
-  uvec4 size;     // x: width, y: height, z: cell count, w: BVH node count
-  uvec4 maps;     // x: irradiance res m, y: distance/radiance res n, z: specular levels L (>= 1), w: flags
-                  //    (bit 0: Chebyshev visibility, bit 1: backface weight, bit 2: sun shadow rays)
-  vec4 bias;      // x: normal bias (m), y: view bias (m), z: Chebyshev floor, w: max ray distance
-  vec4 weights;   // x: 1 to shade direct light; y: 1 indirect diffuse; z: 1 indirect specular; w: AO radius (m, 0 off)
+  uvec4 size;    // x: width, y: height, z: cell count, w: BVH node count
+  uvec4 maps;    // x: irradiance res m, y: distance/radiance res n, z: specular levels L (>= 1), w: flags
+                 //    (bit 0: Chebyshev visibility, bit 1: backface weight, bit 2: sun shadow rays)
+  vec4 bias;     // x: normal bias (m), y: view bias (m), z: Chebyshev floor, w: max ray distance
+  vec4 weights;  // x: 1 to shade direct light; y: 1 indirect diffuse; z: 1 indirect specular; w: AO radius
+                 // (m, 0 off)
 };
 LFGI_CHECK_SIZE(ShadeParams, 256 + 64 + 64)
 

@@ -46,31 +46,32 @@ LFGI_INLINE vec3 virRectAxis(vec3 n) {
   return normalize(axis - dot(axis, n) * n);
 }
 
-#define LFGI_VIR_LOD_MAX_BLOCK_PROBES 32  // VirOptions::lodBlockProbes limit (vir_lod_splat.comp's probe array)
+#define LFGI_VIR_LOD_MAX_BLOCK_PROBES \
+  32  // VirOptions::lodBlockProbes limit (vir_lod_splat.comp's probe array)
 
 // Push constants of the LOD passes (vir_lod_radiance/vir_lod_cut/vir_lod_splat/vir_lod_resolve.comp).
 struct VirLodParams {
-  uint probeCount;          // probes in the whole run
-  uint res;                 // N
-  uint blockProbes;         // probes per block: block b holds probes [b * blockProbes, ...)
-  uint blockFirst;          // first block of this batch
-  uint blockCount;          // blocks in this batch
-  uint cutCapacity;         // cut entries per block
-  uint rootNode;            // LOD tree root
-  uint cutPass;             // LFGI_VIR_LOD_PASS_*: one pass, or the near / far pass of the occlusion-culled cut
-  uint nodeFirst;           // radiance pass: nodes [nodeFirst, nodeFirst + nodeCount) of one level
-  uint nodeCount;           // cut pass: the number of frontier subtrees (todo entries per block)
-  uint leafPass;            // radiance pass: 1 for the leaf level (emission + albedo E / pi)
-  uint lanes;               // splat pass: invocations sharing one probe block's cut
-  float maxRange;           // m
-  float footprintScale;     // disc radius multiplier (as VirParams)
-  float lodTexels;          // a node may be splatted when its footprint diameter <= lodTexels texels
-  float depthTolerance;     // cut: a merged node's thickness must be <= depthTolerance x its distance
-  float nearRange;          // occlusion culling: the near pass splats nodes within this range (m) of a block
-  uint hizProbeTexels;      // occlusion culling: uints per probe in the HiZ buffer (levels 1, 2, ...)
-  uint hizLevel;            // HiZ pass: the level written (>= 1); level 0 is the slots' depth words
-  uint cutStage;            // cut pass: LFGI_VIR_LOD_STAGE_TOP or _SUBTREES (vir_lod_cut.comp)
-  float lodElongation;      // cut: a foreshortened node may be up to this x lodTexels long (1: isotropic)
+  uint probeCount;       // probes in the whole run
+  uint res;              // N
+  uint blockProbes;      // probes per block: block b holds probes [b * blockProbes, ...)
+  uint blockFirst;       // first block of this batch
+  uint blockCount;       // blocks in this batch
+  uint cutCapacity;      // cut entries per block
+  uint rootNode;         // LOD tree root
+  uint cutPass;          // LFGI_VIR_LOD_PASS_*: one pass, or the near / far pass of the occlusion-culled cut
+  uint nodeFirst;        // radiance pass: nodes [nodeFirst, nodeFirst + nodeCount) of one level
+  uint nodeCount;        // cut pass: the number of frontier subtrees (todo entries per block)
+  uint leafPass;         // radiance pass: 1 for the leaf level (emission + albedo E / pi)
+  uint lanes;            // splat pass: invocations sharing one probe block's cut
+  float maxRange;        // m
+  float footprintScale;  // disc radius multiplier (as VirParams)
+  float lodTexels;       // a node may be splatted when its footprint diameter <= lodTexels texels
+  float depthTolerance;  // cut: a merged node's thickness must be <= depthTolerance x its distance
+  float nearRange;       // occlusion culling: the near pass splats nodes within this range (m) of a block
+  uint hizProbeTexels;   // occlusion culling: uints per probe in the HiZ buffer (levels 1, 2, ...)
+  uint hizLevel;         // HiZ pass: the level written (>= 1); level 0 is the slots' depth words
+  uint cutStage;         // cut pass: LFGI_VIR_LOD_STAGE_TOP or _SUBTREES (vir_lod_cut.comp)
+  float lodElongation;   // cut: a foreshortened node may be up to this x lodTexels long (1: isotropic)
 };
 LFGI_CHECK_SIZE(VirLodParams, 84)
 LFGI_CHECK_OFFSET(VirLodParams, maxRange, 48)

@@ -60,8 +60,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const uint64_t length = n, sum = XXH3_64bits(body, n);
   const std::byte* magic = reinterpret_cast<const std::byte*>("LFGICELL");
   sealed.insert(sealed.end(), magic, magic + 8);
-  sealed.insert(sealed.end(), reinterpret_cast<const std::byte*>(&length), reinterpret_cast<const std::byte*>(&length) + 8);
-  sealed.insert(sealed.end(), reinterpret_cast<const std::byte*>(&sum), reinterpret_cast<const std::byte*>(&sum) + 8);
+  sealed.insert(sealed.end(), reinterpret_cast<const std::byte*>(&length),
+                reinterpret_cast<const std::byte*>(&length) + 8);
+  sealed.insert(sealed.end(), reinterpret_cast<const std::byte*>(&sum),
+                reinterpret_cast<const std::byte*>(&sum) + 8);
   check(sealed);
   return 0;
 }

@@ -17,7 +17,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const auto surfels = lfgi::worlds::decodeSurfels({reinterpret_cast<const std::byte*>(data), size}, kName);
     for (const lfgi::worlds::Surfel& s : surfels)
       for (int c = 0; c < 4; ++c)
-        if (!std::isfinite(s.positionRadius[c]) || !std::isfinite(s.normal[c]) || !std::isfinite(s.emission[c]))
+        if (!std::isfinite(s.positionRadius[c]) || !std::isfinite(s.normal[c]) ||
+            !std::isfinite(s.emission[c]))
           std::abort();
   } catch (const lfgi::Error& e) {
     if (std::strncmp(e.what(), kName, sizeof(kName) - 1) != 0) {

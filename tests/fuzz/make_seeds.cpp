@@ -40,7 +40,8 @@ CellFile smallCell(bool noNetwork, bool positionLatents, int latentBits) {
       a.latentDim = 6;
     }
     CellGenerator g;
-    g.weights = quantizeWeights(randomGeneratorWeights(a, 5), latentBits == 4 ? WeightPrecision::Float16 : WeightPrecision::Int8);
+    g.weights = quantizeWeights(randomGeneratorWeights(a, 5),
+                                latentBits == 4 ? WeightPrecision::Float16 : WeightPrecision::Int8);
     if (!positionLatents) {
       std::vector<float> z(size_t(n) * size_t(a.latentDim));
       for (size_t i = 0; i < z.size(); ++i) z[i] = 0.1f * float(int(i % 11) - 5);
@@ -50,7 +51,8 @@ CellFile smallCell(bool noNetwork, bool positionLatents, int latentBits) {
   }
   c.fallback.kind = noNetwork ? CellFallback::Kind::PerProbe : CellFallback::Kind::PerCell;
   const size_t entries = noNetwork ? size_t(n) : 1;
-  for (size_t i = 0; i < entries * 12; ++i) c.fallback.shHalf.push_back(floatToHalfClamped(0.125f * float(i % 5)));
+  for (size_t i = 0; i < entries * 12; ++i)
+    c.fallback.shHalf.push_back(floatToHalfClamped(0.125f * float(i % 5)));
   c.stats.errorAchieved = 0.03;
   c.stats.errorTarget = 0.05;
   c.stats.model = noNetwork ? "no network: SH L1" : "seed";
@@ -90,9 +92,10 @@ int main(int argc, char** argv) {
     writeFileAtomic(out / "surfels" / "one", worlds::encodeSurfels(std::span(s).first(1)));
     writeFileAtomic(out / "surfels" / "empty", worlds::encodeSurfels({}));
 
-    writeFileAtomic(out / "manifest" / "world.json",
-                    std::string("{\"format\": \"lfgi-world\", \"version\": 1, \"generator\": \"synthetic\", \"seed\": 3,"
-                                " \"size_m\": 64.0, \"cell_m\": 32.0, \"cells_x\": 2, \"cells_z\": 2}\n"));
+    writeFileAtomic(
+        out / "manifest" / "world.json",
+        std::string("{\"format\": \"lfgi-world\", \"version\": 1, \"generator\": \"synthetic\", \"seed\": 3,"
+                    " \"size_m\": 64.0, \"cell_m\": 32.0, \"cells_x\": 2, \"cells_z\": 2}\n"));
     writeFileAtomic(out / "manifest" / "big.json",
                     std::string("{\"format\":\"lfgi-world\",\"version\":1,\"seed\":18446744073709551615,"
                                 "\"size_m\":4096,\"cell_m\":64}"));
