@@ -1,4 +1,4 @@
-// `lfgi inspect CELLFILE`: what a cell file holds and what each part costs (issue 7, DESIGN.md §3), and
+// `lfgi inspect CELLFILE`: what a cell file holds and what each part costs (docs/docs/DESIGN.md §3), and
 // the hidden `lfgi debug-write-cell`, which writes a small synthetic cell file for the CLI tests and for
 // trying inspect without a bake.
 #include <nlohmann/json.hpp>

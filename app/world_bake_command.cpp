@@ -1,4 +1,4 @@
-// `lfgi bake`: world cells -> cell files (DESIGN.md §3-4); the per-cell work is bake/world_bake.h
+// `lfgi bake`: world cells -> cell files (docs/DESIGN.md §3-4); the per-cell work is bake/world_bake.h
 // bakeCell, written to cells/cell_X_Z.vdb atomically.
 // Idempotent: a cell whose file exists with the same input hash (bake/world_bake.h: world seed, cell, the
 // mesh hashes of the cell and its 8 neighbours, probe grid, flags and offsets, every bake option) is

@@ -1,6 +1,7 @@
-// Bookkeeping of a world bake (issue 11): what each cell's bake cost and how it ended, the state of every
-// cell of a world against its current inputs, and the cost model that projects a bake to larger worlds.
-// Shared by `lfgi bake` (writes the records), `lfgi bake-status` (reads them) and bench/bake.
+// Bookkeeping of a world bake (worlds/OVERVIEW.md "World edits"): what each cell's bake cost and how it
+// ended, the state of every cell of a world against its current inputs, and the cost model that projects a
+// bake to larger worlds. Shared by `lfgi bake` (writes the records), `lfgi bake-status` (reads them) and
+// bench/bake.
 //
 // Beside each cell file OUT/cells/cell_X_Z.vdb:
 // - cell_X_Z.json: the cell's bake record (cell, cell kind, input hash, seconds by stage, bytes, host,

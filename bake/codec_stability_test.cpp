@@ -1,4 +1,4 @@
-// Failure modes of the codecs (issue 10 part 1; measured at scale by bench/stability):
+// Failure modes of the codecs (measured at scale by bench/stability):
 // - lighting the generator never saw (times between and outside its keys, overcast, the ends of the
 //   conditioning range) decodes to finite, non-negative radiance and finite distances;
 // - FP16 storage of a field whose sun is 1e5 x its interior light stays finite and keeps the dark values;

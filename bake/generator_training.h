@@ -1,5 +1,5 @@
-// Training of the per-cell generative probe codec (DESIGN.md §4; the network is core/generator.h) and the
-// choice of the smallest model that meets a cell's error target. The only libtorch user; libtorch stays
+// Training of the per-cell generative probe codec (docs/DESIGN.md §4; the network is core/generator.h) and
+// the choice of the smallest model that meets a cell's error target. The only libtorch user; libtorch stays
 // inside generator_training.cpp (nothing here includes it).
 //
 // Method: auto-decoder / generative latent optimisation (Bojanowski et al. 2018, "Optimizing the Latent
@@ -140,7 +140,7 @@ struct TrainedGenerator {
 TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const GeneratorTrainingOptions& options);
 
 // ---------------------------------------------------------------------------------------------------
-// World-shared generator + per-cell adapters (DESIGN.md §4: "judge a world-shared pre-trained generator
+// World-shared generator + per-cell adapters (docs/DESIGN.md §4: "judge a world-shared pre-trained generator
 // (cells keep only latents + a small per-cell adapter) against fully per-cell weights").
 //
 // pretrainSharedGenerator fits one network of training.arch to several cells at once: every cell has its
@@ -231,7 +231,7 @@ CodecError codecError(const GeneratorTrainingSet& set, std::span<const std::vect
 CodecError evaluateGenerator(const TrainedGenerator& model, const GeneratorTrainingSet& set);
 
 // ---------------------------------------------------------------------------------------------------
-// Model sizing ("a model no bigger than the scene needs", DESIGN.md §4).
+// Model sizing ("a model no bigger than the scene needs", docs/DESIGN.md §4).
 enum class CellModelKind : uint8_t {
   kConstant = 0,   // no network: one RGB radiance per key for the whole cell (solid-angle mean)
   kShL1 = 1,       // no network: one SH L1 radiance (4 x RGB, core/sh.h basis) per key for the whole cell

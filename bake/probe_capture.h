@@ -92,7 +92,7 @@ struct ProbeCapture {
   uint64_t rays = 0;  // closest-hit + shadow rays traced for this probe
 
   // 64-bit FNV-1a of the resolutions, position and every map's bytes (not rays or the error summary):
-  // equal hashes mean bit-identical maps (DESIGN.md §2: determinism is hashed and tested).
+  // equal hashes mean bit-identical maps (docs/DESIGN.md §2: determinism is hashed and tested).
   uint64_t contentHash() const;
 };
 

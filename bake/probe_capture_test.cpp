@@ -328,7 +328,7 @@ TEST(ProbeCapture, SealedBoxUnderTheSunIsExactlyDark) {
   EXPECT_GT(total, 0.0);
 }
 
-// DESIGN.md §5's leak case in the ground truth: a room sealed by 0.15 m slabs (six overlapping solid
+// docs/DESIGN.md §5's leak case in the ground truth: a room sealed by 0.15 m slabs (six overlapping solid
 // boxes, as the synthetic world builds walls) under a low afternoon sun that hits one wall's outside;
 // probes 2 cm from that wall and in a corner must still see exactly nothing.
 TEST(ProbeCapture, ThinWalledSealedRoomStaysExactlyDarkNearItsWalls) {

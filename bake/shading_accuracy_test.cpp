@@ -1,4 +1,4 @@
-// Shading from captured probes against the path-traced reference (issue 9): Cornell box indirect light
+// Shading from captured probes against the path-traced reference: Cornell box indirect light
 // error at the paper's 2 x 2 x 2 probes and a denser grid, colour bleeding, and the leak-test house of the
 // synthetic world. Bounds are the measured values plus a margin (numbers printed by each test).
 #include <gtest/gtest.h>

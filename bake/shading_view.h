@@ -66,8 +66,8 @@ double layerRelativeRms(const Image& a, const std::string& layerA, const Image& 
 Image errorHeatMap(const Image& a, const std::string& layerA, const Image& reference,
                    const std::string& layerRef);
 
-// Leak test (DESIGN.md §5, NVIDIA LFP/DDGI style) on the first LeakTestSite of a world cell: captures the
-// cell's own placed probes around the house (within one spacing of its bounds), shades 5 x 5 floor points
+// Leak test (docs/DESIGN.md §5, NVIDIA LFP/DDGI style) on the first LeakTestSite of a world cell: captures
+// the cell's own placed probes around the house (within one spacing of its bounds), shades 5 x 5 floor points
 // of the lit room and of the sealed room and reports mean indirect-diffuse luminance, with Chebyshev
 // visibility on and off. ratio = sealed / lit. Throws lfgi::Error if the cell has no leak test.
 struct LeakTestResult {

@@ -1,4 +1,4 @@
-// Baking one world cell into a cell file (DESIGN.md §3-4), shared by `lfgi bake`, `lfgi bake-status`,
+// Baking one world cell into a cell file (docs/DESIGN.md §3-4), shared by `lfgi bake`, `lfgi bake-status`,
 // the Slurm scripts' tests and the incremental-rebake tests.
 //
 // Per cell: build the cell (probes placed as `lfgi world` places them), capture its active probes under
@@ -12,7 +12,7 @@
 // neighbour makes the cell stale), probe grid, flags and offsets, every bake setting. A cell whose file
 // holds the same input hash is up to date.
 //
-// Invalidation after a world edit (worlds/world_edits.h; issue 11 incremental rebake): an edit changes
+// Invalidation after a world edit (worlds/world_edits.h; incremental rebake): an edit changes
 // the meshes of the cells it overlaps (SyntheticWorld::editCells; usually one), and a cell's bake reads
 // geometry only through (a) its capture scene, exactly its 3 x 3 block, and (b) probe placement, which
 // sees its own mesh and the 8 neighbours' solid boxes (part of their meshes). Every other input of the

@@ -1,5 +1,5 @@
 // Benchmark `ceilings`: the machine's own limits, used as denominators by the other benchmarks
-// (DESIGN.md §6): register-only FMA rate and the project's best GEMM kernel on the Vulkan device, 64-bit
+// (docs/DESIGN.md §6): register-only FMA rate and the project's best GEMM kernel on the Vulkan device, 64-bit
 // atomicMin rate, device buffer copy bandwidth, OpenBLAS sgemm on all CPU threads and a STREAM-like
 // triad. GPU times come from timestamps; each figure is the best of several repetitions.
 #include <cblas.h>

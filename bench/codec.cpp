@@ -1,4 +1,4 @@
-// Benchmark `codec`: rate-distortion-speed of the probe codecs (issue 7; DESIGN.md §4-5) on the same
+// Benchmark `codec`: rate-distortion-speed of the probe codecs (docs/docs/DESIGN.md §4-5) on the same
 // ground-truth probes: the Cornell box, Sponza and synthetic cells of every kind (field, suburb, city blocks
 // of each type, park) of the default 256 m world, captured with Embree (bake/probe_capture.h, low sample
 // counts) and cached under --cache so re-runs skip the capture.
@@ -311,7 +311,7 @@ bake::GeneratorTrainingOptions benchTrainingOptions(int maxSteps) {
   return o;
 }
 
-// The generative codec (issue 7): the cell's probes are a one-key training set; bake::chooseCellModel picks
+// The generative codec: the cell's probes are a one-key training set; bake::chooseCellModel picks
 // SH L1 ("no network") when it meets the target, else the cheapest of a few generators; weights and latents
 // are int8 and the bytes are the whole OpenVDB cell file (core/cell_file.h), ~11 KB of it fixed OpenVDB
 // overhead per cell. The bench captures keep radiance and irradiance only, so the distance / normal /
@@ -603,7 +603,7 @@ std::vector<std::unique_ptr<ProbeCodec>> makeBenchCodecs(bool quick, bool skipGa
                         : std::vector<double>{0.3, 0.2, 0.1, 0.05, 0.02, 0.01, 0.005})
     c.push_back(makePcaCodec(t));
   for (int b : {4, 6, 8}) c.push_back(makeAstcHdrCodec(b, 60.0f));  // ASTCENC_PRE_MEDIUM
-  // The generative codec (issue 7), at the irradiance targets the cell bake uses.
+  // The generative codec, at the irradiance targets the cell bake uses.
   if (!skipGan)
     for (double t : quick ? std::vector<double>{0.05} : std::vector<double>{0.05, 0.02})
       c.push_back(std::make_unique<GanCodec>(t, quick ? 300 : 800, timeOfDay));

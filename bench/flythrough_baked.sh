@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # bench flythrough_baked (run by scripts/bench.sh flythrough_baked [--quick] [--world DIR]): the streaming
-# fly-through over BAKED cell files (issue 8): the 4096 m x 4096 m synthetic world (seed 1, 64 x 64 cells
+# fly-through over BAKED cell files: the 4096 m x 4096 m synthetic world (seed 1, 64 x 64 cells
 # of 64 m) baked only where the flight goes — `lfgi bake --path line --path-radius 128` (the cells within
 # 128 m of the west -> east line, 276 cells; the whole world, 4096 cells, is ~15x that and too slow for a
 # 2-core machine) — then lfgi_bench_flythrough --world at 2 / 10 / 25 / 50 / 100 m/s with a 6 -> 20 h sweep,

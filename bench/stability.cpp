@@ -1,4 +1,4 @@
-// Benchmark `stability` (issue 10 parts 1 and 4): where the methods fail, measured.
+// Benchmark `stability`: where the methods fail, measured.
 //
 // Sections (column `section` of results.csv; one row = one measured figure, `metric` names it with its
 // unit, `value` holds it):
@@ -986,7 +986,8 @@ int main(int argc, char** argv) {
                   "overcast", "metric", "value"});
     Ctx c{o, *gpuCtx, quick, 8, quick ? 4 : 16};
     auto& s = o.summary();
-    // Keys of the bad-input and interruption parts (issue 10 parts 2, 3) are measured by their own tests.
+    // Keys of the bad-input and interruption parts (docs/ARCHITECTURE.md "Bad input and interruption") are
+    // measured by their own tests.
     s["readers_inputs_tried"] = nullptr;
     s["readers_crashes"] = nullptr;
     s["readers_unclear_errors"] = nullptr;

@@ -1,4 +1,4 @@
-// CellFile: one streaming cell's light field on disk (DESIGN.md §3), an OpenVDB file that `vdb_print`
+// CellFile: one streaming cell's light field on disk (docs/DESIGN.md §3), an OpenVDB file that `vdb_print`
 // lists, plus a trailer that protects the reader. OpenVDB is an implementation detail of cell_file.cpp;
 // this header is plain C++ so the many users of core never compile OpenVDB's headers.
 //

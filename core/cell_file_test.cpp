@@ -335,9 +335,10 @@ TEST(CellFile, IntactButWrongFilesNameTheProblem) {
   EXPECT_NE(errorOf({}).find("too short"), std::string::npos);
 }
 
-// NaN and Inf (issue 10) in every kind of float the file holds: metadata fields, weight tensors (f32
-// biases, int8 scales, FP16 elements) and latent scales. The blobs are rebuilt in the writer's layout
-// with one value replaced, so the file is intact (checksum valid) and only the value is wrong.
+// NaN and Inf (docs/ARCHITECTURE.md "Bad input and interruption") in every kind of float the file holds:
+// metadata fields, weight tensors (f32 biases, int8 scales, FP16 elements) and latent scales. The blobs are
+// rebuilt in the writer's layout with one value replaced, so the file is intact (checksum valid) and only the
+// value is wrong.
 TEST(CellFile, NonFiniteValuesAreRejectedByName) {
   const CellFile c = makeCell(Variant::Int8Latents8);
   const std::pair<detail::CellFileOverride, std::string> fields[] = {

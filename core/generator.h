@@ -1,4 +1,4 @@
-// The per-cell generative probe codec's network (DESIGN.md §4): a DCGAN-style generator (Radford et al.
+// The per-cell generative probe codec's network (docs/DESIGN.md §4): a DCGAN-style generator (Radford et al.
 // 2015, "Unsupervised Representation Learning with Deep Convolutional GANs") that decodes one probe's
 // octahedral maps from a small latent code plus a lighting conditioning vector.
 //

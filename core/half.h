@@ -1,4 +1,4 @@
-// FP16 storage with the project's overflow rule (DESIGN.md §2): radiance spans 10^4-10^5 between sun and
+// FP16 storage with the project's overflow rule (docs/DESIGN.md §2): radiance spans 10^4-10^5 between sun and
 // interior, and an FP16 Inf or NaN in a probe map poisons every bilinear tap and SH projection that
 // touches it. So conversion never produces Inf or NaN: finite overflow and +-Inf clamp to +-65504 (the
 // largest finite half), NaN becomes 0, and the number of such values is returned so the caller can

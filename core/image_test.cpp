@@ -130,9 +130,10 @@ TEST(Exr, TruncatedFilesThrowWithPath) {
   }
 }
 
-// Bad input (issue 10): seeded bit flips in a small file are an lfgi::Error naming the path or an image of
-// the written size (a flip inside pixel data is not detectable: EXR has no checksum); a wrong version
-// field and a huge data window are refused before anything is allocated from them.
+// Bad input (docs/ARCHITECTURE.md "Bad input and interruption"): seeded bit flips in a small file are an
+// lfgi::Error naming the path or an image of the written size (a flip inside pixel data is not detectable:
+// EXR has no checksum); a wrong version field and a huge data window are refused before anything is allocated
+// from them.
 TEST(Exr, BitFlipsWrongVersionAndHugeWindow) {
   const fs::path dir = tmpDir("corrupt");
   const fs::path full = dir / "full.exr";

@@ -7,7 +7,7 @@
 
 namespace lfgi {
 
-// sqrt(sum (a - b)^2 / sum b^2): the project's headline error (DESIGN.md §5, "<= 5 % relative RMS").
+// sqrt(sum (a - b)^2 / sum b^2): the project's headline error (docs/DESIGN.md §5, "<= 5 % relative RMS").
 // 0 if both are all zero; +Inf if only the reference is all zero.
 double relativeRms(std::span<const float> a, std::span<const float> reference);
 

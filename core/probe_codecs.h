@@ -1,4 +1,4 @@
-// Baseline probe codecs (issue 7 item 6; DESIGN.md §4): what the generative codec must beat, behind one
+// Baseline probe codecs (docs/docs/DESIGN.md §4): what the generative codec must beat, behind one
 // small interface so bench/codec measures every method with the same probes and the same metrics.
 //
 // What a codec stores: the radiance maps of every probe of a ProbeField (active or not; n x n x 3, the
@@ -13,7 +13,7 @@
 // the header against it.
 //
 // FP16 everywhere follows core/half.h (never Inf or NaN). Values are pre-scaled by a per-cell power of
-// two so that the largest magnitude is at most 2^14 (DESIGN.md §2: store exposure per cell, never
+// two so that the largest magnitude is at most 2^14 (docs/DESIGN.md §2: store exposure per cell, never
 // overflow); the scale is exact, so a field that fits FP16 round-trips exactly as it would unscaled.
 //
 // Contracts: encode throws lfgi::Error (naming the codec) for a field whose radiance does not match its

@@ -1,4 +1,4 @@
-// ProbeGrid: the index space of one cell's probes (DESIGN.md §2). Probe (x, y, z) sits at
+// ProbeGrid: the index space of one cell's probes (docs/DESIGN.md §2). Probe (x, y, z) sits at
 // origin + (x, y, z) * spacing, metres, +Y up. Linear indices run x fastest, then y, then z.
 //
 // Ownership is half-open: a grid owns the box [origin, origin + dims * spacing) on each axis, so the

@@ -1,4 +1,4 @@
-// Quantized storage of the per-cell generator (DESIGN.md §4 "Quantization"): weights as FP16 or as int8
+// Quantized storage of the per-cell generator (docs/DESIGN.md §4 "Quantization"): weights as FP16 or as int8
 // symmetric per output channel, latents as int8 (or 4-bit) symmetric per latent dimension. Decoders never
 // see these types: dequantize*() turns them back into the floats core/generator.h runs on, so every
 // decoder (CPU, GPU) decodes exactly what the cell file stores.

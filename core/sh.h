@@ -1,5 +1,5 @@
 // Real spherical harmonics, L1 (4 coefficients) and L2 (9 coefficients) per RGB channel: the baseline
-// representation and the always-resident fallback (DESIGN.md §1, §4).
+// representation and the always-resident fallback (docs/DESIGN.md §1, §4).
 //
 // Basis: the standard orthonormal real SH (integral of Y_lm^2 over the sphere = 1) written in the
 // Cartesian components (x, y, z) of a unit world direction, as in Ramamoorthi & Hanrahan 2001, "An

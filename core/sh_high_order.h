@@ -1,5 +1,5 @@
 // Real spherical harmonics of any band up to l = 7 (64 coefficients): the SH L7 probe baseline
-// (DESIGN.md §4, issue 7 item 6). Same basis conventions as core/sh.h, of which this is the extension:
+// (docs/docs/DESIGN.md §4). Same basis conventions as core/sh.h, of which this is the extension:
 // orthonormal real SH in world (x, y, z), no Condon-Shortley phase, zonal axis +Z, index l(l+1)+m, so the
 // first 9 values equal shBasisL2 exactly (up to float rounding).
 //

@@ -1,4 +1,4 @@
-// SharedModel: a world's shared generator on disk (DESIGN.md §4 "world-shared pre-trained generator"),
+// SharedModel: a world's shared generator on disk (docs/DESIGN.md §4 "world-shared pre-trained generator"),
 // OUT/shared_model.vdb next to OUT/cells/. Cells baked with `lfgi bake --codec shared` store only their
 // latents + a FiLM adapter and refer to this model by its weights hash (core/cell_file.h version 3).
 //

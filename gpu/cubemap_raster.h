@@ -1,4 +1,4 @@
-// GPU pass: the cubemap-rasterization baseline that VIR (vir_pass.h) is measured against (issue 6 item 3).
+// GPU pass: the cubemap-rasterization baseline that VIR (vir_pass.h) is measured against.
 // A Vulkan 1.3 graphics pipeline (dynamic rendering, headless, the same code on lavapipe and on GPUs)
 // rasterizes every triangle of a scene into the 6 faces (90-degree frusta, depth test) of every probe,
 // writing a G-buffer (normal + distance, albedo, emission); a compute pass then resamples the faces to

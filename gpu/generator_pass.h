@@ -4,8 +4,9 @@
 //
 // Kernels: RowStrip is barrier-free and register-blocked (4 output channels x 4 probes per invocation), the
 // fast one on lavapipe, where a workgroup's invocations run as coroutines and barriers cost ~5x
-// (DESIGN.md §6). Tiled stages activations and weights in shared memory (16 channels x 16 texel-probe groups
-// per workgroup), for real GPUs. The linear layer is < 2 % of the work and uses one barrier-free kernel.
+// (docs/DESIGN.md §6). Tiled stages activations and weights in shared memory (16 channels x 16 texel-probe
+// groups per workgroup), for real GPUs. The linear layer is < 2 % of the work and uses one barrier-free
+// kernel.
 //
 // Residency: a GeneratorGpuModel holds one cell's repacked weights on the device (upload once, while the cell
 // is resident); a GeneratorScratch holds the activations for up to `capacity` probes per batch; a

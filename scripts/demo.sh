@@ -59,7 +59,7 @@ report="$out/report.md"
   echo
   echo "Open profile/trace.json in https://ui.perfetto.dev; profile/summary.html is the one-page summary."
 } >> "$report"
-# Failure modes (issue 10, bench/stability): streaming pops/seams/burst, one leak configuration, generator
+# Failure modes (bench/stability): streaming pops/seams/burst, one leak configuration, generator
 # fallback; ~1 min. The whole suite: scripts/bench.sh stability [--quick].
 "$root/build/bin/lfgi_bench_stability" --quick --sections streaming,leak,fallback --leak-walls 0.1 --leak-spacings 1 \
   --out "$out/stability" > "$out/stability.txt" 2>&1

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Time-of-day sweep (issue 9): one view of the default world shaded from light-field probes from dawn to
+# Time-of-day sweep: one view of the default world shaded from light-field probes from dawn to
 # night, as a PNG sequence + an index page + (when ImageMagick's `convert` is installed) an animated GIF
 # (gifsicle and ffmpeg are not installed here; no new package is added for a GIF).
 # Usage: scripts/tod_sweep.sh [OUT_DIR] [HOURS...]

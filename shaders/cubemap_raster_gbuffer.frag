@@ -1,6 +1,6 @@
 #version 450
 // Cubemap baseline, fragment stage: the G-buffer of one face texel — normal + distance (RGBA32F),
-// albedo with coverage in a (RGBA16F), emission (RGBA16F, clamped to the FP16 range: DESIGN.md §2).
+// albedo with coverage in a (RGBA16F), emission (RGBA16F, clamped to the FP16 range: docs/DESIGN.md §2).
 #include "shared/cubemap_raster.h"
 
 layout(std430, set = 0, binding = 1) readonly buffer Triangles { CubemapTriangle triangles[]; };

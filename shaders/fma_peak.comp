@@ -1,6 +1,6 @@
 #version 450
 // Register-only FMA loop: 8 independent vec4 accumulators per invocation hide FMA latency; no memory
-// traffic inside the loop. Measures the device's arithmetic ceiling (DESIGN.md §6).
+// traffic inside the loop. Measures the device's arithmetic ceiling (docs/DESIGN.md §6).
 #include "shared/ceilings.h"
 
 layout(local_size_x = 64) in;

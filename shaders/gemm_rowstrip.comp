@@ -1,5 +1,5 @@
 #version 450
-// GEMM without shared memory or barriers (DESIGN.md §6: on lavapipe a workgroup's invocations run as
+// GEMM without shared memory or barriers (docs/DESIGN.md §6: on lavapipe a workgroup's invocations run as
 // coroutines, so barriers are very expensive). Each invocation computes a 4 x 4 block of C: four rows of
 // A (scalars) times one vec4 column strip of B, accumulating in registers.
 #include "shared/ceilings.h"

@@ -1,7 +1,7 @@
 #version 450
 // Generator decode, one stride-2 transposed conv (core/generator.h) in sub-pixel form: output texel
 // (2m + py, 2n + px) is a 2 x 2 conv of the input around (m, n), so each of the 4 phases is a GEMM with
-// K = 4 Cin. Barrier-free and register-blocked for lavapipe (DESIGN.md §6; same shape as gemm_rowstrip.comp):
+// K = 4 Cin. Barrier-free and register-blocked for lavapipe (docs/DESIGN.md §6; same shape as gemm_rowstrip.comp):
 // each invocation computes 4 output channels x 4 probes, reading 4 weight vec4 and 4 input vec4 per input
 // channel for 16 vec4 FMAs. The zero border of the activations removes all bounds checks from the loop.
 layout(local_size_x = 64) in;

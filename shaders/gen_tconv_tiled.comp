@@ -3,7 +3,7 @@
 // gen_tconv_rowstrip.comp). A workgroup of 64 computes 16 output channels x 16 column groups (texel, 4 probes):
 // each step stages 16 input channels x 4 taps x 16 column groups of activations and the matching weights in
 // shared memory, so every activation is read from memory once per 16 output channels instead of once per 4.
-// On lavapipe the barriers make this several times slower than the rowstrip kernel (DESIGN.md §6).
+// On lavapipe the barriers make this several times slower than the rowstrip kernel (docs/DESIGN.md §6).
 layout(local_size_x = 64) in;
 #include "gen_tconv_common.glsl"
 

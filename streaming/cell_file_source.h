@@ -1,5 +1,5 @@
 // CellFileSource: the streaming manager's cells from baked cell files (`lfgi bake`: WORLD/baked/cells/
-// cell_X_Z.vdb, core/cell_file.h) instead of an analytic field (issue 8).
+// cell_X_Z.vdb, core/cell_file.h) instead of an analytic field.
 //
 // Construction (game thread, once): the layout comes from the world manifest (worlds::readWorldManifest:
 // cells of cellM metres from (0, 0)). Every cell file is read once through readCellFile (its checksum

@@ -1,4 +1,4 @@
-// The generator network behind one interface with a CPU and a Vulkan backend (DESIGN.md §6), for the
+// The generator network behind one interface with a CPU and a Vulkan backend (docs/DESIGN.md §6), for the
 // streaming manager's cell decode (CellFileSource, decodeCellField in streaming/cell_file_source.h).
 //
 // A backend produces only the network's raw outputs ([count][outChannels][R][R], generatorForward's

@@ -1,4 +1,4 @@
-// Burst load (issue 10 part 4): the camera teleports to a random far position every frame, so every frame
+// Burst load: the camera teleports to a random far position every frame, so every frame
 // wants a whole new neighbourhood of cells (>= 10x the requests of a normal flight), then flies normally.
 // The manager must keep resident bytes within the budget on every frame, never leave a visible point
 // without GI (the SH L1 fallback is always there), and recover: the visible fallback fraction drops under

@@ -1,5 +1,5 @@
-// StreamingManager: keeps the light field of the cells around the camera resident (DESIGN.md §1,
-// issue 8). A game loop calls update() once per frame with the camera; the manager
+// StreamingManager: keeps the light field of the cells around the camera resident (docs/DESIGN.md §1).
+// A game loop calls update() once per frame with the camera; the manager
 //   1. wants every cell within decodeRadius of the camera or of its predicted position
 //      (position + velocity * prefetchSeconds, at most maxPrefetchDistance ahead), ordered by priority =
 //      distance x view-direction factor (cells near the prediction count half the look-ahead farther);

@@ -1,5 +1,5 @@
 // VirRelightSource: a CellSource decorator whose relight is VIR relighting of the cell's surfels on the
-// GPU (issue 8: "refreshes them through VIR relighting"), for any inner source (CellFileSource,
+// GPU ("refreshes them through VIR relighting", docs/DESIGN.md §1), for any inner source (CellFileSource,
 // SyntheticCellSource, ...). layout / fallback / maxCellBytes / load / setTimeOfDay go to the inner source
 // unchanged (loads stay the codec decode); relightInto / relightWeatherInto relight the resident field:
 //   1. the cell's surfels (and the probes' relocation offsets) from the SurfelProvider, cached per cell

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A writer that fails mid-file leaves no partial output (issue 10): `lfgi profile` with a gnuplot that
+# A writer that fails mid-file leaves no partial output (docs/ARCHITECTURE.md "Bad input and interruption"): `lfgi profile` with a gnuplot that
 # writes half a PNG and fails must finish (exit 0, a warning), write its other outputs, and leave neither
 # profile.png nor a temporary file behind. Usage: tests/failing_writer.sh LFGI_BINARY WORK_DIR
 set -uo pipefail

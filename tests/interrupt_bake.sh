@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Interruption test for `lfgi bake` (issue 10, part 3): a bake stopped mid-cell by SIGINT (Ctrl-C) or
+# Interruption test for `lfgi bake`: a bake stopped mid-cell by SIGINT (Ctrl-C) or
 # SIGKILL and then rerun must end with cell files byte-identical to an uninterrupted bake (cell files hold
 # no wall-clock time by default), and leave no temporary files behind.
 #   SIGINT:  exit 130 and a "run the same command again to resume" message; the cell in flight is not

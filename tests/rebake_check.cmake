@@ -1,4 +1,4 @@
-# Incremental rebake (issue 11): bake every cell of a small world, then three times: edit one cell (interior,
+# Incremental rebake (worlds/OVERVIEW.md "World edits"): bake every cell of a small world, then three times: edit one cell (interior,
 # edge, corner), rebake, and check that exactly the edited cell and its in-world neighbours were rebaked
 # (9, 6, 4: their input hashes hold the 3 x 3 mesh hashes, bake/world_bake.h), that the edited cell's file
 # changed and that every other file is byte-identical.

@@ -605,8 +605,8 @@ TEST(GltfErrors, NodeCycleAndBadReferences) {
                    "scale");
 }
 
-// Wrong versions (issue 10): glTF 1.0 / 3.x JSON, a minVersion above 2.0 and a GLB container other
-// than version 2 are refused by name instead of being read as 2.0.
+// Wrong versions (docs/ARCHITECTURE.md "Bad input and interruption"): glTF 1.0 / 3.x JSON, a minVersion
+// above 2.0 and a GLB container other than version 2 are refused by name instead of being read as 2.0.
 TEST(GltfErrors, WrongVersionsAreRefused) {
   const fs::path dir = tmpDir("versions");
   for (const auto& [version, minVersion] :

@@ -233,9 +233,9 @@ TEST(SurfelCodec, TruncatedAndCorruptDataGiveErrors) {
   }
 }
 
-// Bad input (issue 10) on a small cloud: every byte truncation, seeded bit flips, a wrong magic/version
-// and a header count that disagrees with the stream (up to 2^32 - 1) are lfgi::Errors naming the source;
-// whatever decodes is finite.
+// Bad input (docs/ARCHITECTURE.md "Bad input and interruption") on a small cloud: every byte truncation,
+// seeded bit flips, a wrong magic/version and a header count that disagrees with the stream (up to 2^32 - 1)
+// are lfgi::Errors naming the source; whatever decodes is finite.
 TEST(SurfelCodec, EveryTruncationFlipsVersionAndHugeCount) {
   TriangleMesh m;
   m.addBox({0, 0, 0}, {1, 1, 1}, m.addMaterial({}));

@@ -242,8 +242,9 @@ TEST(WorldCells, BadManifestsNameTheFile) {
   }
 }
 
-// Bad input (issue 10): every malformed manifest is an lfgi::Error naming the file, never a JSON library
-// exception or a crash: wrong types, wrong version, huge and non-finite numbers, every truncation, bit flips.
+// Bad input (docs/ARCHITECTURE.md "Bad input and interruption"): every malformed manifest is an lfgi::Error
+// naming the file, never a JSON library exception or a crash: wrong types, wrong version, huge and non-finite
+// numbers, every truncation, bit flips.
 std::string manifestError(std::string_view text) {
   try {
     const WorldParams p = parseWorldManifest(text, "w/world.json");

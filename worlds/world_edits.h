@@ -1,6 +1,6 @@
-// World edits: an ordered list of hand edits applied on top of the seeded synthetic world (issue 11,
-// incremental rebake). The list lives in the world manifest (world.json "edits", world_cells.h) and in
-// WorldParams::edits, so every tool that opens a world directory sees the edited world.
+// World edits: an ordered list of hand edits applied on top of the seeded synthetic world (worlds/OVERVIEW.md
+// "World edits", incremental rebake). The list lives in the world manifest (world.json "edits",
+// world_cells.h) and in WorldParams::edits, so every tool that opens a world directory sees the edited world.
 //
 // Kinds (coordinates in metres, world space, doubles; y up):
 // - add-building X0,Z0,X1,Z1[,STOREYS]: a building (walls, rooms, windows, slabs, parapet roof; the same
