@@ -6,8 +6,8 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 # The commit-msg hook (subject <= 72 characters; CONTRIBUTING.md), when this is a git checkout.
 if hooks=$(git -C "$here/.." rev-parse --git-path hooks 2>/dev/null); then
   [[ "$hooks" = /* ]] || hooks="$here/../$hooks"
-  if [[ -d "$hooks" && ! -e "$hooks/commit-msg" ]]; then
-    cp "$here/hooks/commit-msg" "$hooks/commit-msg" && echo "setup: installed the commit-msg hook"
+  if [[ ! -e "$hooks/commit-msg" ]]; then
+    mkdir -p "$hooks" && cp "$here/hooks/commit-msg" "$hooks/commit-msg" && echo "setup: installed the commit-msg hook"
   fi
 fi
 mapfile -t wanted < <(sed -e 's/#.*//' -e 's/[[:space:]]//g' "$here/apt-packages.txt" | grep -v '^$')
