@@ -7,7 +7,7 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 if hooks=$(git -C "$here/.." rev-parse --git-path hooks 2>/dev/null); then
   [[ "$hooks" = /* ]] || hooks="$here/../$hooks"
   if [[ ! -e "$hooks/commit-msg" ]]; then
-    mkdir -p "$hooks" && cp "$here/hooks/commit-msg" "$hooks/commit-msg" && echo "setup: installed the commit-msg hook"
+    mkdir -p "$hooks" && cp "$here/hooks/commit-msg" "$hooks/commit-msg" && echo "setup: installed the commit-msg hook" || true
   fi
 fi
 mapfile -t wanted < <(sed -e 's/#.*//' -e 's/[[:space:]]//g' "$here/apt-packages.txt" | grep -v '^$')
