@@ -200,18 +200,11 @@ TEST(VirRelightAccuracy, CornellBoxMatchesEmbree) {
   const Comparison off =
       compare("cornell, no emitter NEE", mesh, sky, surfels, probes, all, 8, 10.0f, 256, 32, false);
   const Comparison c = compare("cornell", mesh, sky, surfels, probes, all, 8, 10.0f, 256, 32);
-  // Measured (N = 32, 8 frames, VIR LOD on; before 2026-12-02's lattice surfels and footprint 1.3 in
-  // brackets). Without emitter NEE: probe irradiance median rel 0.19 (0.19), rel RMS 0.14 (0.13), median
-  // signed +0.19 (+0.11); surfel E median rel 0.93 (0.60), signed +0.72 (+0.48): the small ceiling light
-  // reaches surfels only through the 8 probes' irradiance, so points away from the probes, e.g. the back wall
-  // under the light, get the probes' much stronger direct term. With emitter NEE (the default: the lamp's
-  // surfels summed at every surfel, shadowed by VIR-splatted depth maps from the lamp's clusters): probe
-  // median rel 0.098 (0.112), rel RMS 0.086 (0.101), signed +0.044 (+0.013); surfel E median 0.45 (0.41),
-  // signed +0.10
-  // (+0.03); 0.42, signed +0.063 over the 114 surfels a probe sees, since unseen ones are skipped
-  // (2026-12-03; no-NEE run: 0.93, +0.72 unchanged). At footprint 1.5 with lattice surfels the lamp's discs
-  // overhang its edges (+13 % signed: median 0.147, RMS 0.170, failing these bounds). Bounds leave ~25 %
-  // headroom.
+  // Measured (N = 32, 8 frames, VIR LOD on). Without emitter NEE: probe irradiance median rel 0.20, rel
+  // RMS 0.14; surfel E median rel 0.93: the small ceiling light reaches surfels only through the 8 probes'
+  // irradiance, so points away from the probes get the probes' much stronger direct term. With emitter NEE
+  // (the default): probe median rel 0.10, rel RMS 0.088; surfel E median 0.42 over the 114 surfels a probe
+  // sees. Bounds leave ~25 % headroom.
   ASSERT_GT(c.probeTexels, size_t(300));  // two of the 8 preset probes sit inside the boxes (Embree: 0)
   EXPECT_LE(c.probeMedian, 0.14);
   EXPECT_LE(c.probeRelRms, 0.13);
@@ -253,18 +246,10 @@ TEST(VirRelightAccuracy, CityCellMatchesEmbree) {
               built.mesh.triangleCount(), probes.grid.dims.x, probes.grid.dims.y, probes.grid.dims.z);
   const Comparison c =
       compare("city cell", built.mesh, sky, built.surfels, probes, chosen, 4, 64.0f, 128, 16);
-  // Measured (N = 16, 4 frames, 15:00 clear; lattice surfels, footprint 1.3 since 2026-12-02; buried
-  // surfaces dropped by buildCell since 2026-12-03): probe irradiance median rel 0.0135, rel RMS 0.0295
-  // (median signed -0.005; R2 surfels at 1.5 before: 0.0165, 0.034, -0.001); surfel E over 265 sampled
-  // surfels: median rel 0.017, p90 0.35 (the tail: the sun-facing surfels whose shadow-map visibility
-  // disagrees with Embree's shadow ray, then contact shadows and corners the probe grid cannot resolve).
-  // Before buried surfels were dropped, 70 of every 261 sampled were buried (terrain under the ground
-  // slab) and 21 unseen (slab undersides below the ground plane, relit 0 against Embree's ~30 klux of
-  // below-horizon sky; p90 0.97 with them, 0.30 over the 170 others). Shadow map == Embree shadow ray for
-  // 234 of 245 (96 %) sampled sun-facing surfels (1 m surfels, 0.42 m shadow texels). Since the hole fill
-  // closes only enclosed gaps and filled texels no longer count as sky (RelightOptions::filledTexelsSeeSky,
-  // 2026-12-03): probe median 0.0136, rel RMS 0.0296, surfel E median 0.018, p90 0.19 (was 0.35: filled
-  // gaps let sky light through walls and floors). Bounds leave ~15-50 % headroom.
+  // Measured (N = 16, 4 frames, 15:00 clear): probe irradiance median rel 0.014, rel RMS 0.031; surfel E
+  // over 265 sampled surfels: median rel 0.018, p90 0.19 (the tail: sun-facing surfels whose shadow-map
+  // visibility disagrees with Embree's shadow ray, contact shadows and corners the probe grid cannot
+  // resolve). Bounds leave ~15-50 % headroom.
   ASSERT_GT(c.probeTexels, size_t(200));
   EXPECT_LE(c.probeMedian, 0.025);
   EXPECT_LE(c.probeRelRms, 0.05);

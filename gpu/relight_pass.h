@@ -70,10 +70,9 @@ struct RelightOptions {
   bool bounce = true;           // last frame's probe irradiance
   bool chebyshev = true;        // Chebyshev visibility weights
   bool skyInProbes = true;      // probe texels no surfel covered see the sky
-  // ... and so do texels only the VIR hole fill covered (relight_probe_irradiance.comp). false (default
-  // since the fill closes only enclosed gaps, vir_holefill.comp, 2026-12-03): a filled gap is geometry; city
-  // cell of VirRelightAccuracy: surfel E p90 0.35 -> 0.19, probe irradiance unchanged. true: filled texels
-  // see the sky (what the old dilation, which grew silhouettes into the sky, needed).
+  // ... and so do texels only the VIR hole fill covered (relight_probe_irradiance.comp). false (default):
+  // the fill closes only enclosed gaps (vir_holefill.comp), so a filled gap is geometry. true: filled
+  // texels see the sky.
   bool filledTexelsSeeSky = false;
   bool emitterNee = true;            // emitter next-event estimation (see the top of this file)
   int maxEmitterClusters = 16;       // [1, 256] (exceeded only by the count of distinct normal directions)

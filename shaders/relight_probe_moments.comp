@@ -4,10 +4,9 @@
 // makes the Chebyshev bound soft instead of a binary depth test. A texel no surfel covered sees the sky
 // and counts as missDistance, and so does a texel only the VIR hole fill covered when
 // LFGI_RELIGHT_FILLED_SKY is set, as in relight_probe_irradiance.comp (off by default since the fill closes
-// only enclosed gaps, 2026-12-03). Before, at N = 8 two dilation passes filled most of the sky of a probe
-// 0.5 m above a ground plane with the plane's depth (looking straight up: r = 1.2 m), so Chebyshev hid the
-// plane's surfels from the probe above them and their gathered bounce light was lost (a plane under the
-// overcast sky: surfel E median 0 instead of 0.9 of the exact value; probe downward irradiance 24 % low).
+// only enclosed gaps). Sky counted as geometry would hide the surfels below a probe from it in the
+// Chebyshev test and lose their gathered bounce light (streaming/vir_relight_source_test.cpp, plane under
+// an overcast sky).
 // One invocation per texel, probes along z; no barriers.
 #include "shared/octahedral.h"
 #include "shared/relight.h"

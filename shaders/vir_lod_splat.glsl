@@ -2,7 +2,7 @@
 // LFGI_VIR_LOD_SPLAT_FAR defined: the per-pair HiZ test and its Hiz binding 7). Two programs rather than a
 // branch on VirLodParams::cutPass: llvmpipe runs both sides of every branch under an execution mask (it
 // jumps only out of loops, gallivm/lp_bld_nir_soa.c), so an untaken test still costs its instructions for
-// every (node, probe) pair: 5-10 % of the splat without occlusion culling (2026-12-03).
+// every (node, probe) pair: 5-10 % of the splat without occlusion culling.
 // VIR LOD splat: every node of a probe block's cut (vir_lod_cut.comp) into every probe of the block,
 // with the depth test of vir_splat.comp (64-bit atomicMin on depth bits << 32 | node index; the texels
 // whose centre ray hits the footprint, exact depth along that ray; back-facing footprints culled).
@@ -12,7 +12,7 @@
 // (position, normal, rectangle: 12 words) are read once per block, not once per (node, probe) pair, and
 // the probe's position is the same for every lane (a uniform load). On llvmpipe, where every buffer word
 // an invocation reads costs ~10 ns, this made the splat ~1.4x faster at N = 8 than one invocation per
-// (lane, probe) (2026-12-03). Consecutive lanes read consecutive cut entries (spatially close nodes). No
+// (lane, probe). Consecutive lanes read consecutive cut entries (spatially close nodes). No
 // shared memory, no barriers. `lanes` grows with the cut so no invocation splats more than ~512 (node,
 // probe) pairs (llvmpipe ends an invocation's loops after 65535 iterations in total).
 //
@@ -98,7 +98,7 @@ void clipEdge(vec2 a, vec2 b, float y0, float y1, inout vec2 span) {
 
 // The block's probes (xyz position, w map index), read once per invocation: the node-major loop reads a
 // probe per (node, probe) pair, and on llvmpipe a buffer read costs per lane and word while this private
-// array, indexed alike by every lane, does not (1.1-1.2x faster at N = 8 and 16, 2026-12-03).
+// array, indexed alike by every lane, does not (1.1-1.2x faster at N = 8 and 16).
 vec4 blockProbes[LFGI_VIR_LOD_MAX_BLOCK_PROBES];
 
 // One (node, probe) pair: the node's fields are set by main(), the probe's here (k: its index in the block).

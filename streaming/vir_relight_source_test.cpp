@@ -139,9 +139,8 @@ worlds::SkyModel skyAt(float hours, float overcast) {
 // Probes 0.5 m above a ground plane (albedo 0.5) under the CIE overcast sky (overcast 1: no disc):
 // irradiance per texel against the exact infinite-plane value. Upper texels (sky + a little ground) hold
 // to a few %. The lower texels see the plane's bounce light, which reaches the plane's surfels through
-// the relight gather of probe irradiance, with and without its Chebyshev weights. (Until 2026-12-02 the
-// Chebyshev case lost most of it, -24 % worst: the distance moments took the hole fill's dilation of the
-// plane into the N = 8 sky as geometry; relight_probe_moments.comp.)
+// the relight gather of probe irradiance, with and without its Chebyshev weights (the Chebyshev case fails if
+// the distance moments count hole-filled sky as geometry; relight_probe_moments.comp).
 TEST(VirRelightSource, PlaneUnderOvercastSkyMatchesAnalyticIrradiance) {
   auto ctx = gpu::createContext();
   const worlds::SkyModel sky = skyAt(12.0f, 1.0f);
