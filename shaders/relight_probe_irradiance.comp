@@ -3,10 +3,9 @@
 // cosine convolution, as irradiance_convolve.comp) over each probe's N x N VIR radiance map, where a
 // texel that no surfel covered (coverage 0 after hole fill) sees the sky: skyRadiance without the discs
 // (LFGI_RELIGHT_SKY; the discs reach surfels through the shadow map, never through the probes). With
-// LFGI_RELIGHT_FILLED_SKY (RelightOptions::filledTexelsSeeSky, off by default), texels that
-// only the hole fill covered count as uncovered too. A fill that grew silhouettes into the sky (a plain
-// dilation) would need that flag on: counting such texels as geometry hides the sky; it
-// now fills only enclosed gaps (vir_holefill.comp), which are geometry.
+// LFGI_RELIGHT_FILLED_SKY (RelightOptions::filledTexelsSeeSky, off by default), texels that only the hole
+// fill covered count as uncovered too. Off is right for a fill that closes only enclosed gaps
+// (vir_holefill.comp), which are geometry; a fill that grew silhouettes into the sky would need it on.
 // The probe-independent parts come from the CPU (RelightPass::convolve): output texels are taken in
 // groups of 16 (texel o = 16 g + 4 k + c, k = 0..3, c = 0..3, row-major over the M x M map; past M^2: none),
 // weights[(g N^2 + t) 4 + k][c] = max(0, n_o . w_t) dOmega_t, and sky[t] is the sky radiance of input

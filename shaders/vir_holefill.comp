@@ -6,9 +6,9 @@
 // holes left from the read-back coverage). The enclosure test fills the gaps between surfel discs
 // (cracks, pinholes) but never grows a silhouette into the sky: a plain dilation (any valid neighbour) put
 // geometry into 75 % of the sky texels of the city cell's probes at N = 8 and 48 % at N = 16 with 2 passes
-// (lfgi_bench_vir sky_filled_fraction). Only holes are written and only texels not written by
-// this pass are averaged, so one buffer serves as input and output (a neighbour filled concurrently reads
-// as invalid either way).
+// (lfgi_bench_vir sky_filled_fraction). Only holes are written and only texels not written by this pass
+// are averaged, so one buffer serves as input and output (a neighbour filled concurrently reads as invalid
+// either way).
 #include "shared/octahedral.h"
 #include "shared/vir.h"
 

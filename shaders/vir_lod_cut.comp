@@ -14,11 +14,10 @@
 // block) walks its subtree depth first. This keeps every invocation's loop short (llvmpipe stops a shader
 // invocation's loops after 65535 iterations in total, which silently truncated one long walk per block)
 // and gives a GPU blocks x subtrees parallel work. Each node above the frontier is classified once per
-// block, not once per frontier subtree along its ancestors. The
-// walks are stackless (VirLodCutNode firstChild / skip links) and each entry is appended with one
-// atomicAdd: no private arrays, which llvmpipe spills and indexes lane by lane (a 128-entry stack and a
-// 32-entry emit buffer made the cut ~1.2-1.6x slower at N <= 32). No shared
-// memory, no barriers; the cut's order does not matter (the splat's atomicMin is order independent).
+// block, not once per frontier subtree along its ancestors. The walks are stackless (VirLodCutNode
+// firstChild / skip links) and each entry is appended with one atomicAdd: no private arrays, which
+// llvmpipe spills and indexes lane by lane (a 128-entry stack and a 32-entry emit buffer make the cut
+// ~1.2-1.6x slower at N <= 32). No shared memory, no barriers; the cut's order does not matter (the splat's atomicMin is order independent).
 //
 // Occlusion culling (cutPass, shared/vir.h): the near pass classifies with maxRange = min(maxRange,
 // nearRange); the far pass walks with the full range, carries a "far" bit down the walk (this node or an
