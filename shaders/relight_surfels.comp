@@ -5,7 +5,8 @@
 //       DDGI weights (Majercik et al. 2019, "Dynamic Diffuse Global Illumination with Ray-Traced
 //       Irradiance Fields": smooth backface term, Chebyshev visibility from the probes' distance moments
 //       as in McGuire et al. 2017, weight crushing below 0.2; faded to 0 where nearly every probe is
-//       occluded, see probeLighting). The probe maps hold the sky (seen through
+//       occluded, see probeLighting); the Chebyshev bound is taken per bilinear tap, then filtered
+//       (visibility()). The probe maps hold the sky (seen through
 //       the probe's own occlusion) and every bounce up to the last frame, so multi-bounce converges over
 //       frames and the sky is occluded as the probes see it.
 // Shadow test: single tap of the texel containing the surfel centre; lit iff
@@ -66,14 +67,27 @@ vec3 sampleIrradiance(uint probe, vec3 d) {
          probeIrradiance[base + uint(t[3].y * m + t[3].x)].rgb * w.w;
 }
 
-vec2 sampleMoments(uint probe, vec3 d) {
+float chebyshev(vec2 m, float r) {
+  if (r <= m.x) return 1.0;
+  float variance = max(abs(m.y - m.x * m.x), 1e-4 * m.x * m.x);
+  float dr = r - m.x;
+  return variance / (variance + dr * dr);
+}
+
+// Chebyshev visibility of the point at distance r along d from a probe: the bound per bilinear tap, then
+// filtered (as percentage-closer filtering filters depth tests). Filtering the moments first would mix a
+// sky tap's (miss, miss^2) into its neighbours: a mean of miss / 4 and a huge variance, so a probe above a
+// roof saw every point below its sky-bordered texels (lfgi_bench_stability leak).
+float visibility(uint probe, vec3 d, float r) {
   int n = int(params.distanceRes);
   ivec2 t[4];
   vec4 w;
   octBilinear(d, n, t, w);
   uint base = probe * uint(n * n);
-  return probeMoments[base + uint(t[0].y * n + t[0].x)] * w.x + probeMoments[base + uint(t[1].y * n + t[1].x)] * w.y +
-         probeMoments[base + uint(t[2].y * n + t[2].x)] * w.z + probeMoments[base + uint(t[3].y * n + t[3].x)] * w.w;
+  return chebyshev(probeMoments[base + uint(t[0].y * n + t[0].x)], r) * w.x +
+         chebyshev(probeMoments[base + uint(t[1].y * n + t[1].x)], r) * w.y +
+         chebyshev(probeMoments[base + uint(t[2].y * n + t[2].x)], r) * w.z +
+         chebyshev(probeMoments[base + uint(t[3].y * n + t[3].x)], r) * w.w;
 }
 
 vec3 probeLighting(vec3 p, vec3 n) {
@@ -107,13 +121,8 @@ vec3 probeLighting(vec3 p, vec3 n) {
       vec3 q = p + n * normalBias - pp.xyz;
       float r = length(q);
       if (r > 1e-6) {
-        vec2 m = sampleMoments(idx, q / r);
-        if (r > m.x) {
-          float variance = max(abs(m.y - m.x * m.x), 1e-4 * m.x * m.x);
-          float dr = r - m.x;
-          float cheb = variance / (variance + dr * dr);
-          w *= cheb * cheb * cheb;
-        }
+        float cheb = visibility(idx, q / r, r);
+        w *= cheb * cheb * cheb;
       }
     }
     w = max(w, 1e-6);
