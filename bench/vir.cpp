@@ -254,6 +254,9 @@ int main(int argc, char** argv) {
   float lodOcclusionRange = gpu::VirOptions{}.lodOcclusionRange;
   app.add_option("--lod-occlusion-range", lodOcclusionRange,
                  "vir_lod: VirOptions::lodOcclusionRange (m; 0: off)");
+  float fillNearMiss = gpu::VirOptions{}.fillNearMiss;
+  app.add_option("--fill-near-miss", fillNearMiss,
+                 "VirOptions::fillNearMiss for every VIR method (disc radii; 0: fill every enclosed hole)");
   std::string methodsArg = "all";
   bool lodStats = false;
   float statCone = gpu::VirLodBuildOptions{}.coherentConeDeg;
@@ -378,6 +381,7 @@ int main(int argc, char** argv) {
     gpu::CubemapRaster cubemap(*ctx);
     gpu::VirOptions vo;
     vo.maxRange = 1000.0f;  // the whole cell, as the baseline renders it
+    vo.fillNearMiss = fillNearMiss;
     gpu::VirOptions vlod = vo;
     vlod.lod = true;
     vlod.lodTexels = lodTexels;
@@ -656,6 +660,7 @@ int main(int argc, char** argv) {
     s["lod_texels"] = lodTexels;
     s["lod_elongation"] = lodElongation;
     s["lod_occlusion_range_m"] = lodOcclusionRange;
+    s["fill_near_miss"] = fillNearMiss;
     s["lod_block_probes"] = lodBlockProbes;
     s["repeat"] = repeat;
     s["lod_nodes"] = lodNodes;

@@ -59,7 +59,8 @@ bool VirPass::sameSplat(const VirOptions& a, const VirOptions& b) {
   return a.resolution == b.resolution && a.maxRange == b.maxRange && a.footprintScale == b.footprintScale &&
          a.maxFootprintRadius == b.maxFootprintRadius && a.lod == b.lod && a.lodTexels == b.lodTexels &&
          a.lodElongation == b.lodElongation && a.lodBlockProbes == b.lodBlockProbes &&
-         a.lodDepthTolerance == b.lodDepthTolerance && a.lodOcclusionRange == b.lodOcclusionRange;
+         a.lodDepthTolerance == b.lodDepthTolerance && a.lodOcclusionRange == b.lodOcclusionRange &&
+         a.fillNearMiss == b.fillNearMiss;
 }
 
 double VirPass::prepareSurfels(std::span<const shared::Surfel> surfels, const VirOptions& o) {
@@ -115,6 +116,8 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
     fail("VIR: maxFootprintRadius {} outside [0, 8]", o.maxFootprintRadius);
   if (o.fillPasses < 0 || o.fillPasses > VirOptions::kMaxFillPasses)
     fail("VIR: fillPasses {} outside [0, {}]", o.fillPasses, VirOptions::kMaxFillPasses);
+  if (!(std::isfinite(o.fillNearMiss) && o.fillNearMiss >= 0.0f))
+    fail("VIR: fillNearMiss {} must be finite and >= 0", o.fillNearMiss);
   if (!(std::isfinite(o.lodTexels) && o.lodTexels > 0.0f && o.lodTexels <= 16.0f))
     fail("VIR: lodTexels {} outside (0, 16]", o.lodTexels);
   if (!(std::isfinite(o.lodElongation) && o.lodElongation >= 1.0f && o.lodElongation <= 8.0f))
@@ -177,10 +180,12 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
   params.maxRange = o.maxRange;
   params.footprintScale = o.footprintScale;
   params.emissionOnly = lit ? 0u : 1u;
+  params.fillNearMiss = o.fillNearMiss;
   const uint32_t res = params.res, probeCount = params.probeCount;
 
   // LOD: probe blocks (consecutive probes in block order, virLodBlock bounds) and the cut buffer.
   shared::VirLodParams lp = virLodClassifyParams(o);
+  lp.fillNearMiss = params.fillNearMiss;
   size_t blockCount = 0, batchBlocks = 0;
   if (o.lod) {
     const size_t bp = size_t(o.lodBlockProbes);
@@ -320,7 +325,7 @@ ProbeAtlas VirPass::run(std::span<const shared::Surfel> surfels, std::span<const
       timer.stamp(cmd, 3);
       for (int pass = 0; pass < o.fillPasses; ++pass) {
         params.fillPass = uint32_t(pass);
-        dispatch(ctx_, cmd, holefill_, {&distBuf_, &normalBuf_, &albedoBuf_, &radianceBuf_}, params,
+        dispatch(ctx_, cmd, holefill_, {&distBuf_, &normalBuf_, &albedoBuf_, &radianceBuf_, &slots_}, params,
                  {res, res, probeCount});
         memoryBarrier(cmd);
       }

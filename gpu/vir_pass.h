@@ -46,7 +46,11 @@ struct VirOptions {
   int maxFootprintRadius =
       6;               // full splat (lod off): window half-size in texels (up to 13 x 13, near surfels only)
   int fillPasses = 2;  // hole fill passes (enclosed gaps only), 0..kMaxFillPasses
-  bool lod = true;     // splat a per-probe-block cut of the surfel LOD tree (see above)
+  // Hole fill: an enclosed hole is filled only when the splat found its texel-centre ray within
+  // max(footprintScale, fillNearMiss) disc radii of some disc (a crack, not a window; shared/vir.h
+  // LFGI_VIR_NEAR_MISS_SLOT). 0: every enclosed hole.
+  float fillNearMiss = 1.5f;
+  bool lod = true;         // splat a per-probe-block cut of the surfel LOD tree (see above)
   float lodTexels = 4.0f;  // LOD: a merged node may stand in for its surfels when <= this many texels wide
   // LOD: a foreshortened merged node (seen obliquely from every probe of the block) may be up to this x
   // lodTexels wide while its projected area stays within a lodTexels-wide node's; [1, 8], 1: the width

@@ -607,9 +607,10 @@ TEST(VirPass, LodSplatCoversExactlyTheFootprintsOfItsCut) {
     EXPECT_EQ(badDepth, 0u);
     if (blockProbes == LFGI_VIR_LOD_MAX_BLOCK_PROBES) continue;  // one wide block: a cut of mostly leaves
     EXPECT_GT(rectNodes, cutNodes / 2);
-    // Tight spans: measured 4.3 ray tests per atomicMin here (the square windows alone: 17.4), most of them
-    // in the pairs whose footprint crosses an octant plane through the probe (19 % here, square windows).
-    EXPECT_LT(atlas.splatTexelTests, 6 * atlas.splatAtomics);
+    // Tight spans: measured 6.0 ray tests per hit here with the default near-miss zone (4.5 without it,
+    // VirOptions::fillNearMiss = 0; the square windows alone: 17.4), most of them in the pairs whose
+    // footprint crosses an octant plane through the probe (19 % here, square windows).
+    EXPECT_LT(atlas.splatTexelTests, 7 * atlas.splatAtomics);
     EXPECT_LT(atlas.splatWindowPairs * 3, atlas.splatPairs);
   }
   EXPECT_EQ(ctx->validationErrors.load(), 0u);

@@ -6,9 +6,13 @@
 // holes left from the read-back coverage). The enclosure test fills the gaps between surfel discs
 // (cracks, pinholes) but never grows a silhouette into the sky: a plain dilation (any valid neighbour) put
 // geometry into 75 % of the sky texels of the city cell's probes at N = 8 and 48 % at N = 16 with 2 passes
-// (lfgi_bench_vir sky_filled_fraction). Only holes are written and only texels not written by this pass
+// (lfgi_bench_vir sky_filled_fraction). Enclosure alone cannot tell a crack from a window or skylight a
+// texel or two wide (it closed the skylight of lfgi_bench_stability's leak scene: the sunlit room's probes
+// saw a third of Embree's light), so with VirOptions::fillNearMiss > 0 only a hole the splat marked as a
+// near miss (slot LFGI_VIR_NEAR_MISS_SLOT: its ray passed close to a disc) is filled. Only holes are written and only texels not written by this pass
 // are averaged, so one buffer serves as input and output (a neighbour filled concurrently reads as invalid
 // either way).
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #include "shared/octahedral.h"
 #include "shared/vir.h"
 
@@ -18,6 +22,7 @@ layout(std430, set = 0, binding = 0) buffer Distance { vec2 distanceMoments[]; }
 layout(std430, set = 0, binding = 1) buffer Normal { vec4 normals[]; };
 layout(std430, set = 0, binding = 2) buffer Albedo { vec4 albedos[]; };
 layout(std430, set = 0, binding = 3) buffer Radiance { vec4 radiances[]; };
+layout(std430, set = 0, binding = 4) readonly buffer Slots { uint64_t slots[]; };  // the splat's winners
 
 layout(push_constant) uniform Push { VirParams params; };
 
@@ -34,6 +39,7 @@ void main() {
   uint base = id.z * n * n;
   uint i = base + id.y * n + id.x;
   if (normals[i].w != LFGI_VIR_HOLE) return;
+  if (params.fillNearMiss > 0.0 && slots[i] != LFGI_VIR_NEAR_MISS_SLOT) return;
   float limit = float(params.fillPass) + 1.0;
   // Coverage of the neighbours first (one word each): most holes of an outdoor probe are sky, not enclosed,
   // and skip the channel reads. Neighbour k's opposite is 7 - k: one end of each pair is read, the other

@@ -30,6 +30,8 @@
 // caps a footprint at maxFootprintRadius texels: the spans cost only the texels they cover, and a capped
 // near disc (a pavement 0.4 m below a probe spans most of a hemisphere) let its texels fall through to
 // the surface behind it (at N = 64, 2 % holes and 10 % of texels > 5 % too far before).
+// Near misses (shared/vir.h LFGI_VIR_NEAR_MISS_SLOT): the spans and the window cover the footprint grown to
+// its near-miss zone; a ray inside the zone but off the footprint marks an empty slot.
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_atomic_int64 : require
 #include "shared/octahedral.h"
@@ -59,8 +61,10 @@ const float kEdgeEps = 1.0 / 256.0;  // texels: outline spans widened against ro
 // The current (node, probe) pair: the node set by main(), the probe by splatPair(), read by splatTexel().
 vec3 o, nrm, pos, t1, t2;  // probe, node normal, centre, footprint frame (t2 = n x t1)
 vec2 ext;                  // half extents along t1, t2 (leaves: the disc's bounding square)
+vec2 nearExt;              // the near-miss zone's half extents (rectangles) or radius (leaves: x)
 vec3 e1, e2;               // t1 ext.x, t2 ext.y
 float radius;              // footprint radius (m): disc radius x footprintScale, a rectangle's half diagonal
+float nearRadius;          // radius of the near-miss zone's bounding sphere (>= radius)
 float facing, r2;          // dot(n, probe - centre); disc radius^2 (leaves)
 bool isRect;
 uint base;
@@ -76,11 +80,16 @@ void splatTexel(ivec2 t) {
   if (denom <= 1e-6) return;
   float scaled = facing / denom;  // o + scaled td lies on the footprint's plane
   vec3 h = o + scaled * td - pos;
-  bool hit = isRect ? (abs(dot(h, t1)) <= ext.x && abs(dot(h, t2)) <= ext.y) : dot(h, h) <= r2;
+  vec2 a = isRect ? abs(vec2(dot(h, t1), dot(h, t2))) : vec2(0.0);
+  float h2 = isRect ? 0.0 : dot(h, h);
+  bool hit = isRect ? all(lessThanEqual(a, ext)) : h2 <= r2;
+  uint slot = base + uint(t.y) * params.res + uint(t.x);
   if (hit) {
     float depth = scaled * length(td);
-    atomicMin(slots[base + uint(t.y) * params.res + uint(t.x)], (uint64_t(floatBitsToUint(depth)) << 32) | low);
+    atomicMin(slots[slot], (uint64_t(floatBitsToUint(depth)) << 32) | low);
     ++atomics;
+  } else if (isRect ? all(lessThanEqual(a, nearExt)) : h2 <= nearExt.x * nearExt.x) {
+    atomicMin(slots[slot], LFGI_VIR_NEAR_MISS_SLOT);
   }
 }
 
@@ -118,14 +127,14 @@ void splatPair(uint k) {
   // The square window: texel centres within the angular radius (x the map's largest stretch) of the
   // centre; none there (most sub-texel nodes): nothing to splat. Its half-size is capped at one map width n
   // (a period of the wrapped map: a huge near node still tests each texel a bounded number of times).
-  float rho = asin(min(radius / d, 1.0)) * halfN * LFGI_VIR_OCT_STRETCH;
+  float rho = asin(min(nearRadius / d, 1.0)) * halfN * LFGI_VIR_OCT_STRETCH;
   ivec2 lo = max(ivec2(ceil(tc - vec2(0.5 + rho))), c - ivec2(n));
   ivec2 hi = min(ivec2(floor(tc + vec2(rho - 0.5))), c + ivec2(n));
   if (any(greaterThan(lo, hi))) return;
 #ifdef LFGI_VIR_LOD_SPLAT_FAR
   // Far pass of occlusion culling: the cut kept this node for the block; drop it for this probe when
   // the near pass already covered every texel it could reach with something nearer.
-  if (virLodWindowOccluded(map, tc, rho + 1e-3, d - radius)) {
+  if (virLodWindowOccluded(map, tc, rho + 1e-3, d - nearRadius)) {
     ++occluded;
     return;
   }
@@ -179,8 +188,11 @@ void main() {
     t1 = isRect ? octDecode(rect.xy) : virRectAxis(nrm);
     t2 = cross(nrm, t1);
     ext = isRect ? rect.zw : vec2(radius);
-    e1 = t1 * ext.x;
-    e2 = t2 * ext.y;
+    float ratio = virNearMissRatio(params.fillNearMiss, params.footprintScale);
+    nearExt = isRect ? ext + vec2((ratio - 1.0) * min(ext.x, ext.y)) : vec2(radius * ratio);
+    nearRadius = isRect ? length(nearExt) : nearExt.x;
+    e1 = t1 * nearExt.x;
+    e2 = t2 * (isRect ? nearExt.y : nearExt.x);
     low = uint64_t(s);
     visited += inBlock;
     for (uint k = 0u; k < inBlock; ++k) splatPair(k);

@@ -25,7 +25,7 @@ void main() {
   if (id.x >= n || id.y >= n || id.z >= params.probeCount) return;
   uint i = id.z * n * n + id.y * n + id.x;
   uint64_t v = slots[i];
-  if (v == 0xFFFFFFFFFFFFFFFFUL) return;  // a hole: VirPass cleared the channels to 0 (LFGI_VIR_HOLE)
+  if (v >= LFGI_VIR_NEAR_MISS_SLOT) return;  // a hole: VirPass cleared the channels to 0 (LFGI_VIR_HOLE)
   uint s = uint(v & 0xFFFFFFFFUL);
   float r = uintBitsToFloat(uint(v >> 32));
   vec3 a = surfels[s].albedo.rgb;

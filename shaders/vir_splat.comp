@@ -17,7 +17,9 @@
 // exact distance along the texel-centre ray to the disc plane. A disc that no texel-centre ray hits
 // writes nothing (no point splat: writing the containing texel anyway put surfaces in front of their
 // silhouettes and over the sky; measured in bake/vir_accuracy_test.cpp).
-// Back-facing surfels (normal away from the probe) are culled.
+// Back-facing surfels (normal away from the probe) are culled. A ray that misses the disc but passes within
+// the near-miss radius marks an empty slot LFGI_VIR_NEAR_MISS_SLOT (shared/vir.h): the hole fill closes
+// only such holes.
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_atomic_int64 : require
 #include "shared/octahedral.h"
@@ -47,8 +49,9 @@ void main() {
 
   vec3 dir = toS / d;
   float r = pr.w * params.footprintScale;
+  float nearR = r * virNearMissRatio(params.fillNearMiss, params.footprintScale);
   int n = int(params.res);
-  int k = min(int(params.maxFootprintRadius), int(ceil(atan(r, d) * float(n) * 0.5)));
+  int k = min(int(params.maxFootprintRadius), int(ceil(atan(nearR, d) * float(n) * 0.5)));
   ivec2 c = ivec2(octDirectionTexel(dir, params.res));
   uint base = p * params.res * params.res;
   uint64_t low = uint64_t(s);
@@ -60,10 +63,12 @@ void main() {
       if (denom <= 1e-6) continue;  // texel ray parallel to or away from the disc plane
       float depth = facing / denom;  // o + depth td lies on the disc plane
       vec3 h = o + depth * td - pr.xyz;
-      if (dot(h, h) <= r * r) {
-        uint slot = base + uint(t.y) * params.res + uint(t.x);
+      float h2 = dot(h, h);
+      uint slot = base + uint(t.y) * params.res + uint(t.x);
+      if (h2 <= r * r)
         atomicMin(slots[slot], (uint64_t(floatBitsToUint(depth)) << 32) | low);
-      }
+      else if (h2 <= nearR * nearR)
+        atomicMin(slots[slot], LFGI_VIR_NEAR_MISS_SLOT);
     }
   }
 }

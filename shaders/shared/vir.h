@@ -21,8 +21,10 @@ struct VirParams {
   float footprintScale;     // disc radius multiplier for the footprint test (>= 1 closes gaps between discs)
   uint fillPass;            // hole fill: index of this fill pass (0, 1, ...)
   uint emissionOnly;        // LOD resolve: 1 when no irradiance was given (radiance = the node's emission)
+  float fillNearMiss;       // near-miss radius in disc radii (VirOptions::fillNearMiss; 0: off)
+  uint pad0, pad1, pad2;
 };
-LFGI_CHECK_SIZE(VirParams, 32)
+LFGI_CHECK_SIZE(VirParams, 48)
 LFGI_CHECK_OFFSET(VirParams, maxRange, 16)
 
 // Surfel LOD tree topology (gpu/vir_lod.h), one per node, beside the node's disc (a Surfel).
@@ -72,8 +74,9 @@ struct VirLodParams {
   uint hizLevel;         // HiZ pass: the level written (>= 1); level 0 is the slots' depth words
   uint cutStage;         // cut pass: LFGI_VIR_LOD_STAGE_TOP or _SUBTREES (vir_lod_cut.comp)
   float lodElongation;   // cut: a foreshortened node may be up to this x lodTexels long (1: isotropic)
+  float fillNearMiss;    // splat: near-miss radius in disc radii (as VirParams)
 };
-LFGI_CHECK_SIZE(VirLodParams, 84)
+LFGI_CHECK_SIZE(VirLodParams, 88)
 LFGI_CHECK_OFFSET(VirLodParams, maxRange, 48)
 
 // VirLodParams::cutPass. Occlusion culling (VirOptions::lodOcclusionRange > 0) runs the cut and splat
@@ -183,6 +186,19 @@ LFGI_INLINE int virLodClassify(VirLodCutNode node, VirLodBlock blk, VirLodParams
 // Coverage generation stored in the w of the normal channel of a resolved map texel.
 #define LFGI_VIR_HOLE 0.0f     // no surfel and no filled value
 #define LFGI_VIR_COVERED 1.0f  // nearest surfel; a texel filled by fill pass p holds p + 2
+
+// Near misses (VirOptions::fillNearMiss): a splat whose texel-centre ray misses a footprint but passes
+// within max(footprintScale, fillNearMiss) disc radii of its centre (a LOD rectangle: within its smaller
+// half extent x the same ratio over footprintScale beyond its edges) marks a slot still empty with this
+// value, larger than every (depth bits << 32 | index) of a hit, so any hit wins over it. The resolve
+// treats it as a hole; the hole fill closes only holes so marked: cracks between the discs of a surface
+// are near misses, a window or skylight wider than about a disc radius is not.
+#define LFGI_VIR_NEAR_MISS_SLOT 0xFFFFFFFEFFFFFFFFUL
+
+// Near-miss radius over footprint radius (>= 1; 1: no near-miss zone).
+LFGI_INLINE float virNearMissRatio(float fillNearMiss, float footprintScale) {
+  return fillNearMiss > footprintScale ? fillNearMiss / footprintScale : 1.0f;
+}
 
 LFGI_SHARED_END
 
