@@ -51,6 +51,7 @@
 #include "gpu/vir_probe_field.h"
 #include "streaming/flythrough.h"
 #include "streaming/streaming_manager.h"
+#include "worlds/leak_scene.h"
 #include "worlds/probe_placement.h"
 #include "worlds/surfels.h"
 #include "worlds/triangle_bvh.h"
@@ -59,83 +60,15 @@ namespace {
 
 using namespace lfgi;
 using worlds::Aabb;
+using worlds::leakProbeGrid;
+using worlds::LeakScene;
+using worlds::makeLeakScene;
 
 double lum(glm::vec3 c) {
   return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
 }
 double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-// ---------------------------------------------------------------------------------------------------------
-// The scene: a 4 x 4 x 3 m sunlit room (big south opening + skylight next to the partition) and a sealed
-// 4 x 4 x 3 m room, sharing a partition of thickness t centred on x = 0; 0.3 m outer walls, 0.25 m roof, on
-// a ground slab. Optional emissive ceiling panel in the sealed room (the 1e-5 interior light).
-struct LeakScene {
-  worlds::TriangleMesh mesh;
-  Aabb litAir, darkAir, house;
-};
-
-LeakScene makeLeakScene(float t, glm::vec3 panelRadiance = glm::vec3(0.0f)) {
-  LeakScene s;
-  worlds::Material groundM, wallM, roofM;
-  groundM.name = "ground";
-  groundM.albedo = glm::vec3(0.3f);
-  groundM.category = worlds::SurfaceCategory::kTerrain;
-  wallM.name = "wall";
-  wallM.albedo = glm::vec3(0.7f, 0.65f, 0.6f);
-  wallM.category = worlds::SurfaceCategory::kWall;
-  roofM.name = "roof";
-  roofM.albedo = glm::vec3(0.5f);
-  roofM.category = worlds::SurfaceCategory::kRoof;
-  auto& m = s.mesh;
-  const uint32_t g = m.addMaterial(groundM), w = m.addMaterial(wallM), r = m.addMaterial(roofM);
-  const float h = 0.5f * t, W = 0.3f, H = 3.0f, y0 = -0.1f, xo = 4.0f + h + W;
-  m.addBox({-12.0f, -1.0f, -10.0f}, {12.0f, 0.0f, 10.0f}, g);
-  // South wall (z in [-2.3, -2]) with the lit room's opening x in [-3.5 - h, -0.8 - h], y < 2.4.
-  m.addBox({-xo, y0, -2.3f}, {-3.5f - h, H, -2.0f}, w);
-  m.addBox({-0.8f - h, y0, -2.3f}, {xo, H, -2.0f}, w);
-  m.addBox({-3.5f - h, 2.4f, -2.3f}, {-0.8f - h, H, -2.0f}, w);
-  m.addBox({-xo, y0, 2.0f}, {xo, H, 2.3f}, w);          // north
-  m.addBox({-xo, y0, -2.0f}, {-4.0f - h, H, 2.0f}, w);  // west
-  m.addBox({4.0f + h, y0, -2.0f}, {xo, H, 2.0f}, w);    // east
-  m.addBox({-h, y0, -2.0f}, {h, H, 2.0f}, w);           // the partition
-  // Roof with a skylight over the lit room next to the partition (x in [-2 - h, -0.4 - h], z in [-1, 1]).
-  m.addBox({-xo, H, -2.3f}, {-2.0f - h, H + 0.25f, 2.3f}, r);
-  m.addBox({-2.0f - h, H, -2.3f}, {-0.4f - h, H + 0.25f, -1.0f}, r);
-  m.addBox({-2.0f - h, H, 1.0f}, {-0.4f - h, H + 0.25f, 2.3f}, r);
-  m.addBox({-0.4f - h, H, -2.3f}, {xo, H + 0.25f, 2.3f}, r);
-  if (lum(panelRadiance) > 0.0) {
-    worlds::Material panel;
-    panel.name = "panel";
-    panel.albedo = glm::vec3(0.8f);
-    panel.emission = panelRadiance;
-    panel.category = worlds::SurfaceCategory::kEmissive;
-    m.addBox({1.5f + h, 2.85f, -0.5f}, {2.5f + h, 2.95f, 0.5f}, m.addMaterial(panel));
-  }
-  s.litAir.min = {-4.0f - h, 0.0f, -2.0f};
-  s.litAir.max = {-h, H, 2.0f};
-  s.darkAir.min = {h, 0.0f, -2.0f};
-  s.darkAir.max = {4.0f + h, H, 2.0f};
-  s.house.min = {-xo, 0.0f, -2.3f};
-  s.house.max = {xo, H + 0.25f, 2.3f};
-  return s;
-}
-
-// Probe lattice over the house + one spacing, y layers from 0.4 m. inWall: the plane x = 0 (the partition's
-// mid-plane) is a lattice plane, so without relocation a probe layer sits inside the wall; else the planes
-// x = +-spacing / 2 straddle it (the classic leak set-up: a dark-room point interpolates between a probe
-// on each side).
-ProbeGrid leakGrid(const LeakScene& s, float spacing, bool inWall = false) {
-  ProbeGrid g;
-  const int kx = int(std::ceil((s.house.max.x + spacing) / spacing));
-  const int kz = int(std::ceil((s.house.max.z + spacing) / spacing));
-  g.spacing = glm::vec3(spacing);
-  g.origin = glm::vec3(-float(kx) * spacing + (inWall ? 0.0f : 0.5f * spacing), 0.4f, -float(kz) * spacing);
-  g.dims = glm::ivec3(2 * kx + (inWall ? 1 : 0),
-                      int(std::ceil((s.house.max.y + spacing - 0.4f) / spacing)) + 1, 2 * kz + 1);
-  g.validate();
-  return g;
 }
 
 struct Placement {
@@ -379,7 +312,7 @@ LeakSummary leakSection(Ctx& c, const std::vector<float>& walls, const std::vect
       // lattice with relocation on and off isolates what relocation does (baselines only).
       for (const auto& [inWall, relocate] :
            {std::pair{false, true}, std::pair{true, true}, std::pair{true, false}}) {
-        const ProbeGrid grid = leakGrid(s, sp, inWall);
+        const ProbeGrid grid = leakProbeGrid(s, sp, inWall);
         const std::string lattice = inWall ? "in_wall" : "straddle";
         const auto t0 = std::chrono::steady_clock::now();
         const Placement pl = place(s, grid, relocate);
@@ -1025,7 +958,7 @@ int main(int argc, char** argv) {
       const float panel = float(6.4e-6 * lum(noon.sun.irradianceNormal()));
       cs.scene = makeLeakScene(0.2f, glm::vec3(panel));
       const bake::EmbreeScene scene(cs.scene.mesh, "unseen-lighting scene");
-      cs.grid = leakGrid(cs.scene, 1.0f);
+      cs.grid = leakProbeGrid(cs.scene, 1.0f);
       cs.placement = place(cs.scene, cs.grid, true);
       for (int64_t i = 0; i < cs.grid.probeCount(); ++i)
         if (cs.placement.active[size_t(i)]) {
