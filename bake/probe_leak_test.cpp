@@ -95,7 +95,7 @@ TEST(ProbeLeak, VirProbesKeepTheSealedRoomDarkAndTheSunlitRoomLit) {
         "leak t %.2f m: capture lit %.4g dark %.3g ratio %.3g; VIR N=%d lit %.4g dark %.4g ratio %.4f\n",
         double(t), ref.lit, ref.dark, ref.ratio(), vo.resolution, got.lit, got.dark, got.ratio());
     EXPECT_LE(ref.ratio(), 1e-3) << "t " << t;
-    EXPECT_LE(got.ratio(), 0.02) << "t " << t;
+    EXPECT_LE(got.ratio(), 0.01) << "t " << t;
     EXPECT_GE(got.lit, 0.85 * ref.lit) << "t " << t;
     EXPECT_LE(got.lit, 1.15 * ref.lit) << "t " << t;
   }
