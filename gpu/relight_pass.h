@@ -67,13 +67,13 @@ struct RelightOptions {
   // that depth below an occluder through (the leak scene's wall tops under a 0.25 m roof at 0.43 m texels:
   // sealed-room leak 1.5 % at 1.5, 0.07 % at 0.75; bake/probe_leak_test.cpp)
   float shadowBiasSlope = 0.75f;
-  int irradianceResolution = 8;       // M of the probe irradiance maps, [1, 64]
-  float normalBias = -1.0f;     // m, Chebyshev test point offset along the normal; < 0: 0.2 x min spacing
-  float missDistance = 1.0e4f;  // m, distance moment of a probe texel that sees the sky
-  bool sun = true;              // key disc with the shadow map
-  bool bounce = true;           // last frame's probe irradiance
-  bool chebyshev = true;        // Chebyshev visibility weights
-  bool skyInProbes = true;      // probe texels no surfel covered see the sky
+  int irradianceResolution = 8;  // M of the probe irradiance maps, [1, 64]
+  float normalBias = -1.0f;      // m, Chebyshev test point offset along the normal; < 0: 0.2 x min spacing
+  float missDistance = 1.0e4f;   // m, distance moment of a probe texel that sees the sky
+  bool sun = true;               // key disc with the shadow map
+  bool bounce = true;            // last frame's probe irradiance
+  bool chebyshev = true;         // Chebyshev visibility weights
+  bool skyInProbes = true;       // probe texels no surfel covered see the sky
   // ... and so do texels only the VIR hole fill covered (relight_probe_irradiance.comp). false (default):
   // the fill closes only enclosed gaps (vir_holefill.comp), so a filled gap is geometry. true: filled
   // texels see the sky.
