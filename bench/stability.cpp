@@ -2,18 +2,18 @@
 //
 // Sections (column `section` of results.csv; one row = one measured figure, `metric` names it with its
 // unit, `value` holds it):
-//   leak        a sunlit room | wall of thickness wall_m | sealed dark room (procedural, bench-only scene).
+//   leak        a sunlit room | wall of thickness wall_m | sealed dark room (worlds/leak_scene.h).
 //               leak_ratio = mean indirect diffuse luminance of 6 x 6 floor points in the dark room / the
 //               same in the sunlit room, shaded by the probe shading pass
 //               (bake::ShadingRenderer::shadePoints) from probes of each method: raw_fp16 (capture through
 //               the raw FP16 codec), sh_l2 (SH L2 irradiance), generator (the per-cell network trained on
 //               this cell with few steps; its decoded distance moments drive Chebyshev), vir_relight (gpu
-//               relight -> VIR -> convolution, 6 frames; its own moments), vir_relight_dense (surfels at half
-//               the spacing, no sky in fill-only texels). raw_fp16 and sh_l2 keep the captured distance
-//               moments (the baseline codecs store radiance only). Chebyshev on and off. probe_setup:
-//               "straddle+relocation" (lattice planes at x = +-s/2 around the wall, worlds::placeProbes: what
-//               a bake ships; every method), "in_wall+relocation" and "in_wall" (a lattice plane in the
-//               wall's mid-plane, relocation on / off; baselines only).
+//               relight -> VIR -> convolution, 6 frames, at the product's N = 16; its own moments),
+//               vir_relight_dense (surfels at half the spacing, no sky in fill-only texels). raw_fp16 and
+//               sh_l2 keep the captured distance moments (the baseline codecs store radiance only). Chebyshev
+//               on and off. probe_setup: "straddle+relocation" (lattice planes at x = +-s/2 around the wall,
+//               worlds::placeProbes: what a bake ships; every method), "in_wall+relocation" and "in_wall" (a
+//               lattice plane in the wall's mid-plane, relocation on / off; baselines only).
 //   unseen      the generator trained on keys {8, 12, 17.5} h decoded at other times and overcast 1.0,
 //               against captures at those times (irradiance relative RMS, bake::codecError); baselines: the
 //               nearest training key's capture and a linear blend of the two adjacent keys. The dark room
@@ -200,9 +200,11 @@ struct VirRelight {
   gpu::RelightOptions options;
   gpu::CellLighting state;
   // surfelScale: surfel spacing relative to worlds' default for the probe spacing; filledSeeSky:
-  // RelightOptions::filledTexelsSeeSky.
+  // RelightOptions::filledTexelsSeeSky; resolution: N of the VIR maps (0: the field's), irradiance maps N
+  // / 2.
   VirRelight(gpu::Context& ctx, const worlds::TriangleMesh& mesh, const ProbeField& f,
-             float surfelScale = 1.0f, bool filledSeeSky = gpu::RelightOptions{}.filledTexelsSeeSky)
+             float surfelScale = 1.0f, bool filledSeeSky = gpu::RelightOptions{}.filledTexelsSeeSky,
+             int resolution = 0)
       : relight(ctx), vir(ctx) {
     worlds::SurfelOptions so;
     so.spacing = surfelScale * worlds::surfelSpacingForProbeSpacing(f.grid.spacing.x);
@@ -211,16 +213,26 @@ struct VirRelight {
     probes.grid = f.grid;
     for (int64_t i = 0; i < f.probeCount(); ++i) probes.positions.push_back(f.probePosition(i));
     probes.active = f.active;
-    virOptions.resolution = f.resolution;
+    virOptions.resolution = resolution > 0 ? resolution : f.resolution;
     virOptions.maxRange = 32.0f;
-    options.irradianceResolution = f.irradianceResolution;
+    options.irradianceResolution = resolution > 0 ? std::max(4, resolution / 2) : f.irradianceResolution;
   }
   void frames(const worlds::SkyModel& sky, int count) {
     for (int k = 0; k < count; ++k)
       gpu::relightFrame(relight, vir, surfels, probes, sky.params, virOptions, options, state);
   }
+  // The relit field on like's probes, at the VIR resolution.
   ProbeField field(const ProbeField& like) const {
-    ProbeField f = like;
+    ProbeField f;
+    f.grid = like.grid;
+    f.offsets = like.offsets;
+    f.active = like.active;
+    f.resolution = virOptions.resolution;
+    f.irradianceResolution = options.irradianceResolution;
+    const size_t count = size_t(f.probeCount());
+    f.irradiance.resize(count * size_t(f.irradianceResolution * f.irradianceResolution) * 3);
+    f.distance.resize(count * size_t(f.resolution * f.resolution) * 2);
+    f.radiance.resize(count * size_t(f.resolution * f.resolution) * 3);
     const size_t n2 = size_t(f.resolution) * size_t(f.resolution),
                  m2 = size_t(f.irradianceResolution) * size_t(f.irradianceResolution);
     for (int64_t i = 0; i < f.probeCount(); ++i) {
@@ -336,7 +348,9 @@ LeakSummary leakSection(Ctx& c, const std::vector<float>& walls, const std::vect
           ProbeField gf = cap;
           decodeGenerator(g, set, idx, 12.0f, 0.0f, gf);
           fields.emplace_back("generator", std::move(gf));
-          VirRelight vr(c.gpu, s.mesh, cap);
+          // At the product's VIR resolution (gpu::VirOptions, bake/probe_sources.h: N = 16).
+          VirRelight vr(c.gpu, s.mesh, cap, 1.0f, gpu::RelightOptions{}.filledTexelsSeeSky,
+                        gpu::VirOptions{}.resolution);
           vr.frames(sky, 6);
           fields.emplace_back("vir_relight", vr.field(cap));
           c.row("leak", "vir_relight", t, sp, reloc, "-", 12.0, 0.0, "vir_hole_fraction",
@@ -344,7 +358,7 @@ LeakSummary leakSection(Ctx& c, const std::vector<float>& walls, const std::vect
           // Surfels are a porous wall: a texel ray through a gap between a thin wall's discs reaches the
           // sunlit room (its back-facing side is culled) or, through the ceiling, the sky. Denser surfels
           // and no sky in fill-only texels narrow the gaps.
-          VirRelight dense(c.gpu, s.mesh, cap, 0.5f, false);
+          VirRelight dense(c.gpu, s.mesh, cap, 0.5f, false, gpu::VirOptions{}.resolution);
           dense.frames(sky, 6);
           fields.emplace_back("vir_relight_dense", dense.field(cap));
         }

@@ -2,7 +2,7 @@
 // next to the partition) and a sealed 4 x 4 x 3 m room, sharing a partition of thickness t centred on
 // x = 0; 0.3 m outer walls, a 0.25 m roof, on a ground slab. Optional emissive ceiling panel in the sealed
 // room. Used by lfgi_bench_stability (leak, unseen lighting) and by the leak tests of every probe source:
-// the sealed room's indirect light over the sunlit room's is the leak ratio (docs/ARCHITECTURE.md).
+// the sealed room's indirect light over the sunlit room's is the leak ratio (bench/stability.cpp).
 #pragma once
 
 #include <glm/glm.hpp>
