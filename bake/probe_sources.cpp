@@ -54,6 +54,23 @@ ProbeField virProbeField(gpu::Context& ctx, std::span<const worlds::Surfel> surf
   return f;
 }
 
+void regenerateVirMoments(gpu::Context& ctx, std::span<const worlds::Surfel> surfels,
+                          std::span<const glm::vec3> offsets, ProbeField& field, float maxRange,
+                          VirProbeStats* stats) {
+  gpu::VirFieldOptions vo;
+  vo.maxRange = maxRange;
+  gpu::VirFieldRelighter relighter(ctx);
+  gpu::VirFieldStats st;
+  ProbeField scratch;
+  relighter.regenerateMoments(surfels, offsets, vo, field, scratch, &st);
+  if (stats) {
+    stats->seconds = st.seconds;
+    stats->gpuMs = st.gpuMs;
+    stats->surfels = st.surfels;
+    stats->probes = st.probes;
+  }
+}
+
 ProbeField codecProbeField(const CellFile& cell, const std::string& what, const EmbreeScene& scene,
                            const worlds::SkyModel& sky, int resolution, int irradianceResolution,
                            float missDistance, const ResolvedSharedModel* shared) {

@@ -60,6 +60,16 @@ ProbeField virProbeField(gpu::Context& ctx, std::span<const worlds::Surfel> surf
                          const worlds::SkyModel& sky, const VirProbeOptions& options,
                          VirProbeStats* stats = nullptr);
 
+// Visibility from geometry (docs/ARCHITECTURE.md, "Where visibility comes from"): the distance moments of
+// field's active probes (probe i at its lattice point + offsets[i] when offsets is non-empty) replaced by
+// VIR's of `surfels` at field's N (gpu::VirFieldRelighter::regenerateMoments: one frame, no light);
+// radiance, irradiance and inactive probes stay. What the codec's decode and the streaming manager's
+// loads (streaming::VirRelightSource) do to a decoded field. stats: that frame's. Throws as
+// virProbeField does.
+void regenerateVirMoments(gpu::Context& ctx, std::span<const worlds::Surfel> surfels,
+                          std::span<const glm::vec3> offsets, ProbeField& field, float maxRange = 64.0f,
+                          VirProbeStats* stats = nullptr);
+
 // Probe field of a decoded cell file (see the top of this file). resolution: map size for a "no network"
 // cell (a network cell decodes at its model's size). scene: the capture scene of the cell (its mesh and
 // neighbours'), for the disc visibility. Throws lfgi::Error naming `what` when the

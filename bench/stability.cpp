@@ -7,7 +7,10 @@
 //               same in the sunlit room, shaded by the probe shading pass
 //               (bake::ShadingRenderer::shadePoints) from probes of each method: raw_fp16 (capture through
 //               the raw FP16 codec), sh_l2 (SH L2 irradiance), generator (the per-cell network trained on
-//               this cell with few steps; its decoded distance moments drive Chebyshev), vir_relight (gpu
+//               this cell, --leak-steps steps; the shipped path: its radiance and irradiance with distance
+//               moments VIR regenerates from the surfels, bake::regenerateVirMoments), and stage by stage
+//               generator_decoded_moments (the network's own moments) and generator_captured_moments
+//               (Embree's), vir_relight (gpu
 //               relight -> VIR -> convolution, 6 frames, at the product's N = 16; its own moments),
 //               vir_relight_dense (surfels at half the spacing, no sky in fill-only texels). raw_fp16 and
 //               sh_l2 keep the captured distance moments (the baseline codecs store radiance only). Chebyshev
@@ -40,6 +43,7 @@
 
 #include "bake/embree_scene.h"
 #include "bake/generator_training.h"
+#include "bake/probe_sources.h"
 #include "bake/shading_inputs.h"
 #include "bake/shading_view.h"
 #include "bench/bench_output.h"
@@ -287,6 +291,7 @@ struct Ctx {
   gpu::Context& gpu;
   bool quick;
   int resolution, spp;
+  int leakSteps = 0;  // generator training steps in the leak section (0: 150 in --quick, else 500)
   void row(const std::string& section, const std::string& method, double wall, double spacing,
            const std::string& reloc, const std::string& cheb, double tod, double overcast,
            const std::string& metric, double value) {
@@ -343,11 +348,23 @@ LeakSummary leakSection(Ctx& c, const std::vector<float>& walls, const std::vect
           set.positions01 = positions01(cap, idx);
           set.keys.push_back(keyFromField(cap, idx, 12.0f, 0.0f));
           const bake::TrainedGenerator g =
-              bake::trainGenerator(set, generatorOptions(cap.resolution, c.quick ? 150 : 500));
+              bake::trainGenerator(set, generatorOptions(cap.resolution, c.leakSteps > 0 ? c.leakSteps
+                                                                         : c.quick       ? 150
+                                                                                         : 500));
           genErr = g.report.irradianceRelativeRms;
-          ProbeField gf = cap;
-          decodeGenerator(g, set, idx, 12.0f, 0.0f, gf);
-          fields.emplace_back("generator", std::move(gf));
+          ProbeField decoded = cap;
+          decodeGenerator(g, set, idx, 12.0f, 0.0f, decoded);
+          // The shipped codec carries radiance; its visibility comes from the cell's surfels at load
+          // (bake::regenerateVirMoments, docs/ARCHITECTURE.md "Where visibility comes from"). Stage by
+          // stage beside it: the decoder's own moments, and the captured (Embree) moments.
+          ProbeField shipped = decoded, withCaptured = decoded;
+          withCaptured.distance = cap.distance;
+          worlds::SurfelOptions so;
+          so.spacing = worlds::surfelSpacingForProbeSpacing(cap.grid.spacing.x);
+          bake::regenerateVirMoments(c.gpu, worlds::sampleSurfels(s.mesh, so), cap.offsets, shipped, 32.0f);
+          fields.emplace_back("generator", std::move(shipped));
+          fields.emplace_back("generator_decoded_moments", std::move(decoded));
+          fields.emplace_back("generator_captured_moments", std::move(withCaptured));
           // At the product's VIR resolution (gpu::VirOptions, bake/probe_sources.h: N = 16).
           VirRelight vr(c.gpu, s.mesh, cap, 1.0f, gpu::RelightOptions{}.filledTexelsSeeSky,
                         gpu::VirOptions{}.resolution);
@@ -923,6 +940,10 @@ int main(int argc, char** argv) {
   app.add_option("--leak-spacings", spacings,
                  "Probe spacings of the leak sweep (m; default 0.5,1,2; --quick 1,2)")
       ->delimiter(',');
+  int leakSteps = 0;
+  app.add_option("--leak-steps", leakSteps,
+                 "Generator training steps of the leak sweep (default 500; --quick 150)")
+      ->check(CLI::Range(1, 100000));
   CLI11_PARSE(app, argc, argv);
   try {
     const auto start = std::chrono::steady_clock::now();
@@ -931,7 +952,7 @@ int main(int argc, char** argv) {
     o.setDevice(gpuCtx->info.name);
     o.setColumns({"section", "method", "wall_m", "spacing_m", "probe_setup", "chebyshev", "time_h",
                   "overcast", "metric", "value"});
-    Ctx c{o, *gpuCtx, quick, 8, quick ? 4 : 16};
+    Ctx c{o, *gpuCtx, quick, 8, quick ? 4 : 16, leakSteps};
     auto& s = o.summary();
     // Keys of the bad-input and interruption parts (docs/ARCHITECTURE.md "Bad input and interruption") are
     // measured by their own tests.

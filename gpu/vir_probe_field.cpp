@@ -228,4 +228,26 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
   f.validate();
 }
 
+void VirFieldRelighter::regenerateMoments(std::span<const shared::Surfel> surfels,
+                                          std::span<const glm::vec3> offsets, const VirFieldOptions& options,
+                                          ProbeField& field, ProbeField& scratch, VirFieldStats* stats) {
+  const size_t count = size_t(field.probeCount()), n2 = size_t(field.resolution) * size_t(field.resolution);
+  if (field.distance.size() != count * n2 * 2)
+    fail("regenerateMoments: {} distance floats for {} probes of {}x{} maps", field.distance.size(), count,
+         field.resolution, field.resolution);
+  VirFieldOptions o = options;
+  o.resolution = field.resolution;
+  o.irradianceResolution = field.irradianceResolution;
+  o.frames = 1;
+  o.discs = false;
+  o.storeOffsets = false;
+  o.relight.sun = false;
+  o.relight.bounce = false;
+  run(surfels, field.grid, offsets, field.active, shared::SkyParams{}, o, scratch, nullptr, stats);
+  for (size_t i = 0; i < count; ++i)
+    if (field.isActive(int64_t(i)))
+      std::copy_n(scratch.distance.begin() + ptrdiff_t(i * n2 * 2), n2 * 2,
+                  field.distance.begin() + ptrdiff_t(i * n2 * 2));
+}
+
 }  // namespace lfgi::gpu

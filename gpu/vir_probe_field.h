@@ -76,6 +76,15 @@ class VirFieldRelighter {
            std::span<const uint8_t> active, const shared::SkyParams& sky, const VirFieldOptions& options,
            ProbeField& out, const ProbeField* seed = nullptr, VirFieldStats* stats = nullptr);
 
+  // Visibility from geometry (docs/ARCHITECTURE.md, "Where visibility comes from"): replaces the distance
+  // moments of field's active probes (probe i at its lattice point + offsets[i]) with VIR's of `surfels`
+  // at field's N, as run() makes them (3 x 3 filtered, sky texels at missDistance); radiance, irradiance
+  // and inactive probes stay. One frame without sun or bounce (moments do not depend on the light);
+  // scratch holds that frame's field (reused). Throws as run() does.
+  void regenerateMoments(std::span<const shared::Surfel> surfels, std::span<const glm::vec3> offsets,
+                         const VirFieldOptions& options, ProbeField& field, ProbeField& scratch,
+                         VirFieldStats* stats = nullptr);
+
  private:
   RelightPass relight_;
   VirPass vir_;

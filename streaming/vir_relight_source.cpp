@@ -128,6 +128,35 @@ std::shared_ptr<const CellSurfels> VirRelightSource::surfelsOf(glm::ivec2 cell) 
   return s;
 }
 
+std::span<const glm::vec3> VirRelightSource::offsetsFor(glm::ivec2 cell, const CellSurfels& cs,
+                                                        size_t count) {
+  if (cs.offsets.size() == count) return cs.offsets;
+  if (!cs.offsets.empty())
+    spdlog::warn("streaming: cell {},{}: {} probe offsets for a grid of {} probes, relit at lattice points",
+                 cell.x, cell.y, cs.offsets.size(), count);
+  return {};
+}
+
+void VirRelightSource::load(glm::ivec2 cell, ProbeField& out) {
+  inner_.load(cell, out);
+  if (!options_.momentsOnLoad || out.probeCount() == 0) return;
+  const auto t0 = Clock::now();
+  std::lock_guard gpuLock(gpuMutex_);
+  std::shared_ptr<const CellSurfels> cs = surfelsOf(cell);
+  gpu::VirFieldOptions vo;
+  vo.maxRange = options_.maxRange;
+  vo.noSurfelsIsSky = true;
+  vo.checkInterrupt = false;
+  gpu::VirFieldStats st;
+  relighter_->regenerateMoments(cs->surfels, offsetsFor(cell, *cs, size_t(out.probeCount())), vo, out,
+                                scratch_, &st);
+  const double ms = msSince(t0);
+  spdlog::debug("streaming: VIR moments of cell {},{}: {} probes, {:.0f} ms", cell.x, cell.y, st.probes, ms);
+  std::lock_guard lock(cacheMutex_);
+  ++stats_.momentsLoads;
+  stats_.momentsMsTotal += ms;
+}
+
 void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out,
                                           float timeOfDayHours, float weather) {
   const WorldLayout lay = inner_.layout();
@@ -151,12 +180,7 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
 
   std::lock_guard gpuLock(gpuMutex_);
   std::shared_ptr<const CellSurfels> cs = surfelsOf(cell);
-  std::span<const glm::vec3> offsets;
-  if (cs->offsets.size() == count)
-    offsets = cs->offsets;
-  else if (!cs->offsets.empty())
-    spdlog::warn("streaming: cell {},{}: {} probe offsets for a grid of {} probes, relit at lattice points",
-                 cell.x, cell.y, cs->offsets.size(), count);
+  const std::span<const glm::vec3> offsets = offsetsFor(cell, *cs, count);
 
   // Seed: current is our own last result for this cell -> its irradiance without the discs we added.
   const ProbeField* seed = nullptr;

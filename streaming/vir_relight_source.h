@@ -1,7 +1,8 @@
 // VirRelightSource: a CellSource decorator whose relight is VIR relighting of the cell's surfels on the
 // GPU ("refreshes them through VIR relighting", docs/DESIGN.md §1), for any inner source (CellFileSource,
 // SyntheticCellSource, ...). layout / fallback / maxCellBytes / load / setTimeOfDay go to the inner source
-// unchanged (loads stay the codec decode); relightInto / relightWeatherInto relight the resident field:
+// unchanged, except that load() regenerates the loaded field's distance moments from the cell's surfels
+// when options.momentsOnLoad (see below); relightInto / relightWeatherInto relight the resident field:
 //   1. the cell's surfels (and the probes' relocation offsets) from the SurfelProvider, cached per cell
 //      (LRU, at most options.surfelCacheBytes of surfels + offsets; a cell bigger than that is relit
 //      uncached);
@@ -21,8 +22,15 @@
 //
 // A cell whose provider has no surfels: every active probe sees only the sky (+ discs).
 //
-// Threading contract: construct and setWeather() on the game thread. load() and setTimeOfDay() forward
-// to the inner source (its contract). relightInto() / relightWeatherInto() may be called from several IO
+// Load (docs/ARCHITECTURE.md, "Where visibility comes from"): the codec carries radiance; the visibility
+// its decoder returns is not trusted. With options.momentsOnLoad (default) load() runs the inner load,
+// then gpu::VirFieldRelighter::regenerateMoments on the cell's surfels (step 1's cache), so the
+// resident field's Chebyshev weights come from the geometry from the first frame on. Costs one VIR frame
+// without sun or bounce per load (stats: momentsLoads, momentsMsTotal).
+//
+// Threading contract: construct and setWeather() on the game thread. setTimeOfDay() forwards to the inner
+// source (its contract); load() runs the inner load (its contract), then the moments under the GPU mutex
+// below. load(), relightInto() / relightWeatherInto() may be called from several IO
 // threads at once (never two for the same cell at once, as the manager guarantees): the GPU work (the
 // Vulkan context is one-thread-at-a-time) and the scratch field run under one mutex, so relights are
 // serialised; the surfel cache and the per-cell records have their own mutex (held only for look-ups).
@@ -79,13 +87,15 @@ struct VirRelightOptions {
   // under probes it also hides most of the plane from the probes (bounce light -37 % in the downward
   // irradiance, -9 % without it; vir_relight_source_test.cpp): a known defect of the gather.
   bool gatherChebyshev = true;
+  // Regenerate a loaded field's distance moments from the cell's surfels (see the header comment).
+  bool momentsOnLoad = true;
   // Throws lfgi::Error naming the bad field.
   void validate() const;
 };
 
 struct VirRelightStats {
-  uint64_t relights = 0, seeded = 0, cacheHits = 0, cacheMisses = 0;
-  double relightMsTotal = 0.0, gpuMsTotal = 0.0, providerMsTotal = 0.0;
+  uint64_t relights = 0, seeded = 0, cacheHits = 0, cacheMisses = 0, momentsLoads = 0;
+  double relightMsTotal = 0.0, gpuMsTotal = 0.0, providerMsTotal = 0.0, momentsMsTotal = 0.0;
   size_t cacheBytes = 0;   // surfels + offsets cached now
   size_t recordBytes = 0;  // per-cell seed records
 };
@@ -101,7 +111,7 @@ class VirRelightSource final : public CellSource {
   ShL1 fallback(glm::ivec2 cell) const override { return inner_.fallback(cell); }
   bool fallbackFollowsTimeOfDay() const override { return inner_.fallbackFollowsTimeOfDay(); }
   size_t maxCellBytes() const override { return inner_.maxCellBytes(); }
-  void load(glm::ivec2 cell, ProbeField& out) override { inner_.load(cell, out); }
+  void load(glm::ivec2 cell, ProbeField& out) override;
   void setTimeOfDay(float hours) override { inner_.setTimeOfDay(hours); }
   void setWeather(float overcast);  // [0, 1], lfgi::Error otherwise
   void relightInto(glm::ivec2 cell, const ProbeField& current, ProbeField& out,
@@ -120,6 +130,8 @@ class VirRelightSource final : public CellSource {
     std::vector<uint8_t> discVisible;
   };
   std::shared_ptr<const CellSurfels> surfelsOf(glm::ivec2 cell);
+  // cs's offsets when they match a grid of `count` probes, else none (warned).
+  static std::span<const glm::vec3> offsetsFor(glm::ivec2 cell, const CellSurfels& cs, size_t count);
 
   CellSource& inner_;
   VirRelightOptions options_;

@@ -249,8 +249,8 @@ TEST(VirRelightSource, SeedFromItsOwnResultKeepsTheAnswer) {
   const VirRelightStats st = source.stats();
   EXPECT_EQ(st.relights, 3u);
   EXPECT_EQ(st.seeded, 1u);
-  EXPECT_EQ(st.cacheMisses, 1u);
-  EXPECT_EQ(st.cacheHits, 2u);
+  EXPECT_EQ(st.cacheMisses, 1u);  // the load's moments
+  EXPECT_EQ(st.cacheHits, 3u);
   // The downward texels see the sunlit plane (its bounce light): a seed that kept the discs would double
   // the sun there.
   const int m = fresh.irradianceResolution;
@@ -269,6 +269,33 @@ TEST(VirRelightSource, SeedFromItsOwnResultKeepsTheAnswer) {
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
 }
 
+// The codec's decoded moments are replaced at load by VIR's of the cell's surfels (docs/ARCHITECTURE.md,
+// "Where visibility comes from"): the same moments a relight splats, whatever the light.
+TEST(VirRelightSource, LoadRegeneratesTheMomentsFromTheSurfels) {
+  auto ctx = gpu::createContext();
+  SyntheticCellSource inner(planeWorld({1, 1}));
+  VirRelightSource source(inner, *ctx, relightOptions(), planeProvider(40.0f, 1.0f));
+  ProbeField decoded, loaded, noon, night;
+  inner.load({0, 0}, decoded);
+  source.load({0, 0}, loaded);
+  EXPECT_EQ(source.stats().momentsLoads, 1u);
+  EXPECT_EQ(loaded.radiance, decoded.radiance);
+  EXPECT_EQ(loaded.irradiance, decoded.irradiance);
+  source.relightWeatherInto({0, 0}, loaded, noon, 12.0f, 0.0f);
+  source.relightWeatherInto({0, 0}, loaded, night, 22.0f, 1.0f);
+  ASSERT_EQ(loaded.distance.size(), noon.distance.size());
+  double worst = 0.0, changed = 0.0;
+  for (size_t i = 0; i < loaded.distance.size(); ++i) {
+    worst = std::max({worst, double(std::abs(loaded.distance[i] - noon.distance[i])),
+                      double(std::abs(loaded.distance[i] - night.distance[i]))});
+    changed = std::max(changed, double(std::abs(loaded.distance[i] - decoded.distance[i])));
+  }
+  std::printf("moments: |load - relight| max %.3g, |load - decoded| max %.3g\n", worst, changed);
+  EXPECT_LE(worst, 1e-3);
+  EXPECT_GT(changed, 1e-2);  // the synthetic source's analytic moments are not VIR's
+  EXPECT_EQ(ctx->validationErrors.load(), 0u);
+}
+
 TEST(VirRelightSource, RejectsBadInputs) {
   auto ctx = gpu::createContext();
   SyntheticCellSource inner(planeWorld({1, 1}));
@@ -280,7 +307,13 @@ TEST(VirRelightSource, RejectsBadInputs) {
     fail("cells/cell_{}_{}.surfels: missing", c.x, c.y);
   });
   ProbeField current, out;
-  source.load({0, 0}, current);
+  try {
+    source.load({0, 0}, current);  // the moments need the surfels
+    FAIL() << "no throw";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cell_0_0.surfels"), std::string::npos) << e.what();
+  }
+  inner.load({0, 0}, current);
   EXPECT_THROW(source.setWeather(1.5f), Error);
   EXPECT_THROW(source.relightWeatherInto({0, 0}, current, out, 12.0f, -0.1f), Error);
   EXPECT_THROW(source.relightWeatherInto({3, 0}, current, out, 12.0f, 0.0f), Error);
@@ -350,7 +383,9 @@ TEST(VirRelightSource, EvictionDuringAVirRelightIsSafe) {
   bool open = false;
   int blocked = 0;
   const SurfelProvider planes = planeProvider(16.0f, 2.0f);
-  VirRelightSource source(inner, *ctx, relightOptions(), [&](glm::ivec2 c) {
+  VirRelightOptions o = relightOptions();
+  o.momentsOnLoad = false;  // loads do not reach the provider: only the relight blocks there
+  VirRelightSource source(inner, *ctx, o, [&](glm::ivec2 c) {
     std::unique_lock lock(mu);
     ++blocked;
     cv.notify_all();
