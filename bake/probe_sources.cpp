@@ -21,6 +21,18 @@
 
 namespace lfgi::bake {
 
+namespace {
+
+void reportStats(const gpu::VirFieldStats& st, VirProbeStats* stats) {
+  if (!stats) return;
+  stats->seconds = st.seconds;
+  stats->gpuMs = st.gpuMs;
+  stats->surfels = st.surfels;
+  stats->probes = st.probes;
+}
+
+}  // namespace
+
 worlds::TriangleMesh meshWithBackFaces(const worlds::TriangleMesh& mesh) {
   worlds::TriangleMesh out = mesh;
   for (size_t t = 0; t < mesh.triangleCount(); ++t) {
@@ -45,12 +57,7 @@ ProbeField virProbeField(gpu::Context& ctx, std::span<const worlds::Surfel> surf
   gpu::VirFieldStats st;
   ProbeField f;
   relighter.run(surfels, grid, offsets, active, sky.params, vo, f, nullptr, &st);
-  if (stats) {
-    stats->seconds = st.seconds;
-    stats->gpuMs = st.gpuMs;
-    stats->surfels = st.surfels;
-    stats->probes = st.probes;
-  }
+  reportStats(st, stats);
   return f;
 }
 
@@ -63,12 +70,7 @@ void regenerateVirMoments(gpu::Context& ctx, std::span<const worlds::Surfel> sur
   gpu::VirFieldStats st;
   ProbeField scratch;
   relighter.regenerateMoments(surfels, offsets, vo, field, scratch, &st);
-  if (stats) {
-    stats->seconds = st.seconds;
-    stats->gpuMs = st.gpuMs;
-    stats->surfels = st.surfels;
-    stats->probes = st.probes;
-  }
+  reportStats(st, stats);
 }
 
 ProbeField codecProbeField(const CellFile& cell, const std::string& what, const EmbreeScene& scene,
