@@ -1,4 +1,5 @@
 #include "bake/brdf.h"
+#include "core/hash.h"
 
 #include <gtest/gtest.h>
 
@@ -13,12 +14,7 @@ namespace {
 // Small deterministic generator for the tests (splitmix64).
 struct Rng {
   uint64_t s;
-  float next() {
-    uint64_t z = (s += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return float((z ^ (z >> 31)) >> 40) * 0x1.0p-24f;
-  }
+  float next() { return float(splitmix64Finalize(s += kGoldenGamma) >> 40) * 0x1.0p-24f; }
 };
 
 glm::vec3 viewDirection(float thetaDeg) {

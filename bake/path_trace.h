@@ -9,28 +9,23 @@
 #include <glm/glm.hpp>
 
 #include "bake/embree_scene.h"
+#include "core/hash.h"
 #include "worlds/sky.h"
 
 namespace lfgi::bake::detail {
-
-// splitmix64's finaliser (Steele, Lea & Flood 2014): a strong 64-bit mix for counter-based streams.
-inline uint64_t mix64(uint64_t z) {
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
 
 // Random numbers of one path: element `counter` of the stream keyed by (key, index, sample), independent
 // of thread and order.
 class PathRng {
  public:
   PathRng(uint64_t key, int index, int sample)
-      : key_(mix64(key ^ mix64((uint64_t(uint32_t(index)) << 32) | uint32_t(sample)))) {}
+      : key_(splitmix64Finalize(key ^
+                                splitmix64Finalize((uint64_t(uint32_t(index)) << 32) | uint32_t(sample)))) {}
   double nextDouble() { return double(next() >> 11) * 0x1.0p-53; }
   float nextFloat() { return float(next() >> 40) * 0x1.0p-24f; }
 
  private:
-  uint64_t next() { return mix64(key_ + (++counter_) * 0x9e3779b97f4a7c15ULL); }
+  uint64_t next() { return splitmix64Finalize(key_ + (++counter_) * kGoldenGamma); }
   uint64_t key_;
   uint64_t counter_ = 0;
 };

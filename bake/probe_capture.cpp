@@ -13,20 +13,20 @@
 #include "bake/parallel_work.h"
 #include "bake/path_trace.h"
 #include "core/error.h"
+#include "core/hash.h"
 #include "core/octahedral.h"
 #include "core/sh.h"
 
 namespace lfgi::bake {
 namespace {
 
-using detail::mix64;
 using detail::PathRng;
 
 uint64_t probeKey(uint64_t seed, glm::vec3 p) {
-  uint64_t h = mix64(seed ^ 0x6c666769'70726f62ULL);
-  h = mix64(h ^ std::bit_cast<uint32_t>(p.x));
-  h = mix64(h ^ (uint64_t(std::bit_cast<uint32_t>(p.y)) << 32));
-  return mix64(h ^ std::bit_cast<uint32_t>(p.z));
+  uint64_t h = splitmix64Finalize(seed ^ 0x6c666769'70726f62ULL);
+  h = splitmix64Finalize(h ^ std::bit_cast<uint32_t>(p.x));
+  h = splitmix64Finalize(h ^ (uint64_t(std::bit_cast<uint32_t>(p.y)) << 32));
+  return splitmix64Finalize(h ^ std::bit_cast<uint32_t>(p.z));
 }
 
 // Primary sample s of texel (i, j); draws the first two numbers of rng.
@@ -188,21 +188,11 @@ ProbeCapture captureOne(const EmbreeScene& scene, const worlds::SkyModel& sky, g
 }  // namespace
 
 uint64_t ProbeCapture::contentHash() const {
-  uint64_t h = 0xcbf29ce484222325ULL;
-  auto bytes = [&h](const void* data, size_t size) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    for (size_t i = 0; i < size; ++i) h = (h ^ p[i]) * 0x100000001b3ULL;
-  };
-  auto floats = [&bytes](const std::vector<float>& v) {
-    const uint64_t count = v.size();
-    bytes(&count, sizeof count);
-    bytes(v.data(), v.size() * sizeof(float));
-  };
-  bytes(&resolution, sizeof resolution);
-  bytes(&irradianceResolution, sizeof irradianceResolution);
-  bytes(&position, sizeof position);
+  uint64_t h = fnv1aValue(kFnv1aOffset, resolution);
+  h = fnv1aValue(h, irradianceResolution);
+  h = fnv1aValue(h, position);
   for (const std::vector<float>* v : {&radiance, &radianceStdError, &distance, &normal, &albedo, &irradiance})
-    floats(*v);
+    h = fnv1aSpan(h, *v);
   return h;
 }
 

@@ -125,7 +125,7 @@ RenderResult renderTiled(const worlds::SkyModel& sky, const PinholeCamera& camer
   po.maxDistance = o.maxDistance;
   po.discsOnPrimaryMiss = true;
   const Discs discs = activeDiscs(sky);
-  const uint64_t key = mix64(o.seed ^ 0x6c666769'63616d65ULL);
+  const uint64_t key = splitmix64Finalize(o.seed ^ 0x6c666769'63616d65ULL);
 
   std::atomic<uint64_t> rays{0};
   const ParallelWorkResult run =

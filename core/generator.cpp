@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include "core/error.h"
+#include "core/hash.h"
 
 namespace lfgi {
 
@@ -81,23 +82,14 @@ void GeneratorWeights::validate() const {
 }
 
 uint64_t weightsContentHash(const GeneratorWeights& w) {
-  uint64_t h = 14695981039346656037ull;
-  auto mix = [&](const void* data, size_t size) {
-    const auto* b = static_cast<const unsigned char*>(data);
-    for (size_t i = 0; i < size; ++i) h = (h ^ b[i]) * 1099511628211ull;
-  };
+  uint64_t h = kFnv1aOffset;
   const GeneratorArch& a = w.arch;
-  for (int v : {a.latentDim, a.condDim, int(a.latentSource), a.fourierOctaves}) mix(&v, sizeof v);
-  for (int c : a.convChannels) mix(&c, sizeof c);
-  auto floats = [&](const std::vector<float>& v) {
-    const uint64_t n = v.size();
-    mix(&n, sizeof n);
-    mix(v.data(), v.size() * sizeof(float));
-  };
-  floats(w.linearWeight);
-  floats(w.linearBias);
-  for (const auto& v : w.convWeight) floats(v);
-  for (const auto& v : w.convBias) floats(v);
+  for (int v : {a.latentDim, a.condDim, int(a.latentSource), a.fourierOctaves}) h = fnv1aValue(h, v);
+  for (int c : a.convChannels) h = fnv1aValue(h, c);
+  h = fnv1aSpan(h, w.linearWeight);
+  h = fnv1aSpan(h, w.linearBias);
+  for (const auto& v : w.convWeight) h = fnv1aSpan(h, v);
+  for (const auto& v : w.convBias) h = fnv1aSpan(h, v);
   return h;
 }
 

@@ -213,21 +213,11 @@ void GpuGeneratorBackend::decode(const ModelRef& model, std::span<const float> l
   }
 }
 
-// FNV-1a over the architecture and every float weight: the GPU backend's model-cache key (two cells with
-// the same weights share one upload; changed weights never hit a stale one).
+// The weights' content hash (FNV-1a over the architecture and every float weight): the GPU backend's
+// model-cache key (two cells with the same weights share one upload; changed weights never hit a stale
+// one). Never 0, which marks no model.
 uint64_t generatorModelKey(const GeneratorWeights& w) {
-  uint64_t h = 1469598103934665603ull;
-  auto mix = [&h](const void* data, size_t bytes) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    for (size_t i = 0; i < bytes; ++i) h = (h ^ p[i]) * 1099511628211ull;
-  };
-  const int head[] = {w.arch.latentDim, w.arch.condDim, int(w.arch.latentSource), w.arch.fourierOctaves};
-  mix(head, sizeof(head));
-  mix(w.arch.convChannels.data(), w.arch.convChannels.size() * sizeof(int));
-  mix(w.linearWeight.data(), w.linearWeight.size() * sizeof(float));
-  mix(w.linearBias.data(), w.linearBias.size() * sizeof(float));
-  for (const auto& v : w.convWeight) mix(v.data(), v.size() * sizeof(float));
-  for (const auto& v : w.convBias) mix(v.data(), v.size() * sizeof(float));
+  const uint64_t h = weightsContentHash(w);
   return h == 0 ? 1 : h;
 }
 

@@ -3,13 +3,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstring>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/hash.h"
 #include "core/octahedral.h"
 #include "worlds/cell_probe_file.h"
 #include "worlds/world_cells.h"
@@ -28,21 +28,9 @@ constexpr size_t kMaxRecords = 512;  // seed records kept (cells); the oldest is
 }  // namespace
 
 uint64_t lightingHash(const ProbeField& f) {
-  uint64_t h = 1469598103934665603ull;
-  auto mix = [&h](const std::vector<float>& v) {
-    for (float x : v) {
-      uint32_t u;
-      std::memcpy(&u, &x, sizeof(u));
-      h = (h ^ u) * 1099511628211ull;
-    }
-  };
-  mix(f.irradiance);
+  uint64_t h = fnv1aSpan(kFnv1aOffset, f.irradiance);
   // The moments change less often than irradiance; every 7th float keeps the check cheap.
-  for (size_t i = 0; i < f.distance.size(); i += 7) {
-    uint32_t u;
-    std::memcpy(&u, &f.distance[i], sizeof(u));
-    h = (h ^ u) * 1099511628211ull;
-  }
+  for (size_t i = 0; i < f.distance.size(); i += 7) h = fnv1aValue(h, f.distance[i]);
   return h;
 }
 
