@@ -116,13 +116,147 @@ ProbeDemo skyProbe(gpu::Context& ctx, const worlds::SkyModel& sky, int n, const 
   return r;
 }
 
+// 2. World: every cell built (resumable: cells already written are read back), totals summed from each
+// cell's JSON. False when interrupted.
+bool buildWorldCells(const worlds::SyntheticWorld& world, const std::filesystem::path& worldDir,
+                     TraceWriter& trace, nlohmann::ordered_json& totals) {
+  const size_t cellCount = size_t(world.cellsX()) * size_t(world.cellsZ());
+  TraceScope s(&trace, "build world cells");
+  InterruptGuard guard;
+  Progress progress("world cells", cellCount, "cells");
+  size_t done = 0;
+  for (int z = 0; z < world.cellsZ(); ++z)
+    for (int x = 0; x < world.cellsX(); ++x) {
+      if (InterruptGuard::interrupted()) {
+        progress.finish();
+        spdlog::warn("interrupted; run the demo again to resume");
+        return false;
+      }
+      if (!worlds::cellDone(worldDir, {x, z})) {
+        TraceScope cs(&trace, fmt::format("cell {},{}", x, z), "cell");
+        worlds::writeCell(worldDir, worlds::buildCell(world, {x, z}));
+      }
+      nlohmann::ordered_json j = worlds::readCellJson(worldDir, {x, z});
+      totals["triangles"] = totals["triangles"].get<size_t>() + j["triangles"].get<size_t>();
+      totals["surfels"] = totals["surfels"].get<size_t>() + j["surfels"]["count"].get<size_t>();
+      totals["surfel_raw_bytes"] =
+          totals["surfel_raw_bytes"].get<size_t>() + j["surfels"]["raw_bytes"].get<size_t>();
+      totals["surfel_draco_bytes"] =
+          totals["surfel_draco_bytes"].get<size_t>() + j["surfels"]["draco_bytes"].get<size_t>();
+      for (const char* k : {"total", "active", "relocated", "disabled", "sky_only"}) {
+        std::string key = std::string("probes") + (std::string(k) == "total" ? "" : std::string("_") + k);
+        totals[key] = totals[key].get<size_t>() + j["probes"][k].get<size_t>();
+      }
+      progress.update(++done);
+    }
+  progress.finish();
+  return true;
+}
+
+// 3. Top-down preview of the whole world (all cells' meshes in one BVH: fine at the default 256 m).
+void writeTopDownPreview(const worlds::SyntheticWorld& world, const worlds::WorldParams& wp,
+                         const worlds::SkyModel& sky, const std::filesystem::path& out, TraceWriter& trace) {
+  TraceScope s(&trace, "top-down preview");
+  worlds::TriangleMesh all;
+  for (int z = 0; z < world.cellsZ(); ++z)
+    for (int x = 0; x < world.cellsX(); ++x) all.append(world.generateCell({x, z}));
+  worlds::TriangleBvh bvh(all);
+  worlds::Aabb region = all.bounds();
+  region.min.x = 0.0f;
+  region.min.z = 0.0f;
+  region.max.x = float(wp.sizeM);
+  region.max.z = float(wp.sizeM);
+  Image img = worlds::renderTopDown(all, bvh, sky, region);
+  // Exposure: map the median pixel luminance to 0.18.
+  std::vector<float> lum;
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x)
+      lum.push_back(0.2126f * img.at(x, y, 0) + 0.7152f * img.at(x, y, 1) + 0.0722f * img.at(x, y, 2));
+  std::nth_element(lum.begin(), lum.begin() + long(lum.size() / 2), lum.end());
+  const float median = std::max(lum[lum.size() / 2], 1e-12f);
+  writeExr(out / "world_topdown.exr", img);
+  writePng(out / "world_topdown.png", img, std::log2(0.18f / median));
+}
+
+// What report.json and report.md describe.
+struct DemoReport {
+  const gpu::Context& ctx;
+  const worlds::SkyState& state;
+  const worlds::SkyModel& sky;
+  const ProbeDemo& probe;
+  const worlds::WorldParams& wp;
+  const std::filesystem::path& worldDir;
+  size_t cellCount;
+  const nlohmann::ordered_json& totals;
+};
+
+nlohmann::ordered_json reportJson(const DemoReport& r) {
+  const worlds::SkyState& state = r.state;
+  const ProbeDemo& probe = r.probe;
+  nlohmann::ordered_json report;
+  report["device"] = r.ctx.info.name;
+  report["device_type"] = r.ctx.info.type;
+  report["sky"] = {{"time_of_day_h", state.timeOfDayHours},
+                   {"latitude_deg", state.latitudeDeg},
+                   {"day_of_year", state.dayOfYear},
+                   {"turbidity", state.turbidity},
+                   {"overcast", state.overcast},
+                   {"sun_elevation_deg", r.sky.sunPosition.elevationDeg}};
+  report["probe"] = {{"radiance_resolution", probe.n},   {"irradiance_resolution", probe.m},
+                     {"gpu_irradiance_ms", probe.gpuMs}, {"gpu_vs_cpu_irr_rel_rms", probe.gpuVsCpu},
+                     {"sh_l1_irr_rel_rms", probe.l1Err}, {"sh_l2_irr_rel_rms", probe.l2Err}};
+  report["world"] = {{"size_m", r.wp.sizeM}, {"cell_m", r.wp.cellM}, {"seed", r.wp.seed}};
+  report["world"].update(r.totals);
+  report["validation_errors"] = r.ctx.validationErrors.load();
+  return report;
+}
+
+std::string reportMarkdown(const DemoReport& r) {
+  const worlds::SkyState& state = r.state;
+  const ProbeDemo& probe = r.probe;
+  const worlds::WorldParams& wp = r.wp;
+  const nlohmann::ordered_json& totals = r.totals;
+  const double ratio = double(totals["surfel_raw_bytes"].get<size_t>()) /
+                       std::max<double>(1.0, double(totals["surfel_draco_bytes"].get<size_t>()));
+  return fmt::format(
+      "# lfgi demo\n\n"
+      "Device: **{}** ({}). Sky: {:.1f} h, latitude {:.0f}, day {}, turbidity {:.1f}, overcast {:.2f} "
+      "(sun elevation {:.1f} deg).\n\n"
+      "## World ({:.0f} m x {:.0f} m, cells of {:.0f} m, seed {})\n\n"
+      "![top-down preview: direct sun with shadows + sky, no bounces](world_topdown.png)\n\n"
+      "| measure | value |\n|---|---|\n"
+      "| cells | {} |\n| triangles | {} |\n| surfels | {} (Draco {:.1f} MB, {:.2f} x smaller than raw) |\n"
+      "| probes | {} placed: {} active, {} relocated, {} disabled (in solid), {} sky-only |\n\n"
+      "Cells, probes and surfels are in `world/` (`lfgi world info {}`; `lfgi world export-cell {} --cell "
+      "1,1 "
+      "--out cell.glb` writes a cell for any glTF viewer).\n\n"
+      "## Sky probe\n\n"
+      "![sky radiance | exact irradiance (GPU) | SH L2 irradiance | L2 relative error](probe.png)\n\n"
+      "Panels: sky radiance (sun left out of the picture, not the maths) | exact irradiance (GPU) | SH L2 "
+      "irradiance | L2 relative error (brighter = larger; x10, tone-mapped). Octahedral {}x{} radiance, "
+      "{}x{} irradiance.\n\n"
+      "| measure | value |\n|---|---|\n"
+      "| GPU irradiance pass (device time) | {:.3f} ms |\n"
+      "| GPU vs CPU exact irradiance, relative RMS | {:.2e} |\n"
+      "| SH L1 irradiance vs exact, relative RMS | {:.1f} % |\n"
+      "| SH L2 irradiance vs exact, relative RMS | {:.1f} % |\n\n"
+      "Files: `*.exr` (linear float), `report.json`, `trace.json` (open in https://ui.perfetto.dev).\n",
+      r.ctx.info.name, r.ctx.info.type, state.timeOfDayHours, state.latitudeDeg, state.dayOfYear,
+      state.turbidity, state.overcast, r.sky.sunPosition.elevationDeg, wp.sizeM, wp.sizeM, wp.cellM, wp.seed,
+      r.cellCount, totals["triangles"].get<size_t>(), totals["surfels"].get<size_t>(),
+      double(totals["surfel_draco_bytes"].get<size_t>()) * 1e-6, ratio, totals["probes"].get<size_t>(),
+      totals["probes_active"].get<size_t>(), totals["probes_relocated"].get<size_t>(),
+      totals["probes_disabled"].get<size_t>(), totals["probes_sky_only"].get<size_t>(), r.worldDir.string(),
+      r.worldDir.string(), probe.n, probe.n, probe.m, probe.m, probe.gpuMs, probe.gpuVsCpu,
+      100.0 * probe.l1Err, 100.0 * probe.l2Err);
+}
+
 }  // namespace
 
 int runDemo(const DemoOptions& opt) {
   const std::filesystem::path out = opt.outDir;
   TraceWriter trace;
   trace.setThreadName("main");
-  nlohmann::ordered_json report;
 
   std::unique_ptr<gpu::Context> ctx;
   {
@@ -155,113 +289,15 @@ int runDemo(const DemoOptions& opt) {
                                    {"surfel_raw_bytes", 0}, {"surfel_draco_bytes", 0}, {"probes", 0},
                                    {"probes_active", 0},    {"probes_relocated", 0},   {"probes_disabled", 0},
                                    {"probes_sky_only", 0}};
-  {
-    TraceScope s(&trace, "build world cells");
-    InterruptGuard guard;
-    Progress progress("world cells", cellCount, "cells");
-    size_t done = 0;
-    for (int z = 0; z < world.cellsZ(); ++z)
-      for (int x = 0; x < world.cellsX(); ++x) {
-        if (InterruptGuard::interrupted()) {
-          progress.finish();
-          spdlog::warn("interrupted; run the demo again to resume");
-          return 130;
-        }
-        if (!worlds::cellDone(worldDir, {x, z})) {
-          TraceScope cs(&trace, fmt::format("cell {},{}", x, z), "cell");
-          worlds::writeCell(worldDir, worlds::buildCell(world, {x, z}));
-        }
-        nlohmann::ordered_json j = worlds::readCellJson(worldDir, {x, z});
-        totals["triangles"] = totals["triangles"].get<size_t>() + j["triangles"].get<size_t>();
-        totals["surfels"] = totals["surfels"].get<size_t>() + j["surfels"]["count"].get<size_t>();
-        totals["surfel_raw_bytes"] =
-            totals["surfel_raw_bytes"].get<size_t>() + j["surfels"]["raw_bytes"].get<size_t>();
-        totals["surfel_draco_bytes"] =
-            totals["surfel_draco_bytes"].get<size_t>() + j["surfels"]["draco_bytes"].get<size_t>();
-        for (const char* k : {"total", "active", "relocated", "disabled", "sky_only"}) {
-          std::string key = std::string("probes") + (std::string(k) == "total" ? "" : std::string("_") + k);
-          totals[key] = totals[key].get<size_t>() + j["probes"][k].get<size_t>();
-        }
-        progress.update(++done);
-      }
-    progress.finish();
-  }
+  if (!buildWorldCells(world, worldDir, trace, totals)) return 130;
 
-  // 3. Top-down preview of the whole world (all cells' meshes in one BVH: fine at the default 256 m).
-  {
-    TraceScope s(&trace, "top-down preview");
-    worlds::TriangleMesh all;
-    for (int z = 0; z < world.cellsZ(); ++z)
-      for (int x = 0; x < world.cellsX(); ++x) all.append(world.generateCell({x, z}));
-    worlds::TriangleBvh bvh(all);
-    worlds::Aabb region = all.bounds();
-    region.min.x = 0.0f;
-    region.min.z = 0.0f;
-    region.max.x = float(wp.sizeM);
-    region.max.z = float(wp.sizeM);
-    Image img = worlds::renderTopDown(all, bvh, sky, region);
-    // Exposure: map the median pixel luminance to 0.18.
-    std::vector<float> lum;
-    for (int y = 0; y < img.height; ++y)
-      for (int x = 0; x < img.width; ++x)
-        lum.push_back(0.2126f * img.at(x, y, 0) + 0.7152f * img.at(x, y, 1) + 0.0722f * img.at(x, y, 2));
-    std::nth_element(lum.begin(), lum.begin() + long(lum.size() / 2), lum.end());
-    const float median = std::max(lum[lum.size() / 2], 1e-12f);
-    writeExr(out / "world_topdown.exr", img);
-    writePng(out / "world_topdown.png", img, std::log2(0.18f / median));
-  }
+  // 3. Top-down preview.
+  writeTopDownPreview(world, wp, sky, out, trace);
 
-  report["device"] = ctx->info.name;
-  report["device_type"] = ctx->info.type;
-  report["sky"] = {{"time_of_day_h", state.timeOfDayHours},
-                   {"latitude_deg", state.latitudeDeg},
-                   {"day_of_year", state.dayOfYear},
-                   {"turbidity", state.turbidity},
-                   {"overcast", state.overcast},
-                   {"sun_elevation_deg", sky.sunPosition.elevationDeg}};
-  report["probe"] = {{"radiance_resolution", probe.n},   {"irradiance_resolution", probe.m},
-                     {"gpu_irradiance_ms", probe.gpuMs}, {"gpu_vs_cpu_irr_rel_rms", probe.gpuVsCpu},
-                     {"sh_l1_irr_rel_rms", probe.l1Err}, {"sh_l2_irr_rel_rms", probe.l2Err}};
-  report["world"] = {{"size_m", wp.sizeM}, {"cell_m", wp.cellM}, {"seed", wp.seed}};
-  report["world"].update(totals);
-  report["validation_errors"] = ctx->validationErrors.load();
-  writeFileAtomic(out / "report.json", report.dump(2) + "\n");
+  const DemoReport report{*ctx, state, sky, probe, wp, worldDir, cellCount, totals};
+  writeFileAtomic(out / "report.json", reportJson(report).dump(2) + "\n");
   trace.save(out / "trace.json");
-
-  const double ratio = double(totals["surfel_raw_bytes"].get<size_t>()) /
-                       std::max<double>(1.0, double(totals["surfel_draco_bytes"].get<size_t>()));
-  std::string md = fmt::format(
-      "# lfgi demo\n\n"
-      "Device: **{}** ({}). Sky: {:.1f} h, latitude {:.0f}, day {}, turbidity {:.1f}, overcast {:.2f} "
-      "(sun elevation {:.1f} deg).\n\n"
-      "## World ({:.0f} m x {:.0f} m, cells of {:.0f} m, seed {})\n\n"
-      "![top-down preview: direct sun with shadows + sky, no bounces](world_topdown.png)\n\n"
-      "| measure | value |\n|---|---|\n"
-      "| cells | {} |\n| triangles | {} |\n| surfels | {} (Draco {:.1f} MB, {:.2f} x smaller than raw) |\n"
-      "| probes | {} placed: {} active, {} relocated, {} disabled (in solid), {} sky-only |\n\n"
-      "Cells, probes and surfels are in `world/` (`lfgi world info {}`; `lfgi world export-cell {} --cell "
-      "1,1 "
-      "--out cell.glb` writes a cell for any glTF viewer).\n\n"
-      "## Sky probe\n\n"
-      "![sky radiance | exact irradiance (GPU) | SH L2 irradiance | L2 relative error](probe.png)\n\n"
-      "Panels: sky radiance (sun left out of the picture, not the maths) | exact irradiance (GPU) | SH L2 "
-      "irradiance | L2 relative error (brighter = larger; x10, tone-mapped). Octahedral {}x{} radiance, "
-      "{}x{} irradiance.\n\n"
-      "| measure | value |\n|---|---|\n"
-      "| GPU irradiance pass (device time) | {:.3f} ms |\n"
-      "| GPU vs CPU exact irradiance, relative RMS | {:.2e} |\n"
-      "| SH L1 irradiance vs exact, relative RMS | {:.1f} % |\n"
-      "| SH L2 irradiance vs exact, relative RMS | {:.1f} % |\n\n"
-      "Files: `*.exr` (linear float), `report.json`, `trace.json` (open in https://ui.perfetto.dev).\n",
-      ctx->info.name, ctx->info.type, state.timeOfDayHours, state.latitudeDeg, state.dayOfYear,
-      state.turbidity, state.overcast, sky.sunPosition.elevationDeg, wp.sizeM, wp.sizeM, wp.cellM, wp.seed,
-      cellCount, totals["triangles"].get<size_t>(), totals["surfels"].get<size_t>(),
-      double(totals["surfel_draco_bytes"].get<size_t>()) * 1e-6, ratio, totals["probes"].get<size_t>(),
-      totals["probes_active"].get<size_t>(), totals["probes_relocated"].get<size_t>(),
-      totals["probes_disabled"].get<size_t>(), totals["probes_sky_only"].get<size_t>(), worldDir.string(),
-      worldDir.string(), probe.n, probe.n, probe.m, probe.m, probe.gpuMs, probe.gpuVsCpu, 100.0 * probe.l1Err,
-      100.0 * probe.l2Err);
-  writeFileAtomic(out / "report.md", md);
+  writeFileAtomic(out / "report.md", reportMarkdown(report));
   spdlog::info("wrote {}", (out / "report.md").string());
   return 0;
 }

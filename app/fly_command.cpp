@@ -115,19 +115,30 @@ nlohmann::ordered_json decoderJson(const streaming::CellFileSource& source) {
   return j;
 }
 
-}  // namespace
-
-int runFly(const FlyOptions& opt) {
+// The cell sources of a flight: baked cell files or synthetic cells on the world's layout, optionally
+// wrapped by the VIR relight (members in the order they are made, so they are destroyed in reverse).
+struct FlySources {
   streaming::SyntheticSourceOptions src;
-  src.layout = {{0.0f, 0.0f}, 64.0f, {64, 64}};
+  std::filesystem::path cellsDir;
   std::unique_ptr<streaming::CellFileSource> fileSource;
-  const std::filesystem::path cellsDir = std::filesystem::path(opt.world) / "baked" / "cells";
-  if (!opt.world.empty() && std::filesystem::is_directory(cellsDir)) {
+  std::unique_ptr<streaming::SyntheticCellSource> synthetic;
+  std::unique_ptr<gpu::Context> ctx;
+  std::unique_ptr<streaming::VirRelightSource> virSource;
+  streaming::CellSource* source = nullptr;  // what the manager streams from
+  std::string sourceText;
+};
+
+// Cell files when --world DIR has DIR/baked/cells, else synthetic cells; --relight vir wraps either.
+void openCellSources(const FlyOptions& opt, FlySources& cs) {
+  streaming::SyntheticSourceOptions& src = cs.src;
+  src.layout = {{0.0f, 0.0f}, 64.0f, {64, 64}};
+  cs.cellsDir = std::filesystem::path(opt.world) / "baked" / "cells";
+  if (!opt.world.empty() && std::filesystem::is_directory(cs.cellsDir)) {
     streaming::CellFileSourceOptions fso;
     fso.worldDir = opt.world;
     fso.decoder = streaming::parseDecoderChoice(opt.decoder);
-    fileSource = std::make_unique<streaming::CellFileSource>(fso);
-    src.layout = fileSource->layout();
+    cs.fileSource = std::make_unique<streaming::CellFileSource>(fso);
+    src.layout = cs.fileSource->layout();
   } else if (!opt.world.empty()) {
     worlds::WorldParams params = worlds::readWorldManifest(opt.world);
     int cells = int(std::lround(params.sizeM / params.cellM));
@@ -137,32 +148,32 @@ int runFly(const FlyOptions& opt) {
   src.resolution = opt.resolution;
   src.irradianceResolution = std::max(2, opt.resolution / 2);
   src.loadDelayUs = opt.loadDelayUs;
-  std::unique_ptr<streaming::SyntheticCellSource> synthetic;
-  if (!fileSource) synthetic = std::make_unique<streaming::SyntheticCellSource>(src);
-  streaming::CellSource& inner = fileSource ? static_cast<streaming::CellSource&>(*fileSource) : *synthetic;
-  std::unique_ptr<gpu::Context> ctx;
-  std::unique_ptr<streaming::VirRelightSource> virSource;
+  if (!cs.fileSource) cs.synthetic = std::make_unique<streaming::SyntheticCellSource>(src);
+  streaming::CellSource& inner =
+      cs.fileSource ? static_cast<streaming::CellSource&>(*cs.fileSource) : *cs.synthetic;
   if (opt.relight == "vir") {
     if (opt.world.empty()) fail("--relight vir needs --world DIR (the surfels come from the world's cells)");
-    ctx = gpu::createContext();
+    cs.ctx = gpu::createContext();
     streaming::VirRelightOptions vo;
     vo.weather = opt.weatherStart;
-    virSource = std::make_unique<streaming::VirRelightSource>(inner, *ctx, vo,
-                                                              streaming::worldSurfelProvider(opt.world));
+    cs.virSource = std::make_unique<streaming::VirRelightSource>(inner, *cs.ctx, vo,
+                                                                 streaming::worldSurfelProvider(opt.world));
   } else if (opt.relight != "codec") {
     fail("--relight '{}': expected codec or vir", opt.relight);
   }
-  streaming::CellSource& source = virSource ? static_cast<streaming::CellSource&>(*virSource) : inner;
-  std::string sourceText =
-      fileSource
+  cs.source = cs.virSource ? static_cast<streaming::CellSource*>(cs.virSource.get()) : &inner;
+  cs.sourceText =
+      cs.fileSource
           ? fmt::format(
                 "cell files from {} ({} valid, {} missing, {} corrupt; {} decode at load, --decoder {})",
-                cellsDir.string(), fileSource->validCells(), fileSource->missingCells(),
-                fileSource->corruptCells(), fileSource->selection().backend, opt.decoder)
+                cs.cellsDir.string(), cs.fileSource->validCells(), cs.fileSource->missingCells(),
+                cs.fileSource->corruptCells(), cs.fileSource->selection().backend, opt.decoder)
           : std::string("synthetic analytic cells (raw FP32 probe fields) on the world's cell layout");
-  if (virSource) sourceText += "; relight: VIR of the world's surfels on the GPU";
-  std::printf("source: %s\n", sourceText.c_str());
+  if (cs.virSource) cs.sourceText += "; relight: VIR of the world's surfels on the GPU";
+  std::printf("source: %s\n", cs.sourceText.c_str());
+}
 
+streaming::FlythroughOptions flythroughOptions(const FlyOptions& opt, bool virRelight) {
   streaming::FlythroughOptions fo;
   fo.path = opt.path;
   fo.speed = opt.speed;
@@ -172,7 +183,7 @@ int runFly(const FlyOptions& opt) {
   fo.todEnd = opt.todEnd;
   fo.weatherStart = opt.weatherStart;
   fo.weatherEnd = opt.weatherEnd;
-  fo.streaming.relightOnActivate = virSource != nullptr;  // the load's codec lighting is the one to replace
+  fo.streaming.relightOnActivate = virRelight;  // the load's codec lighting is the one to replace
   fo.streaming.ioThreads = opt.ioThreads;
   fo.realtime = opt.realtime;
   fo.streaming.maxInlineLoadsPerFrame = opt.loadsPerFrame;
@@ -181,25 +192,16 @@ int runFly(const FlyOptions& opt) {
   fo.streaming.keepRadius = opt.decodeRadius * 1.4f;
   // Relight = CellSource::relightInto, run by the manager (IO pool, or inline with --io-threads 0).
   fo.validate();
+  return fo;
+}
 
-  const std::filesystem::path out =
-      opt.outDir.empty() ? (opt.profile ? "out/profile" : "out/fly") : opt.outDir;
-  std::filesystem::create_directories(out);
-  std::vector<streaming::FlythroughFrame> frames;
-  frames.reserve(size_t(opt.seconds * opt.fps) + 1);
-  TraceWriter trace;
-  InterruptGuard guard;
-  spdlog::info("fly-through: {} x {} cells of {} m, {} m/s, {} s at {} fps, budget {} MB, {} IO threads",
-               src.layout.cells.x, src.layout.cells.y, src.layout.cellSize, opt.speed, opt.seconds, opt.fps,
-               opt.budgetMb, opt.ioThreads);
-  streaming::FlythroughSummary s = streaming::runFlythrough(
-      source, fo, [&](const streaming::FlythroughFrame& f) { frames.push_back(f); },
-      opt.profile ? &trace : nullptr);
-
-  const double km2 =
-      double(src.layout.cells.x) * src.layout.cells.y * src.layout.cellSize * src.layout.cellSize / 1e6;
+// summary.json without the cell sizes: the source, the flight's frame-time percentiles and counts, and
+// the VIR relight's statistics.
+nlohmann::ordered_json summaryJson(const FlyOptions& opt, const FlySources& cs,
+                                   const streaming::FlythroughOptions& fo,
+                                   const streaming::FlythroughSummary& s, double km2) {
   nlohmann::ordered_json j;
-  j["source"] = sourceText;
+  j["source"] = cs.sourceText;
   j["world_km2"] = km2;
   j["speed_mps"] = opt.speed;
   j["frames"] = s.frames;
@@ -234,8 +236,8 @@ int runFly(const FlyOptions& opt) {
   j["relight"] = opt.relight;
   j["weather_start"] = opt.weatherStart;
   j["weather_end"] = opt.weatherEnd;
-  if (virSource) {
-    const streaming::VirRelightStats vs = virSource->stats();
+  if (cs.virSource) {
+    const streaming::VirRelightStats vs = cs.virSource->stats();
     j["vir_relights"] = vs.relights;
     j["vir_relights_seeded"] = vs.seeded;
     j["vir_relight_ms_mean"] = vs.relights ? vs.relightMsTotal / double(vs.relights) : 0.0;
@@ -244,27 +246,113 @@ int runFly(const FlyOptions& opt) {
     j["vir_surfel_cache_bytes"] = vs.cacheBytes;
     j["vir_record_bytes"] = vs.recordBytes;
   }
-  // Sizes the memory regression tests pin (tests/baselines/memory.json).
-  const size_t cellBytes = source.maxCellBytes();
+  return j;
+}
+
+// Sizes the memory regression tests pin (tests/baselines/memory.json).
+void addCellSizes(nlohmann::ordered_json& j, const FlySources& cs, const streaming::FlythroughOptions& fo) {
+  const streaming::SyntheticSourceOptions& src = cs.src;
+  const size_t cellBytes = cs.source->maxCellBytes();
   size_t cellProbes = size_t(src.layout.cellSize / src.probeSpacing) *
                       size_t(src.layout.cellSize / src.probeSpacing) * size_t(src.layers);
-  if (fileSource) {  // the largest cell's (the slot size)
+  if (cs.fileSource) {  // the largest cell's (the slot size)
     for (int z = 0; z < src.layout.cells.y; ++z)
       for (int x = 0; x < src.layout.cells.x; ++x)
-        if (const auto& inf = fileSource->info({x, z}); inf.fieldBytes == cellBytes)
+        if (const auto& inf = cs.fileSource->info({x, z}); inf.fieldBytes == cellBytes)
           cellProbes = size_t(inf.probes);
-    j["cell_files"] = {{"dir", cellsDir.string()},
-                       {"valid", fileSource->validCells()},
-                       {"missing", fileSource->missingCells()},
-                       {"corrupt", fileSource->corruptCells()}};
-    j["cell_loads"] = fileSource->loads();
-    j["cell_read_ms_total"] = fileSource->readMsTotal();
-    j["cell_decode_ms_total"] = fileSource->decodeMsTotal();
-    j["decoder"] = decoderJson(*fileSource);
+    j["cell_files"] = {{"dir", cs.cellsDir.string()},
+                       {"valid", cs.fileSource->validCells()},
+                       {"missing", cs.fileSource->missingCells()},
+                       {"corrupt", cs.fileSource->corruptCells()}};
+    j["cell_loads"] = cs.fileSource->loads();
+    j["cell_read_ms_total"] = cs.fileSource->readMsTotal();
+    j["cell_decode_ms_total"] = cs.fileSource->decodeMsTotal();
+    j["decoder"] = decoderJson(*cs.fileSource);
   }
   j["cell_bytes"] = cellBytes;
   j["bytes_per_probe"] = double(cellBytes) / double(cellProbes);
   j["pool_bytes"] = (fo.streaming.memoryBudgetBytes / cellBytes) * cellBytes;
+}
+
+// gnuplot writes the chart under a temporary name (file_util.h): a failed or killed run never leaves a
+// partial profile.png. Returns whether the chart was written.
+bool writeProfileChart(const FlyOptions& opt, const std::filesystem::path& out,
+                       const streaming::FlythroughOptions& fo) {
+  bool charts = false;
+  try {
+    writeViaTempFile(out / "profile.png", [&](const std::filesystem::path& tmp) {
+      const std::string cmd = fmt::format(
+          "gnuplot -e \"dir='{}'; png='{}'; title='{} m/s, {} s'; budget_mb={}; activate_budget_ms={}\" - "
+          "2>&1",
+          out.string(), tmp.string(), opt.speed, opt.seconds, opt.budgetMb, fo.streaming.activateBudgetMs);
+      FILE* gp = popen(cmd.c_str(), "w");
+      if (!gp) fail("gnuplot: cannot start");
+      std::fputs(kProfileGnuplot, gp);
+      if (pclose(gp) != 0) fail("gnuplot failed");
+    });
+    charts = true;
+  } catch (const Error&) {
+  }
+  return charts;
+}
+
+// `lfgi profile`: trace.json, profile.png and summary.html beside frames.csv + summary.json.
+void writeProfile(const FlyOptions& opt, const std::filesystem::path& out, const TraceWriter& trace,
+                  const streaming::FlythroughOptions& fo, const streaming::FlythroughSummary& s, double km2,
+                  const nlohmann::ordered_json& j) {
+  trace.save(out / "trace.json");
+  const bool charts = writeProfileChart(opt, out, fo);
+  if (!charts) spdlog::warn("gnuplot failed or is missing: no profile.png (install gnuplot-nox)");
+  std::string html = fmt::format(
+      "<!doctype html><meta charset=utf-8><title>lfgi streaming profile</title>\n"
+      "<h1>Streaming profile: {} m/s for {} s over {:.1f} km&sup2;</h1>\n"
+      "<p>Open <code>trace.json</code> in <a href='https://ui.perfetto.dev'>Perfetto</a> for every stage "
+      "of every frame.</p>\n"
+      "<table border=1 cellpadding=4>\n"
+      "<tr><td>frames</td><td>{}</td></tr><tr><td>frames with a visible point lacking "
+      "GI</td><td>{}</td></tr>\n"
+      "<tr><td>fallback fraction of visible samples</td><td>{:.3f} %</td></tr>\n"
+      "<tr><td>frame ms p50 / p95 / p99</td><td>{:.3f} / {:.3f} / {:.3f}</td></tr>\n"
+      "<tr><td>p99 ms: IO / activate / relight / shade</td><td>{:.3f} / {:.3f} / {:.3f} / "
+      "{:.3f}</td></tr>\n"
+      "<tr><td>peak resident / budget</td><td>{:.1f} MB / {:.1f} MB</td></tr>\n"
+      "<tr><td>cells loaded / evicted / relit / failed</td><td>{} / {} / {} / {}</td></tr>\n"
+      "<tr><td>peak RSS</td><td>{:.1f} MB</td></tr></table>\n"
+      "<p>Cells: {}</p>\n<img src='profile.png' width=1100>\n",
+      opt.speed, opt.seconds, km2, s.frames, s.framesMissingGi, 100.0 * s.fallbackFraction, s.p50FrameMs,
+      s.p95FrameMs, s.p99FrameMs, s.p99IoMs, s.p99ActivateMs, s.p99RelightMs, s.p99ShadeMs,
+      double(s.peakBytesResident) / 1e6, double(fo.streaming.memoryBudgetBytes) / 1e6, s.cellsRequested,
+      s.cellsEvicted, s.cellsRelit, s.cellsFailed, peakRssMb(), j["source"].get<std::string>());
+  writeFileAtomic(out / "summary.html", html);
+  std::printf("profile: %s (trace.json for Perfetto, profile.png, summary.html)\n", out.string().c_str());
+}
+
+}  // namespace
+
+int runFly(const FlyOptions& opt) {
+  FlySources sources;
+  openCellSources(opt, sources);
+  const streaming::SyntheticSourceOptions& src = sources.src;
+  const streaming::FlythroughOptions fo = flythroughOptions(opt, sources.virSource != nullptr);
+
+  const std::filesystem::path out =
+      opt.outDir.empty() ? (opt.profile ? "out/profile" : "out/fly") : opt.outDir;
+  std::filesystem::create_directories(out);
+  std::vector<streaming::FlythroughFrame> frames;
+  frames.reserve(size_t(opt.seconds * opt.fps) + 1);
+  TraceWriter trace;
+  InterruptGuard guard;
+  spdlog::info("fly-through: {} x {} cells of {} m, {} m/s, {} s at {} fps, budget {} MB, {} IO threads",
+               src.layout.cells.x, src.layout.cells.y, src.layout.cellSize, opt.speed, opt.seconds, opt.fps,
+               opt.budgetMb, opt.ioThreads);
+  streaming::FlythroughSummary s = streaming::runFlythrough(
+      *sources.source, fo, [&](const streaming::FlythroughFrame& f) { frames.push_back(f); },
+      opt.profile ? &trace : nullptr);
+
+  const double km2 =
+      double(src.layout.cells.x) * src.layout.cells.y * src.layout.cellSize * src.layout.cellSize / 1e6;
+  nlohmann::ordered_json j = summaryJson(opt, sources, fo, s, km2);
+  addCellSizes(j, sources, fo);
   writeFileAtomic(out / "frames.csv", framesCsv(frames));
   writeFileAtomic(out / "summary.json", j.dump(2) + "\n");
   std::printf(
@@ -272,50 +360,8 @@ int runFly(const FlyOptions& opt) {
       "peak resident %.1f MB, %ld cells loaded\n",
       s.frames, s.framesMissingGi, 100.0 * s.fallbackFraction, s.p99FrameMs,
       double(s.peakBytesResident) / 1e6, s.cellsRequested);
-  if (opt.profile) {
-    trace.save(out / "trace.json");
-    // gnuplot writes the chart under a temporary name (file_util.h): a failed or killed run never leaves a
-    // partial profile.png.
-    bool charts = false;
-    try {
-      writeViaTempFile(out / "profile.png", [&](const std::filesystem::path& tmp) {
-        const std::string cmd = fmt::format(
-            "gnuplot -e \"dir='{}'; png='{}'; title='{} m/s, {} s'; budget_mb={}; activate_budget_ms={}\" - "
-            "2>&1",
-            out.string(), tmp.string(), opt.speed, opt.seconds, opt.budgetMb, fo.streaming.activateBudgetMs);
-        FILE* gp = popen(cmd.c_str(), "w");
-        if (!gp) fail("gnuplot: cannot start");
-        std::fputs(kProfileGnuplot, gp);
-        if (pclose(gp) != 0) fail("gnuplot failed");
-      });
-      charts = true;
-    } catch (const Error&) {
-    }
-    if (!charts) spdlog::warn("gnuplot failed or is missing: no profile.png (install gnuplot-nox)");
-    std::string html = fmt::format(
-        "<!doctype html><meta charset=utf-8><title>lfgi streaming profile</title>\n"
-        "<h1>Streaming profile: {} m/s for {} s over {:.1f} km&sup2;</h1>\n"
-        "<p>Open <code>trace.json</code> in <a href='https://ui.perfetto.dev'>Perfetto</a> for every stage "
-        "of every frame.</p>\n"
-        "<table border=1 cellpadding=4>\n"
-        "<tr><td>frames</td><td>{}</td></tr><tr><td>frames with a visible point lacking "
-        "GI</td><td>{}</td></tr>\n"
-        "<tr><td>fallback fraction of visible samples</td><td>{:.3f} %</td></tr>\n"
-        "<tr><td>frame ms p50 / p95 / p99</td><td>{:.3f} / {:.3f} / {:.3f}</td></tr>\n"
-        "<tr><td>p99 ms: IO / activate / relight / shade</td><td>{:.3f} / {:.3f} / {:.3f} / "
-        "{:.3f}</td></tr>\n"
-        "<tr><td>peak resident / budget</td><td>{:.1f} MB / {:.1f} MB</td></tr>\n"
-        "<tr><td>cells loaded / evicted / relit / failed</td><td>{} / {} / {} / {}</td></tr>\n"
-        "<tr><td>peak RSS</td><td>{:.1f} MB</td></tr></table>\n"
-        "<p>Cells: {}</p>\n<img src='profile.png' width=1100>\n",
-        opt.speed, opt.seconds, km2, s.frames, s.framesMissingGi, 100.0 * s.fallbackFraction, s.p50FrameMs,
-        s.p95FrameMs, s.p99FrameMs, s.p99IoMs, s.p99ActivateMs, s.p99RelightMs, s.p99ShadeMs,
-        double(s.peakBytesResident) / 1e6, double(fo.streaming.memoryBudgetBytes) / 1e6, s.cellsRequested,
-        s.cellsEvicted, s.cellsRelit, s.cellsFailed, peakRssMb(), j["source"].get<std::string>());
-    writeFileAtomic(out / "summary.html", html);
-    std::printf("profile: %s (trace.json for Perfetto, profile.png, summary.html)\n", out.string().c_str());
-  }
-  if (fileSource) {
+  if (opt.profile) writeProfile(opt, out, trace, fo, s, km2, j);
+  if (sources.fileSource) {
     const auto& d = j["decoder"];
     std::printf("decoder: %s (%s), %zu generator decodes, p50 / p95 %.1f / %.1f ms, %.0f probes/s\n",
                 d["backend"].get<std::string>().c_str(), d["reason"].get<std::string>().c_str(),

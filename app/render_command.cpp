@@ -35,6 +35,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <memory>
 #include <optional>
 
 #include "app/cli_args.h"
@@ -75,9 +76,37 @@ fs::path withSuffix(const fs::path& exr, const std::string& suffix, const std::s
   return p;
 }
 
-}  // namespace
+// What every stage of a render shares: the parsed view, sky and capture settings, the device, and the
+// probe fields (with world cells, every cell's streaming state) the view is shaded from.
+struct RenderState {
+  explicit RenderState(const RenderCommandOptions& o) : opt(o) {}
+  const RenderCommandOptions& opt;
+  bake::PinholeCamera camera;
+  int width = 0, height = 0;
+  worlds::SkyModel sky;
+  bake::CaptureOptions co;
+  std::unique_ptr<gpu::Context> ctx;
+  bake::VirProbeOptions vo;
+  worlds::TriangleMesh mesh;
+  std::vector<ProbeField> fields;
+  std::vector<gpu::ShadingCellInput> cellInputs;  // world cells: every cell's state (full / fallback-only)
+  std::string what;
+};
 
-int runRender(const RenderCommandOptions& opt) {
+// The 3 x 3 world cells around --cell and what each contributes to the view.
+struct WorldProbes {
+  worlds::CellCoord c;                       // the centre cell
+  std::vector<worlds::BuiltCell> built;      // the cells that exist, row by row
+  std::vector<std::vector<uint8_t>> active;  // per built cell: the probes to capture / VIR
+  std::vector<worlds::Surfel> surfels;       // --probes vir / codec: the cells' surfels
+  std::vector<size_t> fieldCell;             // built index of fields[j]
+  bool wantFallbacks = false;
+  std::vector<std::optional<ShL1>> fallbacks;  // per built cell
+
+  bool isCentre(size_t k) const { return built[k].layout.cell.x == c.x && built[k].layout.cell.z == c.z; }
+};
+
+void validateRenderOptions(const RenderCommandOptions& opt) {
   if (opt.world.empty() == opt.scene.empty())
     fail("give exactly one of --world DIR (with --cell) or --scene NAME_OR_FILE");
   if ((opt.neighboursFallback || opt.cellFade != 1.0f) && opt.world.empty())
@@ -92,331 +121,350 @@ int runRender(const RenderCommandOptions& opt) {
     fail("--probes codec: cell files exist for world cells only (give --world DIR --cell X,Z)");
   if (!opt.cellFile.empty() && opt.probes != "codec") fail("--cell-file is for --probes codec");
   if (fs::path(opt.out).extension() != ".exr") fail("--out {}: expected a .exr file name", opt.out);
+}
+
+// The camera, image size, sky and capture settings from the command line.
+void readViewSettings(RenderState& st) {
+  const RenderCommandOptions& opt = st.opt;
   const std::vector<float> cam = parseNumbers("--camera", opt.camera, 6, "px,py,pz,tx,ty,tz");
-  bake::PinholeCamera camera;
-  camera.position = glm::vec3(cam[0], cam[1], cam[2]);
-  camera.target = glm::vec3(cam[3], cam[4], cam[5]);
-  camera.verticalFovDeg = opt.fov;
+  st.camera.position = glm::vec3(cam[0], cam[1], cam[2]);
+  st.camera.target = glm::vec3(cam[3], cam[4], cam[5]);
+  st.camera.verticalFovDeg = opt.fov;
   try {
-    bake::validateCamera(camera);
+    bake::validateCamera(st.camera);
   } catch (const Error& e) {
     fail("--camera {} / --fov {}: {}", opt.camera, opt.fov, e.what());
   }
-  int width = 0, height = 0;
   {
     char x = 0, extra = 0;
-    if (std::sscanf(opt.size.c_str(), "%d%c%d%c", &width, &x, &height, &extra) != 3 || x != 'x' ||
-        width < 1 || height < 1 || width > 8192 || height > 8192)
+    if (std::sscanf(opt.size.c_str(), "%d%c%d%c", &st.width, &x, &st.height, &extra) != 3 || x != 'x' ||
+        st.width < 1 || st.height < 1 || st.width > 8192 || st.height > 8192)
       fail("--size '{}': expected WIDTHxHEIGHT, each in [1, 8192]", opt.size);
   }
   worlds::SkyState ss;
   ss.timeOfDayHours = opt.timeOfDay;
   ss.overcast = opt.overcast;
-  const worlds::SkyModel sky = worlds::makeSky(ss);
-  bake::CaptureOptions co;
-  co.resolution = opt.resolution;
-  co.samplesPerTexel = opt.spp;
-  co.maxBounces = opt.bounces;
-  co.seed = opt.seed;
-  bake::validateCaptureOptions(co);
-  std::optional<tbb::global_control> limit;
-  if (opt.threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(opt.threads));
-  InterruptGuard guard;
+  st.sky = worlds::makeSky(ss);
+  st.co.resolution = opt.resolution;
+  st.co.samplesPerTexel = opt.spp;
+  st.co.maxBounces = opt.bounces;
+  st.co.seed = opt.seed;
+  bake::validateCaptureOptions(st.co);
+}
 
-  auto ctx = gpu::createContext();
-  bake::VirProbeOptions vo;
-  vo.resolution = opt.resolution;
-  vo.frames = opt.virFrames;
-  auto reportVir = [&](const bake::VirProbeStats& st, const std::string& where) {
-    spdlog::info("{}: VIR probes: {} probes from {} surfels, {} frames, {:.2f} s ({:.1f} ms device)", where,
-                 st.probes, st.surfels, vo.frames, st.seconds, st.gpuMs);
-  };
-  worlds::TriangleMesh mesh;
-  std::vector<ProbeField> fields;
-  std::vector<gpu::ShadingCellInput> cellInputs;  // world cells: every cell's state (full / fallback-only)
-  std::string what;
-  if (!opt.scene.empty()) {
-    worlds::ScenePreset preset;
-    const fs::path p(opt.scene);
-    std::string ext = p.extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
-    if (ext == ".gltf" || ext == ".glb" || fs::is_regular_file(p)) {
-      if (!fs::is_regular_file(p)) fail("--scene {}: no such file", opt.scene);
-      preset.name = p.stem().string();
-      preset.scale = opt.scale;
-      preset.probeDims = glm::ivec3(4);
-      worlds::GltfImportOptions io;
-      io.scale = opt.scale;
-      mesh = worlds::importGltf(p, io);
-    } else {
-      try {
-        preset = worlds::findScenePreset(opt.scene);
-      } catch (const Error& e) {
-        fail("--scene {}: {}", opt.scene, e.what());
-      }
-      mesh = worlds::loadScenePreset(preset, opt.scenesDir);
+void reportVir(const RenderState& st, const bake::VirProbeStats& vs, const std::string& where) {
+  spdlog::info("{}: VIR probes: {} probes from {} surfels, {} frames, {:.2f} s ({:.1f} ms device)", where,
+               vs.probes, vs.surfels, st.vo.frames, vs.seconds, vs.gpuMs);
+}
+
+// Scene: the preset's (or --grid) probe grid over the scene mesh, captured or by VIR.
+void shadeSceneProbes(RenderState& st) {
+  const RenderCommandOptions& opt = st.opt;
+  worlds::ScenePreset preset;
+  const fs::path p(opt.scene);
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  if (ext == ".gltf" || ext == ".glb" || fs::is_regular_file(p)) {
+    if (!fs::is_regular_file(p)) fail("--scene {}: no such file", opt.scene);
+    preset.name = p.stem().string();
+    preset.scale = opt.scale;
+    preset.probeDims = glm::ivec3(4);
+    worlds::GltfImportOptions io;
+    io.scale = opt.scale;
+    st.mesh = worlds::importGltf(p, io);
+  } else {
+    try {
+      preset = worlds::findScenePreset(opt.scene);
+    } catch (const Error& e) {
+      fail("--scene {}: {}", opt.scene, e.what());
     }
-    if (!opt.grid.empty()) {
-      const std::vector<float> d = parseNumbers("--grid", opt.grid, 3, "NX,NY,NZ");
-      for (int k = 0; k < 3; ++k) {
-        if (d[size_t(k)] < 1.0f || d[size_t(k)] > 64.0f || d[size_t(k)] != std::floor(d[size_t(k)]))
-          fail("--grid '{}': each count must be a whole number in [1, 64]", opt.grid);
-        preset.probeDims[k] = int(d[size_t(k)]);
+    st.mesh = worlds::loadScenePreset(preset, opt.scenesDir);
+  }
+  if (!opt.grid.empty()) {
+    const std::vector<float> d = parseNumbers("--grid", opt.grid, 3, "NX,NY,NZ");
+    for (int k = 0; k < 3; ++k) {
+      if (d[size_t(k)] < 1.0f || d[size_t(k)] > 64.0f || d[size_t(k)] != std::floor(d[size_t(k)]))
+        fail("--grid '{}': each count must be a whole number in [1, 64]", opt.grid);
+      preset.probeDims[k] = int(d[size_t(k)]);
+    }
+  }
+  const worlds::TriangleMesh& mesh = st.mesh;
+  const ProbeGrid grid = worlds::presetProbeGrid(preset, mesh.bounds());
+  if (opt.probes == "vir") {
+    const worlds::Aabb box = mesh.bounds();
+    const float spacing = opt.surfelSpacing > 0.0f ? opt.surfelSpacing
+                                                   : std::max(glm::length(box.max - box.min) / 64.0f, 1e-3f);
+    const std::vector<worlds::Surfel> surfels =
+        worlds::sampleSurfels(bake::meshWithBackFaces(mesh), {spacing, opt.seed});
+    st.vo.maxRange = 2.0f * glm::length(box.max - box.min);
+    spdlog::info("{}: {} triangles, VIR of {} surfels ({:.3f} m) into {}x{}x{} probes ({}x{} maps)",
+                 preset.name, mesh.triangleCount(), surfels.size(), spacing, grid.dims.x, grid.dims.y,
+                 grid.dims.z, st.vo.resolution, st.vo.resolution);
+    bake::VirProbeStats vs;
+    st.fields.push_back(bake::virProbeField(*st.ctx, surfels, grid, {}, {}, st.sky, st.vo, &vs));
+    reportVir(st, vs, preset.name);
+  } else {
+    const bake::EmbreeScene scene(mesh, preset.name);
+    spdlog::info("{}: {} triangles, capturing {}x{}x{} probes ({}x{} maps, {} spp)", preset.name,
+                 mesh.triangleCount(), grid.dims.x, grid.dims.y, grid.dims.z, st.co.resolution,
+                 st.co.resolution, st.co.samplesPerTexel);
+    st.fields.push_back(bake::captureGridField(scene, st.sky, grid, {}, {}, st.co, true));
+  }
+  st.what = preset.name;
+}
+
+// Which probes to capture: with --probe-radius those that close to the camera, else (default) the
+// lattice probes around every surface point the camera sees (pixel-centre rays), i.e. exactly the
+// probes the shading pass will read, including the neighbouring cells' first layers.
+void selectActiveProbes(const RenderState& st, const bake::EmbreeScene& scene, WorldProbes& w) {
+  const RenderCommandOptions& opt = st.opt;
+  const bake::PinholeCamera& camera = st.camera;
+  const std::vector<worlds::BuiltCell>& built = w.built;
+  const worlds::CellCoord c = w.c;
+  std::vector<std::vector<uint8_t>>& active = w.active;
+  active.resize(built.size());
+  for (size_t k = 0; k < built.size(); ++k) active[k].assign(built[k].probes.flags.size(), 0);
+  if (opt.probeRadius > 0.0f) {
+    for (size_t k = 0; k < built.size(); ++k)
+      for (size_t i = 0; i < active[k].size() && (w.isCentre(k) || !opt.neighboursFallback); ++i)
+        active[k][i] = glm::length(built[k].probes.position(int64_t(i)) - camera.position) <= opt.probeRadius;
+    return;
+  }
+  for (int y = 0; y < st.height; ++y)
+    for (int x = 0; x < st.width; ++x) {
+      const glm::vec3 d =
+          bake::cameraRayDirection(camera, st.width, st.height, float(x) + 0.5f, float(y) + 0.5f);
+      const std::optional<bake::RayHit> hit = scene.intersect(camera.position, d);
+      if (!hit) continue;
+      const glm::vec3 p = camera.position + hit->t * d;
+      for (size_t k = 0; k < built.size(); ++k) {
+        if (opt.neighboursFallback && (built[k].layout.cell.x != c.x || built[k].layout.cell.z != c.z))
+          continue;
+        const ProbeGrid& g = built[k].probes.grid;
+        const glm::vec3 local = (p - g.origin) / g.spacing;
+        if (glm::any(glm::lessThan(local, glm::vec3(-1.0f))) ||
+            glm::any(glm::greaterThan(local, glm::vec3(g.dims))))
+          continue;
+        const glm::ivec3 base = glm::ivec3(glm::floor(local));
+        for (int c8 = 0; c8 < 8; ++c8) {
+          const glm::ivec3 q = base + glm::ivec3(c8 & 1, (c8 >> 1) & 1, (c8 >> 2) & 1);
+          const glm::ivec3 qc = glm::clamp(q, glm::ivec3(0), g.dims - 1);
+          if (glm::any(glm::notEqual(q, qc)) && glm::all(glm::greaterThanEqual(local, glm::vec3(0.0f))) &&
+              glm::all(glm::lessThan(local, glm::vec3(g.dims))))
+            active[k][size_t(g.linearIndex(qc))] = 1;  // clamped corner of the owning grid
+          else if (glm::all(glm::equal(q, qc)))
+            active[k][size_t(g.linearIndex(q))] = 1;
+        }
       }
     }
-    const ProbeGrid grid = worlds::presetProbeGrid(preset, mesh.bounds());
+}
+
+// --probes codec: every cell whose file exists (the centre's must); all fields share one map size: the
+// first network model's, else --resolution (SH L1 cells take any size).
+void decodeCellFiles(RenderState& st, const bake::EmbreeScene& scene, WorldProbes& w) {
+  const RenderCommandOptions& opt = st.opt;
+  const std::vector<worlds::BuiltCell>& built = w.built;
+  const worlds::CellCoord c = w.c;
+  std::vector<std::pair<size_t, CellFile>> files;
+  std::vector<fs::path> paths;
+  for (size_t k = 0; k < built.size(); ++k) {
+    const worlds::CellCoord cc = built[k].layout.cell;
+    const bool centre = cc.x == c.x && cc.z == c.z;
+    const fs::path path = centre && !opt.cellFile.empty() ? fs::path(opt.cellFile)
+                                                          : fs::path(opt.world) / "baked" / "cells" /
+                                                                fmt::format("cell_{}_{}.vdb", cc.x, cc.z);
+    if (!fs::is_regular_file(path)) {
+      if (centre)
+        fail(
+            "--probes codec: no cell file {} (bake it with `lfgi bake --world {} --cells {},{}` or give "
+            "--cell-file)",
+            path.string(), opt.world, cc.x, cc.z);
+      spdlog::info("cell {},{}: no cell file {}, its probes are not used", cc.x, cc.z, path.string());
+      continue;
+    }
+    CellFile cf = readCellFile(path);
+    if (cf.cellX != cc.x || cf.cellZ != cc.z || cf.grid.dims != built[k].probes.grid.dims)
+      fail("{}: holds cell {},{} ({}x{}x{} probes), expected cell {},{} ({}x{}x{})", path.string(), cf.cellX,
+           cf.cellZ, cf.grid.dims.x, cf.grid.dims.y, cf.grid.dims.z, cc.x, cc.z, built[k].probes.grid.dims.x,
+           built[k].probes.grid.dims.y, built[k].probes.grid.dims.z);
+    files.emplace_back(k, std::move(cf));
+    paths.push_back(path);
+  }
+  int res = opt.resolution;
+  for (const auto& [k, cf] : files)
+    if (cf.generator) {
+      res = cf.generator->weights.arch.outputResolution();
+      break;
+    }
+  std::optional<ResolvedSharedModel> shared;
+  for (size_t j = 0; j < files.size(); ++j) {
+    const CellFile& cf = files[j].second;
+    if (cf.generator && cf.generator->weights.arch.outputResolution() != res)
+      fail("{}: decodes {}x{} maps but another cell file decodes {}x{}", paths[j].string(),
+           cf.generator->weights.arch.outputResolution(), cf.generator->weights.arch.outputResolution(), res,
+           res);
+    // A shared-model cell: the world's shared model beside its cells/ directory, read once.
+    if (cf.generator && cf.generator->shared && !shared)
+      shared = loadSharedModel(sharedModelPath(paths[j].parent_path().parent_path()));
+    ProbeField decoded = bake::codecProbeField(cf, paths[j].string(), scene, st.sky, res, 8, 1.0e4f,
+                                               shared ? &*shared : nullptr);
+    const size_t k = files[j].first;
+    if (w.wantFallbacks) w.fallbacks[k] = bake::fieldFallback(decoded);
+    spdlog::info("cell {},{}: decoded {} probes from {} ({}){}", cf.cellX, cf.cellZ, cf.activeProbeCount(),
+                 paths[j].string(), cf.stats.model,
+                 opt.neighboursFallback && !w.isCentre(k) ? ": its SH L1 fallback only" : "");
+    if (opt.neighboursFallback && !w.isCentre(k)) continue;
+    // Visibility from the cell's geometry, as the streaming manager's loads make it
+    // (docs/ARCHITECTURE.md, "Where visibility comes from").
+    bake::VirProbeStats ms;
+    bake::regenerateVirMoments(*st.ctx, w.surfels, built[k].probes.offsets, decoded, st.vo.maxRange, &ms);
+    spdlog::info("cell {},{}: VIR distance moments of {} probes from {} surfels, {:.0f} ms", cf.cellX,
+                 cf.cellZ, ms.probes, ms.surfels, 1e3 * ms.seconds);
+    st.fields.push_back(std::move(decoded));
+    w.fieldCell.push_back(k);
+  }
+}
+
+// Each cell's fallback from a sparse set of its own probes (fallbackProbeMask), by the same source.
+void shadeCellFallbacks(const RenderState& st, const bake::EmbreeScene& scene, WorldProbes& w) {
+  for (size_t k = 0; k < w.built.size(); ++k) {
+    const worlds::BuiltCell& b = w.built[k];
+    std::vector<uint8_t> disabled(b.probes.flags.size());
+    for (size_t i = 0; i < disabled.size(); ++i)
+      disabled[i] = (b.probes.flags[i] & worlds::kProbeDisabledSolid) != 0;
+    const std::vector<uint8_t> mask = bake::fallbackProbeMask(b.probes.grid, disabled);
+    size_t n = 0;
+    for (uint8_t m : mask) n += m;
+    if (n == 0) {
+      spdlog::info("cell {},{}: no probe outside solid for its fallback: it stays dark", b.layout.cell.x,
+                   b.layout.cell.z);
+      w.fallbacks[k] = ShL1{};
+      continue;
+    }
+    spdlog::info("cell {},{}: SH L1 fallback from {} probes ({})", b.layout.cell.x, b.layout.cell.z, n,
+                 st.opt.probes);
+    const ProbeField f =
+        st.opt.probes == "vir"
+            ? bake::virProbeField(*st.ctx, w.surfels, b.probes.grid, b.probes.offsets, mask, st.sky, st.vo)
+            : bake::captureGridField(scene, st.sky, b.probes.grid, b.probes.offsets, mask, st.co, false);
+    w.fallbacks[k] = bake::fieldFallback(f);
+  }
+}
+
+// --probes capture / vir: the active probes of every resident cell (not solid), captured or by VIR.
+void shadeActiveProbes(RenderState& st, const bake::EmbreeScene& scene, WorldProbes& w) {
+  const RenderCommandOptions& opt = st.opt;
+  for (size_t k = 0; k < w.built.size() && opt.probes != "codec"; ++k) {
+    if (opt.neighboursFallback && !w.isCentre(k)) continue;
+    worlds::BuiltCell& b = w.built[k];
+    std::vector<uint8_t>& active = w.active[k];
+    size_t n = 0;
+    for (size_t i = 0; i < active.size(); ++i) {
+      if (b.probes.flags[i] & worlds::kProbeDisabledSolid) active[i] = 0;
+      n += active[i];
+    }
+    if (n == 0) continue;
     if (opt.probes == "vir") {
-      const worlds::Aabb box = mesh.bounds();
-      const float spacing = opt.surfelSpacing > 0.0f
-                                ? opt.surfelSpacing
-                                : std::max(glm::length(box.max - box.min) / 64.0f, 1e-3f);
-      const std::vector<worlds::Surfel> surfels =
-          worlds::sampleSurfels(bake::meshWithBackFaces(mesh), {spacing, opt.seed});
-      vo.maxRange = 2.0f * glm::length(box.max - box.min);
-      spdlog::info("{}: {} triangles, VIR of {} surfels ({:.3f} m) into {}x{}x{} probes ({}x{} maps)",
-                   preset.name, mesh.triangleCount(), surfels.size(), spacing, grid.dims.x, grid.dims.y,
-                   grid.dims.z, vo.resolution, vo.resolution);
-      bake::VirProbeStats st;
-      fields.push_back(bake::virProbeField(*ctx, surfels, grid, {}, {}, sky, vo, &st));
-      reportVir(st, preset.name);
-    } else {
-      const bake::EmbreeScene scene(mesh, preset.name);
-      spdlog::info("{}: {} triangles, capturing {}x{}x{} probes ({}x{} maps, {} spp)", preset.name,
-                   mesh.triangleCount(), grid.dims.x, grid.dims.y, grid.dims.z, co.resolution, co.resolution,
-                   co.samplesPerTexel);
-      fields.push_back(bake::captureGridField(scene, sky, grid, {}, {}, co, true));
+      spdlog::info("cell {},{}: VIR of {} of {} probes", b.layout.cell.x, b.layout.cell.z, n, active.size());
+      bake::VirProbeStats vs;
+      st.fields.push_back(bake::virProbeField(*st.ctx, w.surfels, b.probes.grid, b.probes.offsets, active,
+                                              st.sky, st.vo, &vs));
+      w.fieldCell.push_back(k);
+      reportVir(st, vs, fmt::format("cell {},{}", b.layout.cell.x, b.layout.cell.z));
+      continue;
     }
-    what = preset.name;
-  } else {
-    if (opt.cell.empty()) fail("--world {}: give the cell with --cell X,Z", opt.world);
-    const worlds::SyntheticWorld world(worlds::readWorldManifest(opt.world));
-    const worlds::CellCoord c = parseCellArg(opt.cell, "--cell");
-    if (!world.contains(c))
-      fail("--cell {}: outside the world ({} x {} cells)", opt.cell, world.cellsX(), world.cellsZ());
-    std::vector<worlds::CellCoord> cells;
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dx = -1; dx <= 1; ++dx)
-        if (world.contains({c.x + dx, c.z + dz})) cells.push_back({c.x + dx, c.z + dz});
-    std::vector<worlds::BuiltCell> built;
-    for (const worlds::CellCoord cc : cells) {
-      built.push_back(worlds::buildCell(world, cc));
-      mesh.append(built.back().mesh);
-    }
-    // Embree sees the 3 x 3 cells, so probes near the border capture what is next door.
-    const bake::EmbreeScene scene(mesh, "world cells");
-    // Which probes to capture: with --probe-radius those that close to the camera, else (default) the
-    // lattice probes around every surface point the camera sees (pixel-centre rays), i.e. exactly the
-    // probes the shading pass will read, including the neighbouring cells' first layers.
-    std::vector<std::vector<uint8_t>> active(built.size());
-    for (size_t k = 0; k < built.size(); ++k) active[k].assign(built[k].probes.flags.size(), 0);
-    auto isCentre = [&](size_t k) { return built[k].layout.cell.x == c.x && built[k].layout.cell.z == c.z; };
-    if (opt.probeRadius > 0.0f) {
-      for (size_t k = 0; k < built.size(); ++k)
-        for (size_t i = 0; i < active[k].size() && (isCentre(k) || !opt.neighboursFallback); ++i)
-          active[k][i] =
-              glm::length(built[k].probes.position(int64_t(i)) - camera.position) <= opt.probeRadius;
-    } else {
-      for (int y = 0; y < height; ++y)
-        for (int x = 0; x < width; ++x) {
-          const glm::vec3 d =
-              bake::cameraRayDirection(camera, width, height, float(x) + 0.5f, float(y) + 0.5f);
-          const std::optional<bake::RayHit> hit = scene.intersect(camera.position, d);
-          if (!hit) continue;
-          const glm::vec3 p = camera.position + hit->t * d;
-          for (size_t k = 0; k < built.size(); ++k) {
-            if (opt.neighboursFallback && (built[k].layout.cell.x != c.x || built[k].layout.cell.z != c.z))
-              continue;
-            const ProbeGrid& g = built[k].probes.grid;
-            const glm::vec3 local = (p - g.origin) / g.spacing;
-            if (glm::any(glm::lessThan(local, glm::vec3(-1.0f))) ||
-                glm::any(glm::greaterThan(local, glm::vec3(g.dims))))
-              continue;
-            const glm::ivec3 base = glm::ivec3(glm::floor(local));
-            for (int c8 = 0; c8 < 8; ++c8) {
-              const glm::ivec3 q = base + glm::ivec3(c8 & 1, (c8 >> 1) & 1, (c8 >> 2) & 1);
-              const glm::ivec3 qc = glm::clamp(q, glm::ivec3(0), g.dims - 1);
-              if (glm::any(glm::notEqual(q, qc)) && glm::all(glm::greaterThanEqual(local, glm::vec3(0.0f))) &&
-                  glm::all(glm::lessThan(local, glm::vec3(g.dims))))
-                active[k][size_t(g.linearIndex(qc))] = 1;  // clamped corner of the owning grid
-              else if (glm::all(glm::equal(q, qc)))
-                active[k][size_t(g.linearIndex(q))] = 1;
-            }
-          }
-        }
-    }
-    std::vector<worlds::Surfel> surfels;
-    if (opt.probes == "vir" || opt.probes == "codec")
-      for (const worlds::BuiltCell& b : built)
-        surfels.insert(surfels.end(), b.surfels.begin(), b.surfels.end());
-    vo.maxRange = float(world.cellSizeM());
-    std::vector<size_t> fieldCell;  // built index of fields[j]
-    const bool wantFallbacks = opt.neighboursFallback || opt.cellFade != 1.0f;
-    std::vector<std::optional<ShL1>> fallbacks(built.size());
-    if (opt.probes == "codec") {
-      // Every cell whose file exists (the centre's must); all fields share one map size: the first network
-      // model's, else --resolution (SH L1 cells take any size).
-      std::vector<std::pair<size_t, CellFile>> files;
-      std::vector<fs::path> paths;
-      for (size_t k = 0; k < built.size(); ++k) {
-        const worlds::CellCoord cc = built[k].layout.cell;
-        const bool centre = cc.x == c.x && cc.z == c.z;
-        const fs::path path = centre && !opt.cellFile.empty() ? fs::path(opt.cellFile)
-                                                              : fs::path(opt.world) / "baked" / "cells" /
-                                                                    fmt::format("cell_{}_{}.vdb", cc.x, cc.z);
-        if (!fs::is_regular_file(path)) {
-          if (centre)
-            fail(
-                "--probes codec: no cell file {} (bake it with `lfgi bake --world {} --cells {},{}` or give "
-                "--cell-file)",
-                path.string(), opt.world, cc.x, cc.z);
-          spdlog::info("cell {},{}: no cell file {}, its probes are not used", cc.x, cc.z, path.string());
-          continue;
-        }
-        CellFile cf = readCellFile(path);
-        if (cf.cellX != cc.x || cf.cellZ != cc.z || cf.grid.dims != built[k].probes.grid.dims)
-          fail("{}: holds cell {},{} ({}x{}x{} probes), expected cell {},{} ({}x{}x{})", path.string(),
-               cf.cellX, cf.cellZ, cf.grid.dims.x, cf.grid.dims.y, cf.grid.dims.z, cc.x, cc.z,
-               built[k].probes.grid.dims.x, built[k].probes.grid.dims.y, built[k].probes.grid.dims.z);
-        files.emplace_back(k, std::move(cf));
-        paths.push_back(path);
-      }
-      int res = opt.resolution;
-      for (const auto& [k, cf] : files)
-        if (cf.generator) {
-          res = cf.generator->weights.arch.outputResolution();
-          break;
-        }
-      std::optional<ResolvedSharedModel> shared;
-      for (size_t j = 0; j < files.size(); ++j) {
-        const CellFile& cf = files[j].second;
-        if (cf.generator && cf.generator->weights.arch.outputResolution() != res)
-          fail("{}: decodes {}x{} maps but another cell file decodes {}x{}", paths[j].string(),
-               cf.generator->weights.arch.outputResolution(), cf.generator->weights.arch.outputResolution(),
-               res, res);
-        // A shared-model cell: the world's shared model beside its cells/ directory, read once.
-        if (cf.generator && cf.generator->shared && !shared)
-          shared = loadSharedModel(sharedModelPath(paths[j].parent_path().parent_path()));
-        ProbeField decoded = bake::codecProbeField(cf, paths[j].string(), scene, sky, res, 8, 1.0e4f,
-                                                   shared ? &*shared : nullptr);
-        const size_t k = files[j].first;
-        if (wantFallbacks) fallbacks[k] = bake::fieldFallback(decoded);
-        spdlog::info("cell {},{}: decoded {} probes from {} ({}){}", cf.cellX, cf.cellZ,
-                     cf.activeProbeCount(), paths[j].string(), cf.stats.model,
-                     opt.neighboursFallback && !isCentre(k) ? ": its SH L1 fallback only" : "");
-        if (opt.neighboursFallback && !isCentre(k)) continue;
-        // Visibility from the cell's geometry, as the streaming manager's loads make it
-        // (docs/ARCHITECTURE.md, "Where visibility comes from").
-        bake::VirProbeStats ms;
-        bake::regenerateVirMoments(*ctx, surfels, built[k].probes.offsets, decoded, vo.maxRange, &ms);
-        spdlog::info("cell {},{}: VIR distance moments of {} probes from {} surfels, {:.0f} ms", cf.cellX,
-                     cf.cellZ, ms.probes, ms.surfels, 1e3 * ms.seconds);
-        fields.push_back(std::move(decoded));
-        fieldCell.push_back(k);
-      }
-    } else if (wantFallbacks) {
-      // Each cell's fallback from a sparse set of its own probes (fallbackProbeMask), by the same source.
-      for (size_t k = 0; k < built.size(); ++k) {
-        const worlds::BuiltCell& b = built[k];
-        std::vector<uint8_t> disabled(b.probes.flags.size());
-        for (size_t i = 0; i < disabled.size(); ++i)
-          disabled[i] = (b.probes.flags[i] & worlds::kProbeDisabledSolid) != 0;
-        const std::vector<uint8_t> mask = bake::fallbackProbeMask(b.probes.grid, disabled);
-        size_t n = 0;
-        for (uint8_t m : mask) n += m;
-        if (n == 0) {
-          spdlog::info("cell {},{}: no probe outside solid for its fallback: it stays dark", b.layout.cell.x,
-                       b.layout.cell.z);
-          fallbacks[k] = ShL1{};
-          continue;
-        }
-        spdlog::info("cell {},{}: SH L1 fallback from {} probes ({})", b.layout.cell.x, b.layout.cell.z, n,
-                     opt.probes);
-        const ProbeField f =
-            opt.probes == "vir"
-                ? bake::virProbeField(*ctx, surfels, b.probes.grid, b.probes.offsets, mask, sky, vo)
-                : bake::captureGridField(scene, sky, b.probes.grid, b.probes.offsets, mask, co, false);
-        fallbacks[k] = bake::fieldFallback(f);
-      }
-    }
-    for (size_t k = 0; k < built.size() && opt.probes != "codec"; ++k) {
-      if (opt.neighboursFallback && !isCentre(k)) continue;
-      worlds::BuiltCell& b = built[k];
-      size_t n = 0;
-      for (size_t i = 0; i < active[k].size(); ++i) {
-        if (b.probes.flags[i] & worlds::kProbeDisabledSolid) active[k][i] = 0;
-        n += active[k][i];
-      }
-      if (n == 0) continue;
-      if (opt.probes == "vir") {
-        spdlog::info("cell {},{}: VIR of {} of {} probes", b.layout.cell.x, b.layout.cell.z, n,
-                     active[k].size());
-        bake::VirProbeStats st;
-        fields.push_back(
-            bake::virProbeField(*ctx, surfels, b.probes.grid, b.probes.offsets, active[k], sky, vo, &st));
-        fieldCell.push_back(k);
-        reportVir(st, fmt::format("cell {},{}", b.layout.cell.x, b.layout.cell.z));
-        continue;
-      }
-      spdlog::info("cell {},{}: capturing {} of {} probes", b.layout.cell.x, b.layout.cell.z, n,
-                   active[k].size());
-      fields.push_back(
-          bake::captureGridField(scene, sky, b.probes.grid, b.probes.offsets, active[k], co, true));
-      fieldCell.push_back(k);
-    }
-    if (fields.empty() && !wantFallbacks)
-      fail("--cell {}: no probe of the cell or its neighbours is near what the camera sees", opt.cell);
-    // Every cell's streaming state: full (its field; the centre with --cell-fade) or, with
-    // --neighbours-fallback, fallback-only; cells with neither are left out (the pass clamps there).
-    for (size_t k = 0; k < built.size(); ++k) {
-      const auto j = std::find(fieldCell.begin(), fieldCell.end(), k);
-      gpu::ShadingCellInput in;
-      if (fallbacks[k]) in.fallback = *fallbacks[k];
-      if (j != fieldCell.end()) {
-        in.field = &fields[size_t(j - fieldCell.begin())];
-        in.fade = isCentre(k) ? opt.cellFade : 1.0f;
-      } else if (fallbacks[k]) {
-        in.fallbackOnly = true;
-        in.box = built[k].probes.grid;
-      } else {
-        continue;
-      }
-      cellInputs.push_back(in);
-    }
-    what = fmt::format("world {} cells around {}", opt.world, opt.cell);
+    spdlog::info("cell {},{}: capturing {} of {} probes", b.layout.cell.x, b.layout.cell.z, n, active.size());
+    st.fields.push_back(
+        bake::captureGridField(scene, st.sky, b.probes.grid, b.probes.offsets, active, st.co, true));
+    w.fieldCell.push_back(k);
   }
+}
 
-  bake::ShadingRenderer renderer(*ctx, mesh);
-  if (!cellInputs.empty()) {
-    renderer.setCells(cellInputs, opt.specularLevels);
-  } else {
-    std::vector<const ProbeField*> ptrs;
-    for (const ProbeField& f : fields) ptrs.push_back(&f);
-    renderer.setProbes(ptrs, opt.specularLevels);
+// Every cell's streaming state: full (its field; the centre with --cell-fade) or, with
+// --neighbours-fallback, fallback-only; cells with neither are left out (the pass clamps there).
+void collectCellInputs(RenderState& st, const WorldProbes& w) {
+  for (size_t k = 0; k < w.built.size(); ++k) {
+    const auto j = std::find(w.fieldCell.begin(), w.fieldCell.end(), k);
+    gpu::ShadingCellInput in;
+    if (w.fallbacks[k]) in.fallback = *w.fallbacks[k];
+    if (j != w.fieldCell.end()) {
+      in.field = &st.fields[size_t(j - w.fieldCell.begin())];
+      in.fade = w.isCentre(k) ? st.opt.cellFade : 1.0f;
+    } else if (w.fallbacks[k]) {
+      in.fallbackOnly = true;
+      in.box = w.built[k].probes.grid;
+    } else {
+      continue;
+    }
+    st.cellInputs.push_back(in);
   }
-  gpu::ShadingOptions so;
-  so.chebyshev = !opt.noChebyshev;
-  so.aoRadius = opt.aoRadius;
-  const bake::ShadedView view = renderer.render(sky, camera, width, height, so);
-  const fs::path exr(opt.out);
+}
+
+// World: the probes of --cell and its 8 neighbours (with their fallbacks) over the 3 x 3 cells' mesh.
+void shadeWorldProbes(RenderState& st) {
+  const RenderCommandOptions& opt = st.opt;
+  if (opt.cell.empty()) fail("--world {}: give the cell with --cell X,Z", opt.world);
+  const worlds::SyntheticWorld world(worlds::readWorldManifest(opt.world));
+  WorldProbes w;
+  w.c = parseCellArg(opt.cell, "--cell");
+  const worlds::CellCoord c = w.c;
+  if (!world.contains(c))
+    fail("--cell {}: outside the world ({} x {} cells)", opt.cell, world.cellsX(), world.cellsZ());
+  std::vector<worlds::CellCoord> cells;
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dx = -1; dx <= 1; ++dx)
+      if (world.contains({c.x + dx, c.z + dz})) cells.push_back({c.x + dx, c.z + dz});
+  for (const worlds::CellCoord cc : cells) {
+    w.built.push_back(worlds::buildCell(world, cc));
+    st.mesh.append(w.built.back().mesh);
+  }
+  // Embree sees the 3 x 3 cells, so probes near the border capture what is next door.
+  const bake::EmbreeScene scene(st.mesh, "world cells");
+  selectActiveProbes(st, scene, w);
+  if (opt.probes == "vir" || opt.probes == "codec")
+    for (const worlds::BuiltCell& b : w.built)
+      w.surfels.insert(w.surfels.end(), b.surfels.begin(), b.surfels.end());
+  st.vo.maxRange = float(world.cellSizeM());
+  w.wantFallbacks = opt.neighboursFallback || opt.cellFade != 1.0f;
+  w.fallbacks.resize(w.built.size());
+  if (opt.probes == "codec")
+    decodeCellFiles(st, scene, w);
+  else if (w.wantFallbacks)
+    shadeCellFallbacks(st, scene, w);
+  shadeActiveProbes(st, scene, w);
+  if (st.fields.empty() && !w.wantFallbacks)
+    fail("--cell {}: no probe of the cell or its neighbours is near what the camera sees", opt.cell);
+  collectCellInputs(st, w);
+  st.what = fmt::format("world {} cells around {}", opt.world, opt.cell);
+}
+
+// The shaded view as X.exr + X.png; returns the PNG exposure (EV).
+float writeShadedView(const RenderState& st, const bake::ShadedView& view, const fs::path& exr) {
+  const RenderCommandOptions& opt = st.opt;
   if (!exr.parent_path().empty()) fs::create_directories(exr.parent_path());
   writeExr(exr, view.image);
   const float exposure =
       std::isnan(opt.exposure) ? std::log2(0.18f / medianLuminance(view.image, "")) : opt.exposure;
   writePng(withSuffix(exr, "", ".png"), view.image, exposure);
   spdlog::info("PNG exposure {:.3f} EV ({})", exposure, std::isnan(opt.exposure) ? "auto" : "--exposure");
-  spdlog::info("render {}x{} of {} on {}: G-buffer {:.2f} ms, shading {:.2f} ms -> {}", width, height, what,
-               ctx->info.name, view.gbufferMs, view.shadeMs, exr.string());
-  if (!opt.compare) return 0;
+  spdlog::info("render {}x{} of {} on {}: G-buffer {:.2f} ms, shading {:.2f} ms -> {}", st.width, st.height,
+               st.what, st.ctx->info.name, view.gbufferMs, view.shadeMs, exr.string());
+  return exposure;
+}
 
+// --compare: the path-traced reference, its PNGs, the error heat map and the relative RMS.
+int compareWithReference(const RenderState& st, const bake::ShadedView& view, const fs::path& exr,
+                         float exposure) {
+  const RenderCommandOptions& opt = st.opt;
+  const int width = st.width, height = st.height;
   bake::RenderOptions ro;
   ro.width = width;
   ro.height = height;
   ro.samplesPerPixel = opt.referenceSpp;
   ro.maxBounces = opt.bounces;
   ro.seed = opt.seed;
-  const bake::EmbreeScene scene(mesh, what);
-  const bake::RenderResult ref = bake::renderShadingReference(scene, sky, camera, ro, true);
+  const bake::EmbreeScene scene(st.mesh, st.what);
+  const bake::RenderResult ref = bake::renderShadingReference(scene, st.sky, st.camera, ro, true);
   if (ref.interrupted) {
     std::fprintf(stderr, "lfgi: interrupted; reference not written\n");
     return 130;
@@ -454,7 +502,7 @@ int runRender(const RenderCommandOptions& opt) {
       "relative RMS vs path-traced reference (%d spp, %zu pixels shaded from %s probes): total %.4f, "
       "indirect %.4f\n",
       opt.referenceSpp, shaded, opt.probes.c_str(), total, indirect);
-  if (!cellInputs.empty())
+  if (!st.cellInputs.empty())
     std::printf(
         "fallback share of the indirect light: %.4f (mean over shaded pixels; neighbours %s, cell fade "
         "%.3f)\n",
@@ -463,6 +511,42 @@ int runRender(const RenderCommandOptions& opt) {
   spdlog::info("reference {:.2f} s -> {}, error map {}", ref.seconds,
                withSuffix(exr, "_reference", ".exr").string(), withSuffix(exr, "_error", ".png").string());
   return 0;
+}
+
+}  // namespace
+
+int runRender(const RenderCommandOptions& opt) {
+  validateRenderOptions(opt);
+  RenderState st(opt);
+  readViewSettings(st);
+  std::optional<tbb::global_control> limit;
+  if (opt.threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(opt.threads));
+  InterruptGuard guard;
+
+  st.ctx = gpu::createContext();
+  st.vo.resolution = opt.resolution;
+  st.vo.frames = opt.virFrames;
+  if (!opt.scene.empty())
+    shadeSceneProbes(st);
+  else
+    shadeWorldProbes(st);
+
+  bake::ShadingRenderer renderer(*st.ctx, st.mesh);
+  if (!st.cellInputs.empty()) {
+    renderer.setCells(st.cellInputs, opt.specularLevels);
+  } else {
+    std::vector<const ProbeField*> ptrs;
+    for (const ProbeField& f : st.fields) ptrs.push_back(&f);
+    renderer.setProbes(ptrs, opt.specularLevels);
+  }
+  gpu::ShadingOptions so;
+  so.chebyshev = !opt.noChebyshev;
+  so.aoRadius = opt.aoRadius;
+  const bake::ShadedView view = renderer.render(st.sky, st.camera, st.width, st.height, so);
+  const fs::path exr(opt.out);
+  const float exposure = writeShadedView(st, view, exr);
+  if (!opt.compare) return 0;
+  return compareWithReference(st, view, exr, exposure);
 }
 
 }  // namespace lfgi::app

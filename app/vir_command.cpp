@@ -53,24 +53,26 @@ Image tileAtlas(int probes, int res, std::vector<std::string> channels, Get get)
   return img;
 }
 
-}  // namespace
+// What the stages of `lfgi vir` share: the cell, its probes, the sky, the lighting after the last frame
+// and the contact sheet's probes and exposure.
+struct VirRun {
+  explicit VirRun(const VirCommandOptions& o) : opt(o) {}
+  const VirCommandOptions& opt;
+  worlds::CellCoord c;
+  worlds::SkyModel sky;
+  worlds::BuiltCell cell;
+  gpu::RelightProbes probes;
+  int64_t probeCount = 0;
+  int frames = 0;
+  gpu::CellLighting lighting;
+  gpu::RelightResult last;
+  nlohmann::json frameMs = nlohmann::json::array();  // per frame: wall and device ms of the parts
+  std::vector<int> shown;                            // the contact sheet's probes
+  float exposureEv = 0.0f;                           // the contact sheet's exposure
+};
 
-int runVir(const VirCommandOptions& opt) {
-  const auto start = std::chrono::steady_clock::now();
-  if (opt.world.empty()) fail("--world: give the world directory (made by `lfgi world generate`)");
-  if (opt.outDir.empty()) fail("--out: give an output directory");
-  const worlds::SyntheticWorld world(worlds::readWorldManifest(opt.world));
-  const worlds::CellCoord c = parseCellArg(opt.cell, "--cell");
-  if (!world.contains(c))
-    fail("--cell {}: outside the world ({} x {} cells)", opt.cell, world.cellsX(), world.cellsZ());
-  worlds::SkyState state;
-  state.timeOfDayHours = opt.timeOfDay;
-  state.overcast = opt.overcast;
-  const worlds::SkyModel sky = worlds::makeSky(state);
-
-  std::fprintf(stderr, "vir: building cell %d,%d of %s\n", c.x, c.z, opt.world.c_str());
-  const worlds::BuiltCell cell = worlds::buildCell(world, c);
-  if (cell.surfels.empty()) fail("--cell {}: the cell has no surfels", opt.cell);
+// Every probe of the cell's grid; disabled (solid) probes are inactive.
+gpu::RelightProbes relightProbes(const worlds::BuiltCell& cell) {
   gpu::RelightProbes probes;
   probes.grid = cell.probes.grid;
   const int64_t probeCount = probes.grid.probeCount();
@@ -78,48 +80,46 @@ int runVir(const VirCommandOptions& opt) {
     probes.positions.push_back(cell.probes.position(i));
     probes.active.push_back((cell.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid) ? 0 : 1);
   }
-  std::fprintf(stderr, "vir: %zu surfels, %lld probes (%d x %d x %d, %.1f m), N=%d, %d frames\n",
-               cell.surfels.size(), (long long)probeCount, probes.grid.dims.x, probes.grid.dims.y,
-               probes.grid.dims.z, double(probes.grid.spacing.x), opt.resolution, opt.bounces + 1);
+  return probes;
+}
 
-  auto ctx = gpu::createContext();
-  gpu::RelightPass relight(*ctx);
-  gpu::VirPass vir(*ctx);
+// Relight + VIR over bounces + 1 frames, timing each; false when interrupted (nothing written).
+bool relightFrames(VirRun& run, gpu::RelightPass& relight, gpu::VirPass& vir, double cellSizeM) {
   gpu::VirOptions virOptions;
-  virOptions.resolution = opt.resolution;
-  virOptions.maxRange = 2.0f * float(world.cellSizeM());
+  virOptions.resolution = run.opt.resolution;
+  virOptions.maxRange = 2.0f * float(cellSizeM);
   gpu::RelightOptions relightOptions;
-  gpu::CellLighting lighting;
-  gpu::RelightResult last;
-  const int frames = opt.bounces + 1;
-  nlohmann::json frameMs = nlohmann::json::array();  // per frame: wall and device ms of the parts
-  InterruptGuard guard;
+  gpu::CellLighting& lighting = run.lighting;
+  const int frames = run.frames;
   Progress progress("relight + VIR", size_t(frames), "frames");
   for (int f = 0; f < frames; ++f) {
     if (InterruptGuard::interrupted()) {
       std::fprintf(stderr, "vir: interrupted after %d of %d frames; nothing written\n", f, frames);
-      return 130;
+      return false;
     }
     const auto f0 = std::chrono::steady_clock::now();
-    last = gpu::relightFrame(relight, vir, cell.surfels, probes, sky.params, virOptions, relightOptions,
-                             lighting);
-    frameMs.push_back(
+    run.last = gpu::relightFrame(relight, vir, run.cell.surfels, run.probes, run.sky.params, virOptions,
+                                 relightOptions, lighting);
+    run.frameMs.push_back(
         {{"frame", f + 1},
          {"wall", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - f0).count()},
-         {"shadow", last.shadowMs},
-         {"emitter_shadow", last.emitterShadowMs},
-         {"light", last.lightMs},
+         {"shadow", run.last.shadowMs},
+         {"emitter_shadow", run.last.emitterShadowMs},
+         {"light", run.last.lightMs},
          {"vir", lighting.atlas.gpuMs},
          {"vir_splat_reused", lighting.atlas.splatReused},
          {"convolve", lighting.probes.gpuMs + lighting.reflected.gpuMs}});
     progress.update(size_t(f + 1));
   }
   progress.finish();
+  return true;
+}
 
-  const gpu::ProbeAtlas& atlas = lighting.atlas;
-  const int n = atlas.resolution, m = lighting.probes.irradianceResolution, pc = int(probeCount);
-  fs::create_directories(opt.outDir);
-  const fs::path out(opt.outDir);
+// radiance.exr, distance.exr, normal.exr, albedo.exr and irradiance.exr.
+void writeAtlases(const VirRun& run, const fs::path& out) {
+  const gpu::ProbeAtlas& atlas = run.lighting.atlas;
+  const gpu::CellLighting& lighting = run.lighting;
+  const int n = atlas.resolution, m = lighting.probes.irradianceResolution, pc = int(run.probeCount);
   writeExr(out / "radiance.exr",
            tileAtlas(pc, n, {"R", "G", "B"}, [&](size_t t) { return atlas.radiance[t]; }));
   writeExr(out / "distance.exr",
@@ -129,14 +129,18 @@ int runVir(const VirCommandOptions& opt) {
   writeExr(out / "albedo.exr", tileAtlas(pc, n, {"R", "G", "B"}, [&](size_t t) { return atlas.albedo[t]; }));
   writeExr(out / "irradiance.exr",
            tileAtlas(pc, m, {"R", "G", "B"}, [&](size_t t) { return lighting.probes.irradiance[t]; }));
+}
 
-  // Contact sheet: radiance tiles of at most kSheetProbes active probes (every k-th in index order),
-  // enlarged 4x with a 1-pixel gap; sky texels (coverage 0) show the sky; exposure puts the median
-  // luminance of the shown texels at 0.18.
+// Contact sheet: radiance tiles of at most kSheetProbes active probes (every k-th in index order),
+// enlarged 4x with a 1-pixel gap; sky texels (coverage 0) show the sky; exposure puts the median
+// luminance of the shown texels at 0.18.
+void writeContactSheet(VirRun& run, const fs::path& out) {
+  const gpu::ProbeAtlas& atlas = run.lighting.atlas;
+  const int n = atlas.resolution, pc = int(run.probeCount);
   constexpr size_t kSheetProbes = 256;
-  std::vector<int> shown;
+  std::vector<int>& shown = run.shown;
   for (int p = 0; p < pc; ++p)
-    if (probes.active[size_t(p)]) shown.push_back(p);
+    if (run.probes.active[size_t(p)]) shown.push_back(p);
   if (shown.size() > kSheetProbes) {
     std::vector<int> every;
     for (size_t k = 0; k < kSheetProbes; ++k) every.push_back(shown[k * shown.size() / kSheetProbes]);
@@ -155,7 +159,7 @@ int runVir(const VirCommandOptions& opt) {
         glm::vec3 v(atlas.radiance[t]);
         if (atlas.normal[t].w == 0.0f)
           v = worlds::skyRadiance(
-              sky, shared::octTexelDirection(glm::uvec2(uint32_t(i), uint32_t(j)), uint32_t(n)));
+              run.sky, shared::octTexelDirection(glm::uvec2(uint32_t(i), uint32_t(j)), uint32_t(n)));
         lums.push_back(0.2126f * v.x + 0.7152f * v.y + 0.0722f * v.z);
         for (int y = 0; y < scale; ++y)
           for (int x = 0; x < scale; ++x)
@@ -170,40 +174,91 @@ int runVir(const VirCommandOptions& opt) {
     const float med = lums[lums.size() / 2];
     if (med > 0.0f && std::isfinite(med)) exposureEv = std::log2(0.18f / med);
   }
+  run.exposureEv = exposureEv;
   writePng(out / "contact_sheet.png", sheet, exposureEv);
+}
 
+// vir.json: layout, probes, sky, statistics.
+nlohmann::ordered_json virJson(const VirRun& run) {
+  const VirCommandOptions& opt = run.opt;
+  const gpu::ProbeAtlas& atlas = run.lighting.atlas;
+  const gpu::RelightProbes& probes = run.probes;
+  const worlds::SkyModel& sky = run.sky;
+  const int pc = int(run.probeCount);
   nlohmann::ordered_json j;
   j["world"] = opt.world;
-  j["cell"] = {c.x, c.z};
+  j["cell"] = {run.c.x, run.c.z};
   j["time_of_day"] = opt.timeOfDay;
   j["overcast"] = opt.overcast;
   j["sun_direction"] = {sky.sun.direction.x, sky.sun.direction.y, sky.sun.direction.z};
-  j["resolution"] = n;
-  j["irradiance_resolution"] = m;
-  j["frames"] = frames;
-  j["surfels"] = cell.surfels.size();
-  j["probes"] = probeCount;
+  j["resolution"] = atlas.resolution;
+  j["irradiance_resolution"] = run.lighting.probes.irradianceResolution;
+  j["frames"] = run.frames;
+  j["surfels"] = run.cell.surfels.size();
+  j["probes"] = run.probeCount;
   j["probe_grid"] = {{"origin", {probes.grid.origin.x, probes.grid.origin.y, probes.grid.origin.z}},
                      {"spacing", {probes.grid.spacing.x, probes.grid.spacing.y, probes.grid.spacing.z}},
                      {"dims", {probes.grid.dims.x, probes.grid.dims.y, probes.grid.dims.z}}};
   j["tile_columns"] = int(std::ceil(std::sqrt(double(pc))));
-  j["contact_sheet_probes"] = shown;
+  j["contact_sheet_probes"] = run.shown;
   nlohmann::json active = nlohmann::json::array();
   for (uint8_t a : probes.active) active.push_back(int(a));
   j["probe_active"] = active;
   j["hole_fraction_before_fill"] = atlas.holeFractionBeforeFill;
   j["hole_fraction_after_fill"] = atlas.holeFractionAfterFill;
-  j["shadow_resolution"] = last.shadowResolution;
-  j["shadow_texel_m"] = last.shadowTexelM;
-  j["frame_ms"] = frameMs;
-  j["contact_sheet_exposure_ev"] = exposureEv;
-  writeFileAtomic(out / "vir.json", j.dump(2) + "\n");
+  j["shadow_resolution"] = run.last.shadowResolution;
+  j["shadow_texel_m"] = run.last.shadowTexelM;
+  j["frame_ms"] = run.frameMs;
+  j["contact_sheet_exposure_ev"] = run.exposureEv;
+  return j;
+}
+
+}  // namespace
+
+int runVir(const VirCommandOptions& opt) {
+  const auto start = std::chrono::steady_clock::now();
+  if (opt.world.empty()) fail("--world: give the world directory (made by `lfgi world generate`)");
+  if (opt.outDir.empty()) fail("--out: give an output directory");
+  const worlds::SyntheticWorld world(worlds::readWorldManifest(opt.world));
+  VirRun run(opt);
+  run.c = parseCellArg(opt.cell, "--cell");
+  const worlds::CellCoord c = run.c;
+  if (!world.contains(c))
+    fail("--cell {}: outside the world ({} x {} cells)", opt.cell, world.cellsX(), world.cellsZ());
+  worlds::SkyState state;
+  state.timeOfDayHours = opt.timeOfDay;
+  state.overcast = opt.overcast;
+  run.sky = worlds::makeSky(state);
+
+  std::fprintf(stderr, "vir: building cell %d,%d of %s\n", c.x, c.z, opt.world.c_str());
+  run.cell = worlds::buildCell(world, c);
+  if (run.cell.surfels.empty()) fail("--cell {}: the cell has no surfels", opt.cell);
+  run.probes = relightProbes(run.cell);
+  run.probeCount = run.probes.grid.probeCount();
+  const gpu::RelightProbes& probes = run.probes;
+  std::fprintf(stderr, "vir: %zu surfels, %lld probes (%d x %d x %d, %.1f m), N=%d, %d frames\n",
+               run.cell.surfels.size(), (long long)run.probeCount, probes.grid.dims.x, probes.grid.dims.y,
+               probes.grid.dims.z, double(probes.grid.spacing.x), opt.resolution, opt.bounces + 1);
+
+  auto ctx = gpu::createContext();
+  gpu::RelightPass relight(*ctx);
+  gpu::VirPass vir(*ctx);
+  run.frames = opt.bounces + 1;
+  InterruptGuard guard;
+  if (!relightFrames(run, relight, vir, world.cellSizeM())) return 130;
+
+  const gpu::ProbeAtlas& atlas = run.lighting.atlas;
+  fs::create_directories(opt.outDir);
+  const fs::path out(opt.outDir);
+  writeAtlases(run, out);
+  writeContactSheet(run, out);
+  writeFileAtomic(out / "vir.json", virJson(run).dump(2) + "\n");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::printf(
       "vir: cell %d,%d: %zu surfels, %lld probes, N=%d, %d frames (first %.1f s, last %.1f s), holes %.4f -> "
       "%.4f; wrote %s (%.1f s)\n",
-      c.x, c.z, cell.surfels.size(), (long long)probeCount, n, frames,
-      frameMs.front()["wall"].get<double>() * 1e-3, frameMs.back()["wall"].get<double>() * 1e-3,
+      c.x, c.z, run.cell.surfels.size(), (long long)run.probeCount, atlas.resolution, run.frames,
+      run.frameMs.front()["wall"].get<double>() * 1e-3, run.frameMs.back()["wall"].get<double>() * 1e-3,
       atlas.holeFractionBeforeFill, atlas.holeFractionAfterFill, (out / "contact_sheet.png").string().c_str(),
       seconds);
   return 0;

@@ -85,6 +85,128 @@ std::vector<worlds::CellCoord> selectBakeCells(const worlds::SyntheticWorld& wor
   return cells;
 }
 
+namespace {
+
+// --codec shared: the world's shared model first (reused when up to date; resumable pre-training). False
+// when the pre-training was interrupted.
+bool prepareSharedModel(const worlds::SyntheticWorld& world, const bake::WorldBakeSettings& settings,
+                        const fs::path& out, std::optional<ResolvedSharedModel>& shared) {
+  bool reused = false;
+  try {
+    const SharedModel m = bake::ensureSharedModel(world, settings, out, &reused);
+    shared =
+        ResolvedSharedModel{dequantizeWeights(m.weights), m.weightsHash(), sharedModelPath(out).string()};
+    std::fprintf(stderr, "shared model %s: %s %016llx, %d steps on %s, mean irradiance error %.2f %%\n",
+                 shared->name.c_str(), reused ? "up to date" : "trained",
+                 static_cast<unsigned long long>(shared->hash), m.stats.steps, m.stats.cells.c_str(),
+                 100.0 * m.stats.errorAchieved);
+  } catch (const Error& e) {
+    if (!InterruptGuard::interrupted()) throw;
+    std::fprintf(stderr, "\n%s\n", e.what());
+    return false;
+  }
+  return true;
+}
+
+// What the cell loop shares, and its running tally.
+struct BakeRun {
+  const WorldBakeOptions& opt;
+  const worlds::SyntheticWorld& world;
+  const fs::path& out;
+  const std::optional<ResolvedSharedModel>& shared;
+  Progress& progress;
+  size_t done = 0, skipped = 0, networks = 0;
+  size_t bytesTotal = 0;
+  std::vector<worlds::CellCoord> failed;
+};
+
+enum class CellOutcome { kBaked, kSkipped, kInterrupted };
+
+// One cell: skipped when its file is up to date, else baked, written, read back and recorded. Throws
+// when the cell fails.
+CellOutcome bakeOneCell(BakeRun& run, const worlds::CellCoord c) {
+  const bake::WorldBakeSettings& settings = run.opt.settings;
+  const fs::path& out = run.out;
+  using Clock = std::chrono::steady_clock;
+  const auto t0 = Clock::now();
+  const fs::path file = bake::cellFilePath(out, c);
+  bake::CellBakeInputs inputs =
+      bake::prepareCellBake(run.world, c, settings, run.shared ? run.shared->hash : 0);
+  const double prepareSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  std::string why;
+  const bake::CellBakeState state = bake::cellBakeState(file, inputs.inputHash, &why);
+  if (state == bake::CellBakeState::Done) {
+    bake::clearCellBakeFailure(out, c);
+    ++run.skipped;
+    ++run.done;
+    run.progress.update(run.done);
+    return CellOutcome::kSkipped;
+  }
+  if (state == bake::CellBakeState::Stale) spdlog::info("{}: inputs changed, rebaking", file.string());
+  if (state == bake::CellBakeState::Corrupt) spdlog::warn("rebaking: {}", why);
+  const uint64_t inputHash = inputs.inputHash;
+  bake::CellBakeReport report;
+  CellFile cf;
+  try {
+    cf = bake::bakeCell(run.world, std::move(inputs), settings, &report, run.shared ? &*run.shared : nullptr);
+  } catch (const Error&) {
+    if (!InterruptGuard::interrupted()) throw;
+    // Interrupted mid-cell: that cell is not written (bakeCell throws rather than return a partial
+    // model).
+    std::fprintf(stderr,
+                 "\nbake: interrupted during cell %d,%d (not written) after %zu cells; run the same "
+                 "command again to resume\n",
+                 c.x, c.z, run.done);
+    return CellOutcome::kInterrupted;
+  }
+  if (run.opt.reproducible) cf.stats.trainingSeconds = 0.0;  // the only run-dependent field of the file
+  writeCellFile(file, cf);
+  CellFileBytes bytes;
+  readCellFile(file, &bytes);  // read back through every check: what we wrote is what a reader accepts
+  bake::CellBakeRecord record;
+  record.cell = c;
+  record.kind = run.world.cellKind(c);
+  record.inputHash = inputHash;
+  record.probes = report.probes;
+  record.network = report.network;
+  record.model = cf.stats.model;
+  record.prepareSeconds = prepareSeconds;
+  record.captureSeconds = report.captureSeconds;
+  record.trainingSeconds = report.trainingSeconds;
+  record.totalSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  record.bytes = bytes.total;
+  record.host = bake::hostName();
+  record.finishedUtc = bake::utcNow();
+  bake::writeCellBakeRecord(out, record);
+  bake::clearCellBakeFailure(out, c);
+  run.bytesTotal += bytes.total;
+  run.networks += report.network ? 1 : 0;
+  std::fprintf(stderr,
+               "\ncell %d,%d: %zu probes, %s, irradiance error %.2f %% (target %.1f %%), %zu bytes, %.1f s\n",
+               c.x, c.z, report.probes, cf.stats.model.c_str(), 100.0 * cf.stats.errorAchieved,
+               100.0 * settings.errorTarget, bytes.total, record.totalSeconds);
+  return CellOutcome::kBaked;
+}
+
+// The closing summary; exit code 1 when any cell failed.
+int reportBake(const BakeRun& run, size_t cellCount) {
+  const fs::path& out = run.out;
+  std::printf(
+      "done: %zu cells (%zu already baked, %zu with a network, %zu failed), %zu bytes written, in %s\n",
+      cellCount, run.skipped, run.networks, run.failed.size(), run.bytesTotal,
+      (out / "cells").string().c_str());
+  if (!run.failed.empty()) {
+    std::string list;
+    for (const worlds::CellCoord c : run.failed) list += fmt::format(" {},{}", c.x, c.z);
+    std::fprintf(stderr, "bake: %zu cell(s) failed:%s (errors in %s/cell_X_Z.failed); rerun to retry them\n",
+                 run.failed.size(), list.c_str(), (out / "cells").string().c_str());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace
+
 int runWorldBake(const WorldBakeOptions& opt) {
   const worlds::SyntheticWorld world(worlds::readWorldManifest(opt.world));
   const std::vector<worlds::CellCoord> cells = selectBakeCells(world, opt);
@@ -94,121 +216,39 @@ int runWorldBake(const WorldBakeOptions& opt) {
   fs::create_directories(out / "cells");
 
   InterruptGuard guard;
-  // --codec shared: the world's shared model first (reused when up to date; resumable pre-training).
   std::optional<ResolvedSharedModel> shared;
-  if (settings.sharedCodec()) {
-    bool reused = false;
-    try {
-      const SharedModel m = bake::ensureSharedModel(world, settings, out, &reused);
-      shared =
-          ResolvedSharedModel{dequantizeWeights(m.weights), m.weightsHash(), sharedModelPath(out).string()};
-      std::fprintf(stderr, "shared model %s: %s %016llx, %d steps on %s, mean irradiance error %.2f %%\n",
-                   shared->name.c_str(), reused ? "up to date" : "trained",
-                   static_cast<unsigned long long>(shared->hash), m.stats.steps, m.stats.cells.c_str(),
-                   100.0 * m.stats.errorAchieved);
-    } catch (const Error& e) {
-      if (!InterruptGuard::interrupted()) throw;
-      std::fprintf(stderr, "\n%s\n", e.what());
-      return 130;
-    }
-  }
+  if (settings.sharedCodec() && !prepareSharedModel(world, settings, out, shared)) return 130;
   Progress progress("bake", cells.size(), "cells");
-  size_t done = 0, skipped = 0, networks = 0;
-  size_t bytesTotal = 0;
-  std::vector<worlds::CellCoord> failed;
+  BakeRun run{opt, world, out, shared, progress};
   for (const worlds::CellCoord c : cells) {
     if (InterruptGuard::interrupted()) {
-      std::fprintf(stderr, "bake: interrupted after %zu cells; run the same command again to resume\n", done);
+      std::fprintf(stderr, "bake: interrupted after %zu cells; run the same command again to resume\n",
+                   run.done);
       return 130;
     }
     // A failing cell is recorded (cells/cell_X_Z.failed) and the rest are still tried; the exit code is
     // non-zero at the end, so a Slurm task fails and is retried (scripts/slurm/bake.sbatch).
     try {
-      using Clock = std::chrono::steady_clock;
-      const auto t0 = Clock::now();
-      const fs::path file = bake::cellFilePath(out, c);
-      bake::CellBakeInputs inputs = bake::prepareCellBake(world, c, settings, shared ? shared->hash : 0);
-      const double prepareSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
-      std::string why;
-      const bake::CellBakeState state = bake::cellBakeState(file, inputs.inputHash, &why);
-      if (state == bake::CellBakeState::Done) {
-        bake::clearCellBakeFailure(out, c);
-        ++skipped;
-        ++done;
-        progress.update(done);
-        continue;
-      }
-      if (state == bake::CellBakeState::Stale) spdlog::info("{}: inputs changed, rebaking", file.string());
-      if (state == bake::CellBakeState::Corrupt) spdlog::warn("rebaking: {}", why);
-      const uint64_t inputHash = inputs.inputHash;
-      bake::CellBakeReport report;
-      CellFile cf;
-      try {
-        cf = bake::bakeCell(world, std::move(inputs), settings, &report, shared ? &*shared : nullptr);
-      } catch (const Error&) {
-        if (!InterruptGuard::interrupted()) throw;
-        // Interrupted mid-cell: that cell is not written (bakeCell throws rather than return a partial
-        // model).
-        std::fprintf(stderr,
-                     "\nbake: interrupted during cell %d,%d (not written) after %zu cells; run the same "
-                     "command again to resume\n",
-                     c.x, c.z, done);
-        return 130;
-      }
-      if (opt.reproducible) cf.stats.trainingSeconds = 0.0;  // the only run-dependent field of the file
-      writeCellFile(file, cf);
-      CellFileBytes bytes;
-      readCellFile(file, &bytes);  // read back through every check: what we wrote is what a reader accepts
-      bake::CellBakeRecord record;
-      record.cell = c;
-      record.kind = world.cellKind(c);
-      record.inputHash = inputHash;
-      record.probes = report.probes;
-      record.network = report.network;
-      record.model = cf.stats.model;
-      record.prepareSeconds = prepareSeconds;
-      record.captureSeconds = report.captureSeconds;
-      record.trainingSeconds = report.trainingSeconds;
-      record.totalSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
-      record.bytes = bytes.total;
-      record.host = bake::hostName();
-      record.finishedUtc = bake::utcNow();
-      bake::writeCellBakeRecord(out, record);
-      bake::clearCellBakeFailure(out, c);
-      bytesTotal += bytes.total;
-      networks += report.network ? 1 : 0;
-      std::fprintf(
-          stderr,
-          "\ncell %d,%d: %zu probes, %s, irradiance error %.2f %% (target %.1f %%), %zu bytes, %.1f s\n", c.x,
-          c.z, report.probes, cf.stats.model.c_str(), 100.0 * cf.stats.errorAchieved,
-          100.0 * settings.errorTarget, bytes.total, record.totalSeconds);
+      const CellOutcome outcome = bakeOneCell(run, c);
+      if (outcome == CellOutcome::kInterrupted) return 130;
+      if (outcome == CellOutcome::kSkipped) continue;
     } catch (const std::exception& e) {
       if (InterruptGuard::interrupted()) {
         std::fprintf(stderr,
                      "\nbake: interrupted during cell %d,%d (not written) after %zu cells; run the same "
                      "command again to resume\n",
-                     c.x, c.z, done);
+                     c.x, c.z, run.done);
         return 130;
       }
       std::fprintf(stderr, "\ncell %d,%d: failed: %s\n", c.x, c.z, e.what());
       bake::writeCellBakeFailure(out, c, e.what());
-      failed.push_back(c);
+      run.failed.push_back(c);
     }
-    ++done;
-    progress.update(done);
+    ++run.done;
+    run.progress.update(run.done);
   }
   progress.finish();
-  std::printf(
-      "done: %zu cells (%zu already baked, %zu with a network, %zu failed), %zu bytes written, in %s\n",
-      cells.size(), skipped, networks, failed.size(), bytesTotal, (out / "cells").string().c_str());
-  if (!failed.empty()) {
-    std::string list;
-    for (const worlds::CellCoord c : failed) list += fmt::format(" {},{}", c.x, c.z);
-    std::fprintf(stderr, "bake: %zu cell(s) failed:%s (errors in %s/cell_X_Z.failed); rerun to retry them\n",
-                 failed.size(), list.c_str(), (out / "cells").string().c_str());
-    return 1;
-  }
-  return 0;
+  return reportBake(run, cells.size());
 }
 
 }  // namespace lfgi::app
