@@ -14,7 +14,6 @@
 // reference: the camera's cell and its 8 neighbours (world) or the scene; aborted runs write nothing.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
-#include <tbb/global_control.h>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -180,12 +179,6 @@ void writeCapture(const fs::path& out, const std::string& name, const std::strin
                 {"irradiance_exr", P ? irrPath.filename().string() : ""}};
   j["probes"] = std::move(probes);
   writeFileAtomic(out / (name + ".json"), j.dump(2) + "\n");
-}
-
-std::optional<tbb::global_control> threadLimit(int threads) {
-  if (threads <= 0) return std::nullopt;
-  return std::make_optional<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                 size_t(threads));
 }
 
 void requireOneSource(const std::string& world, const std::string& scene) {

@@ -81,4 +81,10 @@ void requireSaneNumbers(CLI::App& app) {
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) requireSaneNumbers(*sub);
 }
 
+std::optional<tbb::global_control> threadLimit(int threads) {
+  if (threads <= 0) return std::nullopt;
+  return std::make_optional<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                 size_t(threads));
+}
+
 }  // namespace lfgi::app

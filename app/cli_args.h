@@ -1,7 +1,11 @@
-// Parsing of the CLI's compound option values. Errors are lfgi::Error naming the flag and the value, so
-// main() turns them into exit code 1 with a message a user can act on.
+// Parsing of the CLI's compound option values, and the --threads limit every subcommand applies. Errors
+// are lfgi::Error naming the flag and the value, so main() turns them into exit code 1 with a message a
+// user can act on.
 #pragma once
 
+#include <tbb/global_control.h>
+
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -27,5 +31,8 @@ worlds::CellCoord parseCellArg(const std::string& text, std::string_view flag);
 // (`what` describes them, e.g. "px,py,pz,tx,ty,tz").
 std::vector<float> parseNumbers(const std::string& flag, const std::string& text, size_t count,
                                 const char* what);
+
+// --threads N: caps TBB's parallelism for as long as the returned object lives; N <= 0 leaves all cores.
+std::optional<tbb::global_control> threadLimit(int threads);
 
 }  // namespace lfgi::app

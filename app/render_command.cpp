@@ -27,7 +27,6 @@
 // X_indirect.png and X_reference_indirect.png (same exposure), X_error.png (indirect heat map).
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
-#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cctype>
@@ -519,8 +518,7 @@ int runRender(const RenderCommandOptions& opt) {
   validateRenderOptions(opt);
   RenderState st(opt);
   readViewSettings(st);
-  std::optional<tbb::global_control> limit;
-  if (opt.threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(opt.threads));
+  const auto limit = threadLimit(opt.threads);
   InterruptGuard guard;
 
   st.ctx = gpu::createContext();
