@@ -109,6 +109,91 @@ VkShaderModule createModule(VkDevice device, std::span<const uint32_t> words) {
   return m;
 }
 
+// The push-descriptor set layout and the pipeline layout; each handle is written as it is created, so
+// the caller's cleanup sees whatever exists when a later step throws.
+void createLayouts(VkDevice device, const std::vector<ShaderBinding>& bindings, uint32_t pushConstantBytes,
+                   VkShaderStageFlags stages, VkDescriptorSetLayout& setLayout, VkPipelineLayout& layout) {
+  std::vector<VkDescriptorSetLayoutBinding> lb;
+  for (const ShaderBinding& b : bindings) lb.push_back({b.binding, b.type, 1, stages, nullptr});
+  VkDescriptorSetLayoutCreateInfo setInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  setInfo.flags = VK_DESCRIPTOR_SET_LAYOUT_CREATE_PUSH_DESCRIPTOR_BIT_KHR;
+  setInfo.bindingCount = uint32_t(lb.size());
+  setInfo.pBindings = lb.data();
+  check(vkCreateDescriptorSetLayout(device, &setInfo, nullptr, &setLayout), "vkCreateDescriptorSetLayout");
+  VkPushConstantRange range{stages, 0, pushConstantBytes};
+  VkPipelineLayoutCreateInfo layoutInfo{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  layoutInfo.setLayoutCount = 1;
+  layoutInfo.pSetLayouts = &setLayout;
+  layoutInfo.pushConstantRangeCount = pushConstantBytes > 0 ? 1 : 0;
+  layoutInfo.pPushConstantRanges = &range;
+  check(vkCreatePipelineLayout(device, &layoutInfo, nullptr, &layout), "vkCreatePipelineLayout");
+}
+
+// The shader modules (left in vm and fm for the caller to destroy) and the graphics pipeline.
+void createPipeline(VkDevice device, const GraphicsPipelineDesc& desc, const std::vector<uint32_t>& vs,
+                    const std::vector<uint32_t>& fs, VkPipelineLayout layout, VkShaderModule& vm,
+                    VkShaderModule& fm, VkPipeline& pipeline) {
+  vm = createModule(device, vs);
+  fm = createModule(device, fs);
+  VkPipelineShaderStageCreateInfo st[2] = {{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO},
+                                           {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO}};
+  st[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
+  st[0].module = vm;
+  st[0].pName = "main";
+  st[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
+  st[1].module = fm;
+  st[1].pName = "main";
+  VkPipelineVertexInputStateCreateInfo vertexInput{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
+  VkPipelineInputAssemblyStateCreateInfo assembly{
+      VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
+  assembly.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+  VkPipelineViewportStateCreateInfo viewport{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
+  viewport.viewportCount = 1;
+  viewport.scissorCount = 1;
+  VkPipelineRasterizationStateCreateInfo raster{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
+  raster.polygonMode = VK_POLYGON_MODE_FILL;
+  raster.cullMode = VK_CULL_MODE_NONE;
+  raster.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
+  raster.lineWidth = 1.0f;
+  VkPipelineMultisampleStateCreateInfo multisample{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
+  multisample.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;
+  VkPipelineDepthStencilStateCreateInfo depth{VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
+  depth.depthTestEnable = desc.depthFormat != VK_FORMAT_UNDEFINED;
+  depth.depthWriteEnable = depth.depthTestEnable;
+  depth.depthCompareOp = desc.depthCompare;
+  std::vector<VkPipelineColorBlendAttachmentState> blend(desc.colorFormats.size());
+  for (auto& b : blend)
+    b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT | VK_COLOR_COMPONENT_B_BIT |
+                       VK_COLOR_COMPONENT_A_BIT;
+  VkPipelineColorBlendStateCreateInfo colorBlend{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
+  colorBlend.attachmentCount = uint32_t(blend.size());
+  colorBlend.pAttachments = blend.data();
+  const VkDynamicState dynamicStates[] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
+  VkPipelineDynamicStateCreateInfo dynamic{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
+  dynamic.dynamicStateCount = 2;
+  dynamic.pDynamicStates = dynamicStates;
+  VkPipelineRenderingCreateInfo rendering{VK_STRUCTURE_TYPE_PIPELINE_RENDERING_CREATE_INFO};
+  rendering.colorAttachmentCount = uint32_t(desc.colorFormats.size());
+  rendering.pColorAttachmentFormats = desc.colorFormats.data();
+  rendering.depthAttachmentFormat = desc.depthFormat;
+
+  VkGraphicsPipelineCreateInfo info{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
+  info.pNext = &rendering;
+  info.stageCount = 2;
+  info.pStages = st;
+  info.pVertexInputState = &vertexInput;
+  info.pInputAssemblyState = &assembly;
+  info.pViewportState = &viewport;
+  info.pRasterizationState = &raster;
+  info.pMultisampleState = &multisample;
+  info.pDepthStencilState = &depth;
+  info.pColorBlendState = &colorBlend;
+  info.pDynamicState = &dynamic;
+  info.layout = layout;
+  check(vkCreateGraphicsPipelines(device, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline),
+        "vkCreateGraphicsPipelines");
+}
+
 }  // namespace
 
 Image::Image(Context& ctx, uint32_t width, uint32_t height, VkFormat format, VkImageUsageFlags usage)
@@ -243,83 +328,8 @@ GraphicsProgram::GraphicsProgram(Context& ctx, const GraphicsPipelineDesc& desc)
     if (fm) vkDestroyShaderModule(device_, fm, nullptr);
   };
   try {
-    std::vector<VkDescriptorSetLayoutBinding> lb;
-    for (const ShaderBinding& b : bindings_) lb.push_back({b.binding, b.type, 1, stages, nullptr});
-    VkDescriptorSetLayoutCreateInfo setInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-    setInfo.flags = VK_DESCRIPTOR_SET_LAYOUT_CREATE_PUSH_DESCRIPTOR_BIT_KHR;
-    setInfo.bindingCount = uint32_t(lb.size());
-    setInfo.pBindings = lb.data();
-    check(vkCreateDescriptorSetLayout(device_, &setInfo, nullptr, &setLayout_),
-          "vkCreateDescriptorSetLayout");
-    VkPushConstantRange range{stages, 0, pushConstantBytes_};
-    VkPipelineLayoutCreateInfo layoutInfo{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-    layoutInfo.setLayoutCount = 1;
-    layoutInfo.pSetLayouts = &setLayout_;
-    layoutInfo.pushConstantRangeCount = pushConstantBytes_ > 0 ? 1 : 0;
-    layoutInfo.pPushConstantRanges = &range;
-    check(vkCreatePipelineLayout(device_, &layoutInfo, nullptr, &layout_), "vkCreatePipelineLayout");
-
-    vm = createModule(device_, vs);
-    fm = createModule(device_, fs);
-    VkPipelineShaderStageCreateInfo st[2] = {{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO},
-                                             {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO}};
-    st[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
-    st[0].module = vm;
-    st[0].pName = "main";
-    st[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
-    st[1].module = fm;
-    st[1].pName = "main";
-    VkPipelineVertexInputStateCreateInfo vertexInput{
-        VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
-    VkPipelineInputAssemblyStateCreateInfo assembly{
-        VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
-    assembly.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
-    VkPipelineViewportStateCreateInfo viewport{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
-    viewport.viewportCount = 1;
-    viewport.scissorCount = 1;
-    VkPipelineRasterizationStateCreateInfo raster{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
-    raster.polygonMode = VK_POLYGON_MODE_FILL;
-    raster.cullMode = VK_CULL_MODE_NONE;
-    raster.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
-    raster.lineWidth = 1.0f;
-    VkPipelineMultisampleStateCreateInfo multisample{
-        VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
-    multisample.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;
-    VkPipelineDepthStencilStateCreateInfo depth{VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
-    depth.depthTestEnable = desc.depthFormat != VK_FORMAT_UNDEFINED;
-    depth.depthWriteEnable = depth.depthTestEnable;
-    depth.depthCompareOp = desc.depthCompare;
-    std::vector<VkPipelineColorBlendAttachmentState> blend(desc.colorFormats.size());
-    for (auto& b : blend)
-      b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT | VK_COLOR_COMPONENT_B_BIT |
-                         VK_COLOR_COMPONENT_A_BIT;
-    VkPipelineColorBlendStateCreateInfo colorBlend{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
-    colorBlend.attachmentCount = uint32_t(blend.size());
-    colorBlend.pAttachments = blend.data();
-    const VkDynamicState dynamicStates[] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
-    VkPipelineDynamicStateCreateInfo dynamic{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
-    dynamic.dynamicStateCount = 2;
-    dynamic.pDynamicStates = dynamicStates;
-    VkPipelineRenderingCreateInfo rendering{VK_STRUCTURE_TYPE_PIPELINE_RENDERING_CREATE_INFO};
-    rendering.colorAttachmentCount = uint32_t(desc.colorFormats.size());
-    rendering.pColorAttachmentFormats = desc.colorFormats.data();
-    rendering.depthAttachmentFormat = desc.depthFormat;
-
-    VkGraphicsPipelineCreateInfo info{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
-    info.pNext = &rendering;
-    info.stageCount = 2;
-    info.pStages = st;
-    info.pVertexInputState = &vertexInput;
-    info.pInputAssemblyState = &assembly;
-    info.pViewportState = &viewport;
-    info.pRasterizationState = &raster;
-    info.pMultisampleState = &multisample;
-    info.pDepthStencilState = &depth;
-    info.pColorBlendState = &colorBlend;
-    info.pDynamicState = &dynamic;
-    info.layout = layout_;
-    check(vkCreateGraphicsPipelines(device_, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline_),
-          "vkCreateGraphicsPipelines");
+    createLayouts(device_, bindings_, pushConstantBytes_, stages, setLayout_, layout_);
+    createPipeline(device_, desc, vs, fs, layout_, vm, fm, pipeline_);
   } catch (...) {
     cleanup();
     if (layout_) vkDestroyPipelineLayout(device_, layout_, nullptr);

@@ -138,21 +138,13 @@ Buffer storage(Context& ctx, size_t bytes) {
   return createStorageBuffer(ctx, std::max<size_t>(bytes, 16));
 }
 
-}  // namespace
+struct CheckedInputs {
+  size_t probeCount;
+  bool bounce;  // last frame's probe irradiance is used
+};
 
-RelightPass::RelightPass(Context& ctx)
-    : ctx_(ctx),
-      shadowSplat_(requireInt64Atomics(ctx, "relight_shadow_splat")),
-      surfels_(ctx, "relight_surfels"),
-      probeIrradiance_(ctx, "relight_probe_irradiance"),
-      probeMoments_(ctx, "relight_probe_moments"),
-      prefilter_(ctx, "relight_prefilter_ggx"),
-      emitterShadow_(ctx),
-      emitterProbes_(ctx) {}
-
-RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, const RelightProbes& probes,
-                                   const shared::SkyParams& sky, const ProbeLighting* previous,
-                                   const RelightOptions& o) {
+CheckedInputs validateInputs(std::span<const shared::Surfel> surfels, const RelightProbes& probes,
+                             const ProbeLighting* previous, const RelightOptions& o) {
   validate(o);
   if (surfels.empty()) fail("relight: no surfels");
   if (surfels.size() > 0xFFFFFFFFull) fail("relight: {} surfels exceed 2^32", surfels.size());
@@ -171,18 +163,22 @@ RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, cons
       fail("relight: previous probe lighting has {} probes ({} irradiance, {} moment texels), grid has {}",
            previous->probeCount, previous->irradiance.size(), previous->moments.size(), probeCount);
   }
+  return {probeCount, bounce};
+}
 
-  // Key disc: the brighter of sun and moon.
-  shared::RelightFrame frame{};
-  frame.sky = sky;
+struct KeyDisc {
+  bool keyOn;
+  uint32_t shadowRes;
+};
+
+// Key disc: the brighter of sun and moon; with it on, its direction and shadow map frame.
+KeyDisc setupKeyDisc(std::span<const shared::Surfel> surfels, const shared::SkyParams& sky,
+                     const RelightOptions& o, shared::RelightFrame& frame, RelightResult& result) {
   const glm::vec3 sunE(sky.sunIrradiance), moonE(sky.moonIrradiance);
   const bool sunKey = luminance(sunE) >= luminance(moonE);
   const glm::vec3 keyE = sunKey ? sunE : moonE;
   glm::vec3 L = sunKey ? glm::vec3(sky.sunDirection) : glm::vec3(sky.moonDirection);
   const bool keyOn = o.sun && luminance(keyE) > 0.0f && glm::length(L) > 0.5f;
-  RelightResult result;
-  result.irradiance.resize(surfels.size());
-
   uint32_t shadowRes = 1;
   if (keyOn) {
     L = glm::normalize(L);
@@ -219,8 +215,13 @@ RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, cons
     result.shadowTexelM = ts;
     result.keyDirection = L;
   }
-  // Emitter NEE: samples, cluster centres and one VIR-splatted octahedral depth map per cluster.
-  const EmitterSetup em = o.emitterNee ? setupEmitters(surfels, o) : EmitterSetup{};
+  return {keyOn, shadowRes};
+}
+
+// One VIR-splatted octahedral depth map per emitter cluster (a single 0 without emitters).
+std::vector<float> emitterShadowMaps(VirPass& emitterShadow, std::span<const shared::Surfel> surfels,
+                                     const EmitterSetup& em, const RelightOptions& o,
+                                     shared::RelightFrame& frame, RelightResult& result) {
   std::vector<float> emitterDepth(1, 0.0f);
   const int emitterRes = o.emitterShadowResolution;
   if (!em.samples.empty()) {
@@ -234,7 +235,7 @@ RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, cons
     vo.maxRange = 2.0f * glm::length(hi - lo) + 1.0f;
     std::vector<glm::vec3> centres;
     for (const glm::vec4& c : em.centres) centres.push_back(glm::vec3(c));
-    const ProbeAtlas maps = emitterShadow_.run(surfels, centres, vo);
+    const ProbeAtlas maps = emitterShadow.run(surfels, centres, vo);
     result.emitterShadowMs = maps.gpuMs;
     emitterDepth.resize(maps.distance.size());
     for (size_t t = 0; t < maps.distance.size(); ++t)
@@ -249,6 +250,38 @@ RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, cons
     result.emitterClusters = int(em.centres.size());
     result.emitterSamples = int(em.samples.size());
   }
+  return emitterDepth;
+}
+
+}  // namespace
+
+RelightPass::RelightPass(Context& ctx)
+    : ctx_(ctx),
+      shadowSplat_(requireInt64Atomics(ctx, "relight_shadow_splat")),
+      surfels_(ctx, "relight_surfels"),
+      probeIrradiance_(ctx, "relight_probe_irradiance"),
+      probeMoments_(ctx, "relight_probe_moments"),
+      prefilter_(ctx, "relight_prefilter_ggx"),
+      emitterShadow_(ctx),
+      emitterProbes_(ctx) {}
+
+RelightResult RelightPass::relight(std::span<const shared::Surfel> surfels, const RelightProbes& probes,
+                                   const shared::SkyParams& sky, const ProbeLighting* previous,
+                                   const RelightOptions& o) {
+  const CheckedInputs checked = validateInputs(surfels, probes, previous, o);
+  const size_t probeCount = checked.probeCount;
+  const bool bounce = checked.bounce;
+
+  shared::RelightFrame frame{};
+  frame.sky = sky;
+  RelightResult result;
+  result.irradiance.resize(surfels.size());
+  const KeyDisc key = setupKeyDisc(surfels, sky, o, frame, result);
+  const bool keyOn = key.keyOn;
+  const uint32_t shadowRes = key.shadowRes;
+  // Emitter NEE: samples, cluster centres and one VIR-splatted octahedral depth map per cluster.
+  const EmitterSetup em = o.emitterNee ? setupEmitters(surfels, o) : EmitterSetup{};
+  std::vector<float> emitterDepth = emitterShadowMaps(emitterShadow_, surfels, em, o, frame, result);
 
   const glm::vec3 sp = probes.grid.spacing;
   const float normalBias = o.normalBias >= 0.0f ? o.normalBias : 0.2f * std::min({sp.x, sp.y, sp.z});

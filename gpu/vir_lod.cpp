@@ -41,9 +41,12 @@ struct NodeExtra {               // build-time bounds of the leaves below a node
   int depth = 0;
 };
 
-}  // namespace
+struct CloudGrid {  // the Morton grid over the cloud's bounding cube
+  glm::vec3 lo;
+  float toGrid;
+};
 
-VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLodBuildOptions& o) {
+CloudGrid validateSurfels(std::span<const shared::Surfel> surfels, const VirLodBuildOptions& o) {
   if (surfels.empty()) fail("VIR LOD: empty surfel cloud");
   if (surfels.size() > (size_t(1) << 31)) fail("VIR LOD: {} surfels exceed 2^31", surfels.size());
   if (!(std::isfinite(o.footprintScale) && o.footprintScale > 0.0f))
@@ -60,7 +63,11 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
   }
   const float extent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z, 1e-6f});
   const float toGrid = 1023.999f / extent;
+  return {lo, toGrid};
+}
 
+std::vector<std::pair<uint64_t, uint32_t>> sortLeafKeys(std::span<const shared::Surfel> surfels, glm::vec3 lo,
+                                                        float toGrid) {
   // Sort key: normal class, then plane offset dot(n, p) in 4096 buckets, then the Morton code: an octree
   // level only merges surfels of one class and (below the 10 Morton levels) one plane, so parallel walls
   // a few metres apart, which the cut could never splat as one rectangle, are never mixed below the top.
@@ -79,12 +86,14 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     keyed[i] = {(uint64_t(normalClass(nrm)) << 42) | (bucket << 30) | morton, uint32_t(i)};
   }
   std::sort(keyed.begin(), keyed.end());
+  return keyed;
+}
 
-  VirLodTree tree;
+void addLeaves(VirLodTree& tree, std::vector<NodeExtra>& extra, std::span<const shared::Surfel> surfels,
+               const std::vector<std::pair<uint64_t, uint32_t>>& keyed, const VirLodBuildOptions& o) {
   tree.leafCount = uint32_t(surfels.size());
   tree.nodes.reserve(surfels.size() * 3 / 2);
   tree.links.reserve(surfels.size() * 3 / 2);
-  std::vector<NodeExtra> extra;
   extra.reserve(surfels.size() * 3 / 2);
   for (const auto& [key, i] : keyed) {
     shared::Surfel s = surfels[i];
@@ -98,7 +107,81 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     extra.push_back({r * o.footprintScale, 0.0f, 0.0f, 0});
   }
   tree.levelStart.push_back(0);
+}
 
+// One inner node over the nodes current[c0, c1) (2..8 of one group); appends its (key, node) to next.
+void mergeChildren(VirLodTree& tree, std::vector<NodeExtra>& extra,
+                   const std::vector<std::pair<uint64_t, uint32_t>>& current, size_t c0, size_t c1,
+                   const VirLodBuildOptions& o, float maxCone,
+                   std::vector<std::pair<uint64_t, uint32_t>>& next) {
+  float area = 0.0f;
+  glm::vec3 centre(0.0f), nsum(0.0f), albedo(0.0f), emission(0.0f);
+  for (size_t c = c0; c < c1; ++c) {
+    const shared::Surfel& ch = tree.nodes[current[c].second];
+    const float a = std::max(ch.normal.w, 1e-20f);
+    area += a;
+    centre += a * glm::vec3(ch.positionRadius);
+    nsum += a * glm::vec3(ch.normal);
+    albedo += a * glm::vec3(ch.albedo);
+    emission += a * glm::vec3(ch.emission);
+  }
+  centre /= area;
+  const float nlen = glm::length(nsum);
+  const glm::vec3 n = nlen > 1e-12f ? nsum / nlen : glm::vec3(tree.nodes[current[c0].second].normal);
+  const glm::vec3 t1 = shared::virRectAxis(n), t2 = glm::cross(n, t1);  // rectangle frame
+  NodeExtra e;
+  bool coherent = nlen > 1e-12f;
+  glm::vec2 lo2(std::numeric_limits<float>::max()), hi2(-std::numeric_limits<float>::max());
+  const uint32_t first = uint32_t(tree.children.size());
+  for (size_t c = c0; c < c1; ++c) {
+    const uint32_t ci = current[c].second;
+    const shared::Surfel& ch = tree.nodes[ci];
+    const NodeExtra& ce = extra[ci];
+    const glm::vec3 d = glm::vec3(ch.positionRadius) - centre;
+    const glm::vec2 uv(glm::dot(d, t1), glm::dot(d, t2));
+    glm::vec2 half(ce.footprintRadius);  // a leaf disc (or its projection) lies within +-r
+    const glm::vec4 cr = tree.rects[ci];
+    if (cr.z >= 0.0f) {  // a child rectangle: its half axes projected onto t1, t2
+      const glm::vec3 ct1 = shared::octDecode(glm::vec2(cr.x, cr.y));
+      const glm::vec3 ct2 = glm::cross(glm::vec3(ch.normal), ct1);
+      half = glm::vec2(cr.z * std::abs(glm::dot(ct1, t1)) + cr.w * std::abs(glm::dot(ct2, t1)),
+                       cr.z * std::abs(glm::dot(ct1, t2)) + cr.w * std::abs(glm::dot(ct2, t2)));
+    }
+    lo2 = glm::min(lo2, uv - half);
+    hi2 = glm::max(hi2, uv + half);
+    const float cosA = std::clamp(glm::dot(n, glm::vec3(ch.normal)), -1.0f, 1.0f);
+    e.coneRad = std::max(e.coneRad, std::acos(cosA) + ce.coneRad);
+    e.thickness = std::max(e.thickness, std::abs(glm::dot(n, d)) + ce.thickness);
+    e.depth = std::max(e.depth, ce.depth + 1);
+    coherent = coherent && (tree.links[ci].flags & LFGI_VIR_LOD_COHERENT) != 0;
+    tree.children.push_back(ci);
+  }
+  coherent = coherent && e.coneRad <= maxCone;
+  const glm::vec2 mid = 0.5f * (lo2 + hi2), ext = 0.5f * (hi2 - lo2);
+  const glm::vec3 rectCentre = centre + mid.x * t1 + mid.y * t2;
+  e.footprintRadius = glm::length(ext);  // the rectangle's corners: bounds its angular extent
+  float bound = e.footprintRadius;
+  for (size_t c = c0; c < c1; ++c) {
+    const uint32_t ci = current[c].second;
+    bound =
+        std::max(bound, glm::length(glm::vec3(tree.nodes[ci].positionRadius) - rectCentre) + tree.bounds[ci]);
+  }
+  tree.bounds.push_back(bound * kBoundsMargin);
+  const uint32_t node = uint32_t(tree.nodes.size());
+  tree.nodes.push_back(
+      {glm::vec4(rectCentre, e.footprintRadius / o.footprintScale), glm::vec4(n, area),
+       glm::vec4(albedo / area, std::cos(std::min(e.coneRad, 0.5f * std::numbers::pi_v<float>))),
+       glm::vec4(emission / area, e.thickness)});
+  tree.rects.push_back(glm::vec4(shared::octEncode(t1), ext.x, ext.y));
+  tree.links.push_back({first, uint32_t(c1 - c0), coherent ? LFGI_VIR_LOD_COHERENT : 0u, ~0u});
+  extra.push_back(e);
+  next.push_back({current[c0].first, node});
+}
+
+// Builds the levels above the leaves; returns the last level's (key, node), a single entry.
+std::vector<std::pair<uint64_t, uint32_t>> buildLevels(
+    VirLodTree& tree, std::vector<NodeExtra>& extra, const std::vector<std::pair<uint64_t, uint32_t>>& keyed,
+    const VirLodBuildOptions& o) {
   const float maxCone = o.coherentConeDeg * std::numbers::pi_v<float> / 180.0f;
   // (key, node) of the current level, in key order.
   std::vector<std::pair<uint64_t, uint32_t>> current(keyed.size());
@@ -116,73 +199,17 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
           next.push_back(current[c0]);
           continue;
         }
-        float area = 0.0f;
-        glm::vec3 centre(0.0f), nsum(0.0f), albedo(0.0f), emission(0.0f);
-        for (size_t c = c0; c < c1; ++c) {
-          const shared::Surfel& ch = tree.nodes[current[c].second];
-          const float a = std::max(ch.normal.w, 1e-20f);
-          area += a;
-          centre += a * glm::vec3(ch.positionRadius);
-          nsum += a * glm::vec3(ch.normal);
-          albedo += a * glm::vec3(ch.albedo);
-          emission += a * glm::vec3(ch.emission);
-        }
-        centre /= area;
-        const float nlen = glm::length(nsum);
-        const glm::vec3 n = nlen > 1e-12f ? nsum / nlen : glm::vec3(tree.nodes[current[c0].second].normal);
-        const glm::vec3 t1 = shared::virRectAxis(n), t2 = glm::cross(n, t1);  // rectangle frame
-        NodeExtra e;
-        bool coherent = nlen > 1e-12f;
-        glm::vec2 lo2(std::numeric_limits<float>::max()), hi2(-std::numeric_limits<float>::max());
-        const uint32_t first = uint32_t(tree.children.size());
-        for (size_t c = c0; c < c1; ++c) {
-          const uint32_t ci = current[c].second;
-          const shared::Surfel& ch = tree.nodes[ci];
-          const NodeExtra& ce = extra[ci];
-          const glm::vec3 d = glm::vec3(ch.positionRadius) - centre;
-          const glm::vec2 uv(glm::dot(d, t1), glm::dot(d, t2));
-          glm::vec2 half(ce.footprintRadius);  // a leaf disc (or its projection) lies within +-r
-          const glm::vec4 cr = tree.rects[ci];
-          if (cr.z >= 0.0f) {  // a child rectangle: its half axes projected onto t1, t2
-            const glm::vec3 ct1 = shared::octDecode(glm::vec2(cr.x, cr.y));
-            const glm::vec3 ct2 = glm::cross(glm::vec3(ch.normal), ct1);
-            half = glm::vec2(cr.z * std::abs(glm::dot(ct1, t1)) + cr.w * std::abs(glm::dot(ct2, t1)),
-                             cr.z * std::abs(glm::dot(ct1, t2)) + cr.w * std::abs(glm::dot(ct2, t2)));
-          }
-          lo2 = glm::min(lo2, uv - half);
-          hi2 = glm::max(hi2, uv + half);
-          const float cosA = std::clamp(glm::dot(n, glm::vec3(ch.normal)), -1.0f, 1.0f);
-          e.coneRad = std::max(e.coneRad, std::acos(cosA) + ce.coneRad);
-          e.thickness = std::max(e.thickness, std::abs(glm::dot(n, d)) + ce.thickness);
-          e.depth = std::max(e.depth, ce.depth + 1);
-          coherent = coherent && (tree.links[ci].flags & LFGI_VIR_LOD_COHERENT) != 0;
-          tree.children.push_back(ci);
-        }
-        coherent = coherent && e.coneRad <= maxCone;
-        const glm::vec2 mid = 0.5f * (lo2 + hi2), ext = 0.5f * (hi2 - lo2);
-        const glm::vec3 rectCentre = centre + mid.x * t1 + mid.y * t2;
-        e.footprintRadius = glm::length(ext);  // the rectangle's corners: bounds its angular extent
-        float bound = e.footprintRadius;
-        for (size_t c = c0; c < c1; ++c) {
-          const uint32_t ci = current[c].second;
-          bound = std::max(
-              bound, glm::length(glm::vec3(tree.nodes[ci].positionRadius) - rectCentre) + tree.bounds[ci]);
-        }
-        tree.bounds.push_back(bound * kBoundsMargin);
-        const uint32_t node = uint32_t(tree.nodes.size());
-        tree.nodes.push_back(
-            {glm::vec4(rectCentre, e.footprintRadius / o.footprintScale), glm::vec4(n, area),
-             glm::vec4(albedo / area, std::cos(std::min(e.coneRad, 0.5f * std::numbers::pi_v<float>))),
-             glm::vec4(emission / area, e.thickness)});
-        tree.rects.push_back(glm::vec4(shared::octEncode(t1), ext.x, ext.y));
-        tree.links.push_back({first, uint32_t(c1 - c0), coherent ? LFGI_VIR_LOD_COHERENT : 0u, ~0u});
-        extra.push_back(e);
-        next.push_back({current[c0].first, node});
+        mergeChildren(tree, extra, current, c0, c1, o, maxCone, next);
       }
       g = end;
     }
     current.swap(next);
   }
+  return current;
+}
+
+void makeRootLast(VirLodTree& tree, std::vector<NodeExtra>& extra,
+                  const std::vector<std::pair<uint64_t, uint32_t>>& current) {
   tree.levelStart.push_back(uint32_t(tree.nodes.size()));
   // The root must be the last node: true unless the last level passed a single node up unchanged.
   if (current.front().second != tree.root()) {
@@ -199,7 +226,9 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     tree.levelStart.push_back(uint32_t(tree.nodes.size()));
   }
   tree.maxDepth = extra.back().depth;
+}
 
+void buildFrontier(VirLodTree& tree) {
   // Frontier of small subtrees (children always precede their parent, so one ascending pass sizes them).
   std::vector<uint32_t> size(tree.nodes.size(), 1);
   tree.up.assign(tree.nodes.size(), glm::uvec2(~0u));
@@ -223,6 +252,9 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
     for (uint32_t c = tree.links[i].childCount; c > 0; --c)
       stack.push_back(tree.children[tree.links[i].firstChild + c - 1]);
   }
+}
+
+void buildCutNodes(VirLodTree& tree) {
   // The cut's compact nodes; skip links top-down (a parent's index exceeds its children's).
   tree.cutNodes.resize(tree.nodes.size());
   for (uint32_t i = 0; i < tree.nodes.size(); ++i) {
@@ -241,6 +273,21 @@ VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLod
       const uint32_t* ch = &tree.children[tree.links[i].firstChild];
       tree.cutNodes[ch[c]].skip = c + 1 < tree.links[i].childCount ? ch[c + 1] : tree.cutNodes[i].skip;
     }
+}
+
+}  // namespace
+
+VirLodTree buildVirLodTree(std::span<const shared::Surfel> surfels, const VirLodBuildOptions& o) {
+  const CloudGrid grid = validateSurfels(surfels, o);
+  const std::vector<std::pair<uint64_t, uint32_t>> keyed = sortLeafKeys(surfels, grid.lo, grid.toGrid);
+
+  VirLodTree tree;
+  std::vector<NodeExtra> extra;
+  addLeaves(tree, extra, surfels, keyed, o);
+  const std::vector<std::pair<uint64_t, uint32_t>> current = buildLevels(tree, extra, keyed, o);
+  makeRootLast(tree, extra, current);
+  buildFrontier(tree);
+  buildCutNodes(tree);
   return tree;
 }
 

@@ -39,6 +39,8 @@
 
 namespace lfgi::gpu {
 
+class GpuTimer;
+
 struct VirOptions {
   int resolution = 16;          // N
   float maxRange = 64.0f;       // m; surfels farther from a probe are not splatted into it
@@ -72,6 +74,10 @@ struct VirOptions {
   // (benchmarks of the splat itself).
   bool reuseSplat = true;
   static constexpr int kMaxFillPasses = 8;
+
+  // The ranges VirPass::run takes (finite floats, counts and sizes in range). Throws lfgi::Error naming
+  // the bad field and its value.
+  void validate() const;
 };
 
 struct ProbeAtlas {
@@ -118,8 +124,25 @@ class VirPass {
   static bool sameSplat(const VirOptions& a, const VirOptions& b);
 
  private:
+  struct RunState;  // what the stages of one run() share (vir_pass.cpp)
+  // Empty input, bad options (VirOptions::validate), a mismatched irradiance count or dispatch limits.
+  void checkInputs(std::span<const shared::Surfel> surfels, std::span<const glm::vec3> probes,
+                   const VirOptions& options, std::span<const glm::vec4> surfelIrradiance) const;
   // Uploads surfels and (LOD) builds the tree unless the cached copy matches; returns build ms.
   double prepareSurfels(std::span<const shared::Surfel> surfels, const VirOptions& options);
+  // Probes (LOD: in block order) and irradiance (LOD: in leaf order) into their buffers.
+  void uploadProbes(RunState& s, std::span<const glm::vec4> surfelIrradiance);
+  // LOD: the probe blocks, the cut parameters and (occlusion culling) the HiZ layout.
+  void prepareLodBlocks(RunState& s, ProbeAtlas& atlas);
+  // Records and submits the whole run; LOD: again with a larger cut buffer while a block's cut overflows.
+  void splatUntilTheCutFits(RunState& s, GpuTimer& timer);
+  void recordClearsAndRadiance(RunState& s, VkCommandBuffer cmd);
+  void recordSplat(RunState& s, VkCommandBuffer cmd);
+  void recordLodCutAndSplat(RunState& s, VkCommandBuffer cmd, uint32_t pass);
+  void recordResolve(RunState& s, VkCommandBuffer cmd);
+  void recordFill(RunState& s, VkCommandBuffer cmd);
+  // Splat counters, the kept splat (reuseSplat), timings and the readback of the maps.
+  void finishAtlas(const RunState& s, const GpuTimer& timer, ProbeAtlas& atlas);
   void grow(Buffer& buffer, size_t bytes);
   Context& ctx_;
   Program splat_;

@@ -6,7 +6,9 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <numbers>
+#include <string>
 
 #include "core/error.h"
 #include "shared/octahedral.h"
@@ -614,6 +616,71 @@ TEST(VirPass, LodSplatCoversExactlyTheFootprintsOfItsCut) {
     EXPECT_LT(atlas.splatWindowPairs * 3, atlas.splatPairs);
   }
   EXPECT_EQ(ctx->validationErrors.load(), 0u);
+}
+
+// No device: the option ranges VirPass::run takes, each bad field rejected by a message naming it.
+TEST(VirOptions, DefaultsValidateAndEachBadFieldIsRejectedByName) {
+  EXPECT_NO_THROW(VirOptions{}.validate());
+  struct Bad {
+    const char* field;
+    void (*set)(VirOptions&);
+  };
+  const Bad bad[] = {
+      {"resolution", [](VirOptions& o) { o.resolution = 0; }},
+      {"resolution", [](VirOptions& o) { o.resolution = 1025; }},
+      {"maxRange", [](VirOptions& o) { o.maxRange = 0.0f; }},
+      {"maxRange", [](VirOptions& o) { o.maxRange = std::numeric_limits<float>::infinity(); }},
+      {"footprintScale", [](VirOptions& o) { o.footprintScale = -1.0f; }},
+      {"footprintScale", [](VirOptions& o) { o.footprintScale = std::numeric_limits<float>::quiet_NaN(); }},
+      {"maxFootprintRadius", [](VirOptions& o) { o.maxFootprintRadius = -1; }},
+      {"maxFootprintRadius", [](VirOptions& o) { o.maxFootprintRadius = 9; }},
+      {"fillPasses", [](VirOptions& o) { o.fillPasses = -1; }},
+      {"fillPasses", [](VirOptions& o) { o.fillPasses = VirOptions::kMaxFillPasses + 1; }},
+      {"fillNearMiss", [](VirOptions& o) { o.fillNearMiss = -0.5f; }},
+      {"fillNearMiss", [](VirOptions& o) { o.fillNearMiss = std::numeric_limits<float>::quiet_NaN(); }},
+      {"lodTexels", [](VirOptions& o) { o.lodTexels = 0.0f; }},
+      {"lodTexels", [](VirOptions& o) { o.lodTexels = 16.5f; }},
+      {"lodElongation", [](VirOptions& o) { o.lodElongation = 0.5f; }},
+      {"lodElongation", [](VirOptions& o) { o.lodElongation = 9.0f; }},
+      {"lodDepthTolerance", [](VirOptions& o) { o.lodDepthTolerance = -0.01f; }},
+      {"lodDepthTolerance", [](VirOptions& o) { o.lodDepthTolerance = 1.5f; }},
+      {"lodBlockProbes", [](VirOptions& o) { o.lodBlockProbes = 0; }},
+      {"lodBlockProbes", [](VirOptions& o) { o.lodBlockProbes = LFGI_VIR_LOD_MAX_BLOCK_PROBES + 1; }},
+      {"lodOcclusionRange", [](VirOptions& o) { o.lodOcclusionRange = -1.0f; }},
+      {"lodOcclusionRange",
+       [](VirOptions& o) { o.lodOcclusionRange = std::numeric_limits<float>::infinity(); }},
+  };
+  for (const Bad& b : bad) {
+    VirOptions o;
+    b.set(o);
+    try {
+      o.validate();
+      ADD_FAILURE() << b.field << ": accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string("VIR: ") + b.field + " "), std::string::npos)
+          << b.field << ": " << e.what();
+    }
+  }
+  // The ends of each range are accepted.
+  VirOptions edge;
+  edge.resolution = 1024;
+  edge.maxFootprintRadius = 8;
+  edge.fillPasses = VirOptions::kMaxFillPasses;
+  edge.fillNearMiss = 0.0f;
+  edge.lodTexels = 16.0f;
+  edge.lodElongation = 8.0f;
+  edge.lodDepthTolerance = 1.0f;
+  edge.lodBlockProbes = LFGI_VIR_LOD_MAX_BLOCK_PROBES;
+  edge.lodOcclusionRange = 0.0f;
+  EXPECT_NO_THROW(edge.validate());
+  edge.resolution = 1;
+  edge.maxFootprintRadius = 0;
+  edge.fillPasses = 0;
+  edge.lodElongation = 1.0f;
+  edge.lodDepthTolerance = 0.0f;
+  edge.lodBlockProbes = 1;
+  edge.lodOcclusionRange = 1e6f;
+  EXPECT_NO_THROW(edge.validate());
 }
 
 }  // namespace

@@ -14,13 +14,11 @@
 
 namespace lfgi::gpu {
 
-VirFieldRelighter::VirFieldRelighter(Context& ctx) : relight_(ctx), vir_(ctx) {}
+namespace {
 
-void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const ProbeGrid& grid,
-                            std::span<const glm::vec3> offsets, std::span<const uint8_t> active,
-                            const shared::SkyParams& sky, const VirFieldOptions& o, ProbeField& f,
-                            const ProbeField* seed, VirFieldStats* stats) {
-  const auto t0 = std::chrono::steady_clock::now();
+void checkInputs(std::span<const shared::Surfel> surfels, const ProbeGrid& grid,
+                 std::span<const glm::vec3> offsets, std::span<const uint8_t> active,
+                 const VirFieldOptions& o, const ProbeField* seed) {
   grid.validate();
   const size_t count = size_t(grid.probeCount());
   if (!offsets.empty() && offsets.size() != count)
@@ -43,15 +41,14 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
         "virProbeField: the seed field ({} probes, n {}, m {}) does not match the grid ({} probes, n {}, m "
         "{})",
         seed->probeCount(), seed->resolution, seed->irradianceResolution, count, n, m);
+}
 
-  auto isActive = [&](size_t i) { return active.empty() || active[i] != 0; };
-  glm::ivec3 lo(INT32_MAX), hi(INT32_MIN);
-  for (size_t i = 0; i < count; ++i)
-    if (isActive(i)) {
-      const glm::ivec3 c = grid.probeCoord(int64_t(i));
-      lo = glm::min(lo, c);
-      hi = glm::max(hi, c);
-    }
+// The field of the whole grid, every probe inactive and zero.
+void resetField(const ProbeGrid& grid, std::span<const glm::vec3> offsets, const VirFieldOptions& o,
+                ProbeField& f) {
+  const size_t count = size_t(grid.probeCount());
+  const int n = o.resolution, m = o.irradianceResolution;
+  const size_t n2 = size_t(n) * size_t(n), m2 = size_t(m) * size_t(m);
   f.grid = grid;
   f.resolution = n;
   f.irradianceResolution = m;
@@ -65,21 +62,30 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
   f.irradiance.assign(count * m2 * 3, 0.0f);
   f.normal.clear();
   f.albedo.clear();
-  VirFieldStats local;
-  VirFieldStats& st = stats ? *stats : local;
-  st = VirFieldStats{};
-  st.discVisible.assign(o.discs ? count : 0, 0);
-  if (lo.x == INT32_MAX) return;  // nothing active
+}
 
+// The box of lattice indices holding active probes, as relit: its probes at lattice + offsets, their
+// indices in the grid, and the bounds of their positions.
+struct SubGrid {
+  RelightProbes probes;
+  std::vector<size_t> toFull;
+  glm::vec3 boxLo = glm::vec3(1e30f), boxHi = glm::vec3(-1e30f);
+};
+
+SubGrid activeSubGrid(const ProbeGrid& grid, std::span<const glm::vec3> offsets,
+                      std::span<const uint8_t> active, glm::ivec3 lo, glm::ivec3 hi) {
+  auto isActive = [&](size_t i) { return active.empty() || active[i] != 0; };
+  SubGrid out;
   ProbeGrid sub = grid;
   sub.dims = hi - lo + 1;
   sub.origin = grid.probePosition(lo);
-  RelightProbes probes;
+  RelightProbes& probes = out.probes;
   probes.grid = sub;
-  std::vector<size_t> toFull;
+  std::vector<size_t>& toFull = out.toFull;
   toFull.reserve(size_t(sub.probeCount()));
   probes.positions.reserve(size_t(sub.probeCount()));
-  glm::vec3 boxLo(1e30f), boxHi(-1e30f);
+  glm::vec3& boxLo = out.boxLo;
+  glm::vec3& boxHi = out.boxHi;
   for (int64_t k = 0; k < sub.probeCount(); ++k) {
     const size_t i = size_t(grid.linearIndex(lo + sub.probeCoord(k)));
     toFull.push_back(i);
@@ -90,98 +96,104 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
     boxLo = glm::min(boxLo, p);
     boxHi = glm::max(boxHi, p);
   }
-  near_.clear();
-  for (const shared::Surfel& s : surfels) {
-    const glm::vec3 p(s.positionRadius);
-    const glm::vec3 d = glm::max(glm::max(boxLo - p, p - boxHi), glm::vec3(0.0f));
-    if (glm::dot(d, d) <= o.maxRange * o.maxRange) near_.push_back(s);
-  }
-  if (near_.empty() && !o.noSurfelsIsSky)
-    fail("virProbeField: no surfel within {} m of the active probes", o.maxRange);
+  return out;
+}
 
-  VirOptions vo = o.vir;
-  vo.resolution = n;
-  vo.maxRange = o.maxRange;
-  RelightOptions ro = o.relight;
-  ro.irradianceResolution = m;
-  const float miss = ro.missDistance;
-
-  // Sky radiance per texel direction (no discs).
+// Sky radiance per texel direction (no discs).
+std::vector<glm::vec3> skyTexelRadiance(const shared::SkyParams& sky, int n) {
+  const size_t n2 = size_t(n) * size_t(n);
   std::vector<glm::vec3> skyL(n2);
   for (size_t t = 0; t < n2; ++t)
     skyL[t] = shared::skyRadiance(
         sky,
         shared::octTexelDirection(glm::uvec2(uint32_t(t % size_t(n)), uint32_t(t / size_t(n))), uint32_t(n)));
+  return skyL;
+}
 
-  CellLighting state;
-  if (!near_.empty()) {
-    if (seed) {
-      ProbeLighting& pl = state.probes;
-      pl.irradianceResolution = m;
-      pl.distanceResolution = n;
-      pl.probeCount = int(toFull.size());
-      pl.irradiance.resize(toFull.size() * m2);
-      pl.moments.resize(toFull.size() * n2);
-      for (size_t k = 0; k < toFull.size(); ++k) {
-        const size_t i = toFull[k];
-        for (size_t t = 0; t < m2; ++t) {
-          const float* e = &seed->irradiance[(i * m2 + t) * 3];
-          pl.irradiance[k * m2 + t] = glm::vec4(e[0], e[1], e[2], 0.0f);
-        }
-        for (size_t t = 0; t < n2; ++t)
-          pl.moments[k * n2 + t] =
-              glm::vec2(seed->distance[(i * n2 + t) * 2], seed->distance[(i * n2 + t) * 2 + 1]);
-      }
-      state.frames = 1;  // relightFrame reads state.probes as the last frame's lighting
-      st.seeded = true;
-    }
-    for (int frame = 0; frame < o.frames; ++frame) {
-      if (o.checkInterrupt && InterruptGuard::interrupted())
-        fail("VIR probes interrupted after {} of {} frames", frame, o.frames);
-      const RelightResult r = relightFrame(relight_, vir_, near_, probes, sky, vo, ro, state);
-      st.gpuMs += r.shadowMs + r.lightMs + r.emitterShadowMs + state.atlas.gpuMs + state.probes.gpuMs;
-    }
-  }
-
-  // Sky-only probes (no surfel near): irradiance of the sky map, the same texel sum as the convolution.
-  std::vector<float> skyIrradiance;
-  if (near_.empty()) {
-    std::vector<float> map(n2 * 3);
-    for (size_t t = 0; t < n2; ++t)
-      for (int c = 0; c < 3; ++c) map[t * 3 + size_t(c)] = skyL[t][c];
-    const std::vector<double> omega = octTexelSolidAngles(n);
-    skyIrradiance.resize(m2 * 3);
+// The seed's irradiance and moments as the last frame's probe lighting of the relit probes.
+void seedLighting(const ProbeField& seed, std::span<const size_t> toFull, int n, int m, ProbeLighting& pl) {
+  const size_t n2 = size_t(n) * size_t(n), m2 = size_t(m) * size_t(m);
+  pl.irradianceResolution = m;
+  pl.distanceResolution = n;
+  pl.probeCount = int(toFull.size());
+  pl.irradiance.resize(toFull.size() * m2);
+  pl.moments.resize(toFull.size() * n2);
+  for (size_t k = 0; k < toFull.size(); ++k) {
+    const size_t i = toFull[k];
     for (size_t t = 0; t < m2; ++t) {
-      const glm::vec3 e =
-          bruteForceIrradiance(map, n, octTexelDirection(int(t % size_t(m)), int(t / size_t(m)), m), omega);
-      for (int c = 0; c < 3; ++c) skyIrradiance[t * 3 + size_t(c)] = e[c];
+      const float* e = &seed.irradiance[(i * m2 + t) * 3];
+      pl.irradiance[k * m2 + t] = glm::vec4(e[0], e[1], e[2], 0.0f);
     }
+    for (size_t t = 0; t < n2; ++t)
+      pl.moments[k * n2 + t] =
+          glm::vec2(seed.distance[(i * n2 + t) * 2], seed.distance[(i * n2 + t) * 2 + 1]);
   }
+}
 
-  // Discs: the texel holding each disc's direction and its exact solid angle.
-  struct Disc {
-    glm::vec3 dir, irradiance;
-    size_t texel;
-    float omega;
-    uint8_t bit;
-  };
+// Sky-only probes (no surfel near): irradiance of the sky map, the same texel sum as the convolution.
+std::vector<float> skyMapIrradiance(const std::vector<glm::vec3>& skyL, int n, int m) {
+  const size_t n2 = size_t(n) * size_t(n), m2 = size_t(m) * size_t(m);
+  std::vector<float> skyIrradiance;
+  std::vector<float> map(n2 * 3);
+  for (size_t t = 0; t < n2; ++t)
+    for (int c = 0; c < 3; ++c) map[t * 3 + size_t(c)] = skyL[t][c];
+  const std::vector<double> omega = octTexelSolidAngles(n);
+  skyIrradiance.resize(m2 * 3);
+  for (size_t t = 0; t < m2; ++t) {
+    const glm::vec3 e =
+        bruteForceIrradiance(map, n, octTexelDirection(int(t % size_t(m)), int(t / size_t(m)), m), omega);
+    for (int c = 0; c < 3; ++c) skyIrradiance[t * 3 + size_t(c)] = e[c];
+  }
+  return skyIrradiance;
+}
+
+// Discs: the texel holding each disc's direction and its exact solid angle.
+struct Disc {
+  glm::vec3 dir, irradiance;
+  size_t texel;
+  float omega;
+  uint8_t bit;
+};
+
+std::vector<Disc> skyDiscs(const shared::SkyParams& sky, int n) {
   std::vector<Disc> discs;
-  if (o.discs) {
-    const std::vector<double> omega = octTexelSolidAngles(n);
-    const std::pair<glm::vec4, glm::vec4> both[] = {{sky.sunDirection, sky.sunIrradiance},
-                                                    {sky.moonDirection, sky.moonIrradiance}};
-    for (int d = 0; d < 2; ++d) {
-      const glm::vec3 e(both[d].second);
-      if (!(std::max({e.x, e.y, e.z}) > 0.0f)) continue;
-      const glm::vec3 dir = glm::normalize(glm::vec3(both[d].first));
-      const glm::ivec2 c = octDirectionTexel(dir, n);
-      const size_t t = size_t(c.y) * size_t(n) + size_t(c.x);
-      discs.push_back({dir, e, t, float(omega[t]), uint8_t(1u << d)});
-    }
+  const std::vector<double> omega = octTexelSolidAngles(n);
+  const std::pair<glm::vec4, glm::vec4> both[] = {{sky.sunDirection, sky.sunIrradiance},
+                                                  {sky.moonDirection, sky.moonIrradiance}};
+  for (int d = 0; d < 2; ++d) {
+    const glm::vec3 e(both[d].second);
+    if (!(std::max({e.x, e.y, e.z}) > 0.0f)) continue;
+    const glm::vec3 dir = glm::normalize(glm::vec3(both[d].first));
+    const glm::ivec2 c = octDirectionTexel(dir, n);
+    const size_t t = size_t(c.y) * size_t(n) + size_t(c.x);
+    discs.push_back({dir, e, t, float(omega[t]), uint8_t(1u << d)});
   }
+  return discs;
+}
 
+// What the stages writing the field read.
+struct FieldInputs {
+  const SubGrid& sub;
+  const CellLighting& state;
+  const std::vector<glm::vec3>& skyL;
+  const std::vector<float>& skyIrradiance;
+  const std::vector<Disc>& discs;
+  bool skyOnly;  // no surfel near the probes
+  float miss;
+  uint32_t skyFlags;
+};
+
+// The active probes' maps into the field: the last frame's (or the sky's), plus the discs they see.
+void writeProbes(const FieldInputs& in, int n, int m, ProbeField& f, VirFieldStats& st) {
+  const size_t n2 = size_t(n) * size_t(n), m2 = size_t(m) * size_t(m);
+  const std::vector<size_t>& toFull = in.sub.toFull;
+  const RelightProbes& probes = in.sub.probes;
+  const CellLighting& state = in.state;
+  const std::vector<glm::vec3>& skyL = in.skyL;
+  const std::vector<float>& skyIrradiance = in.skyIrradiance;
+  const float miss = in.miss;
+  const uint32_t skyFlags = in.skyFlags;
   const ProbeAtlas& atlas = state.atlas;
-  const uint32_t skyFlags = probeSkyFlags(ro);
   for (size_t k = 0; k < toFull.size(); ++k) {
     const size_t i = toFull[k];
     if (!probes.active[k]) continue;
@@ -189,7 +201,7 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
     float* rad = &f.radiance[i * n2 * 3];
     float* dist = &f.distance[i * n2 * 2];
     float* irr = &f.irradiance[i * m2 * 3];
-    if (near_.empty()) {
+    if (in.skyOnly) {
       for (size_t t = 0; t < n2; ++t) {
         for (int c = 0; c < 3; ++c) rad[t * 3 + size_t(c)] = skyL[t][c];
         dist[t * 2] = miss;
@@ -210,8 +222,8 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
       for (size_t t = 0; t < m2; ++t)
         for (int c = 0; c < 3; ++c) irr[t * 3 + size_t(c)] = state.probes.irradiance[k * m2 + t][c];
     }
-    for (const Disc& d : discs) {
-      if (!near_.empty() && !shared::relightTexelSeesSky(atlas.normal[k * n2 + d.texel].w, skyFlags))
+    for (const Disc& d : in.discs) {
+      if (!in.skyOnly && !shared::relightTexelSeesSky(atlas.normal[k * n2 + d.texel].w, skyFlags))
         continue;  // blocked
       st.discVisible[i] |= d.bit;
       for (int c = 0; c < 3; ++c) rad[d.texel * 3 + size_t(c)] += d.irradiance[c] / d.omega;
@@ -222,6 +234,78 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
       }
     }
   }
+}
+
+}  // namespace
+
+VirFieldRelighter::VirFieldRelighter(Context& ctx) : relight_(ctx), vir_(ctx) {}
+
+void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const ProbeGrid& grid,
+                            std::span<const glm::vec3> offsets, std::span<const uint8_t> active,
+                            const shared::SkyParams& sky, const VirFieldOptions& o, ProbeField& f,
+                            const ProbeField* seed, VirFieldStats* stats) {
+  const auto t0 = std::chrono::steady_clock::now();
+  checkInputs(surfels, grid, offsets, active, o, seed);
+  const size_t count = size_t(grid.probeCount());
+  const int n = o.resolution, m = o.irradianceResolution;
+
+  auto isActive = [&](size_t i) { return active.empty() || active[i] != 0; };
+  glm::ivec3 lo(INT32_MAX), hi(INT32_MIN);
+  for (size_t i = 0; i < count; ++i)
+    if (isActive(i)) {
+      const glm::ivec3 c = grid.probeCoord(int64_t(i));
+      lo = glm::min(lo, c);
+      hi = glm::max(hi, c);
+    }
+  resetField(grid, offsets, o, f);
+  VirFieldStats local;
+  VirFieldStats& st = stats ? *stats : local;
+  st = VirFieldStats{};
+  st.discVisible.assign(o.discs ? count : 0, 0);
+  if (lo.x == INT32_MAX) return;  // nothing active
+
+  const SubGrid sub = activeSubGrid(grid, offsets, active, lo, hi);
+  const RelightProbes& probes = sub.probes;
+  const glm::vec3 boxLo = sub.boxLo, boxHi = sub.boxHi;
+  near_.clear();
+  for (const shared::Surfel& s : surfels) {
+    const glm::vec3 p(s.positionRadius);
+    const glm::vec3 d = glm::max(glm::max(boxLo - p, p - boxHi), glm::vec3(0.0f));
+    if (glm::dot(d, d) <= o.maxRange * o.maxRange) near_.push_back(s);
+  }
+  if (near_.empty() && !o.noSurfelsIsSky)
+    fail("virProbeField: no surfel within {} m of the active probes", o.maxRange);
+
+  VirOptions vo = o.vir;
+  vo.resolution = n;
+  vo.maxRange = o.maxRange;
+  RelightOptions ro = o.relight;
+  ro.irradianceResolution = m;
+  const float miss = ro.missDistance;
+
+  const std::vector<glm::vec3> skyL = skyTexelRadiance(sky, n);
+
+  CellLighting state;
+  if (!near_.empty()) {
+    if (seed) {
+      seedLighting(*seed, sub.toFull, n, m, state.probes);
+      state.frames = 1;  // relightFrame reads state.probes as the last frame's lighting
+      st.seeded = true;
+    }
+    for (int frame = 0; frame < o.frames; ++frame) {
+      if (o.checkInterrupt && InterruptGuard::interrupted())
+        fail("VIR probes interrupted after {} of {} frames", frame, o.frames);
+      const RelightResult r = relightFrame(relight_, vir_, near_, probes, sky, vo, ro, state);
+      st.gpuMs += r.shadowMs + r.lightMs + r.emitterShadowMs + state.atlas.gpuMs + state.probes.gpuMs;
+    }
+  }
+
+  std::vector<float> skyIrradiance;
+  if (near_.empty()) skyIrradiance = skyMapIrradiance(skyL, n, m);
+  std::vector<Disc> discs;
+  if (o.discs) discs = skyDiscs(sky, n);
+
+  writeProbes({sub, state, skyL, skyIrradiance, discs, near_.empty(), miss, probeSkyFlags(ro)}, n, m, f, st);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   st.surfels = near_.size();
   st.probes = probes.positions.size();
