@@ -326,12 +326,35 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
   const size_t N = size_t(cells) * size_t(cells);
   info_.assign(N, {});
   keyRange_.assign(N, {0, 0});
-  std::vector<float> hours;
-  std::vector<ShL1> keySh;
-  int maxGeneratorN = 0, logged = 0;
   // Auto: the first generator cell's model, latents and active count, for timing both backends.
   std::optional<GeneratorWeights> probeWeights;
   std::vector<float> probeLatents;
+  const int maxGeneratorN = scanCellFiles(cells, probeWeights, probeLatents);
+  if (validCells_ == 0)
+    fail("{}: none of the world's {} cells has a readable cell file ({} missing, {} corrupt)",
+         options_.cellsDir.string(), N, missingCells_, corruptCells_);
+  sizeSlots(maxGeneratorN);
+  fillMissingFallbacks(cells);
+  for (const auto& range : keyRange_)
+    fallbackFollowsTimeOfDay_ = fallbackFollowsTimeOfDay_ || range.second > 1;
+  if (missingCells_ > 0)
+    spdlog::warn(
+        "streaming: {} of {} cells have no cell file in {} (they stream their neighbours' mean fallback)",
+        missingCells_, N, options_.cellsDir.string());
+  spdlog::info("streaming: cell files in {}: {} valid, {} missing, {} corrupt; slot {} bytes",
+               options_.cellsDir.string(), validCells_, missingCells_, corruptCells_, maxCellBytes_);
+  chooseDecoder(probeWeights, probeLatents);
+  samples_.reserve(4096);
+}
+
+// Reads every cell file once: its info_ entry, its fallback keys, the counts; returns the largest generator
+// resolution. probeWeights / probeLatents: the first generator cell's (Auto's timing input).
+int CellFileSource::scanCellFiles(int cells, std::optional<GeneratorWeights>& probeWeights,
+                                  std::vector<float>& probeLatents) {
+  std::error_code ec;
+  std::vector<float> hours;
+  std::vector<ShL1> keySh;
+  int maxGeneratorN = 0, logged = 0;
   for (int z = 0; z < cells; ++z)
     for (int x = 0; x < cells; ++x) {
       const glm::ivec2 c{x, z};
@@ -373,9 +396,11 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
           spdlog::warn("streaming: {} (the cell streams its neighbours' mean fallback)", inf.error);
       }
     }
-  if (validCells_ == 0)
-    fail("{}: none of the world's {} cells has a readable cell file ({} missing, {} corrupt)",
-         options_.cellsDir.string(), N, missingCells_, corruptCells_);
+  return maxGeneratorN;
+}
+
+// Each valid cell's decoded resolution and field size, and the slot size.
+void CellFileSource::sizeSlots(int maxGeneratorN) {
   if (options_.shOnlyResolution == 0) options_.shOnlyResolution = maxGeneratorN > 0 ? maxGeneratorN : 8;
   for (CellFileInfo& inf : info_) {
     if (inf.state != CellFileState::Valid) continue;
@@ -384,6 +409,9 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
                                    irradianceResolutionFor(inf.resolution, options_.irradianceResolution));
     maxCellBytes_ = std::max(maxCellBytes_, inf.fieldBytes);
   }
+}
+
+void CellFileSource::fillMissingFallbacks(int cells) {
   // Cells without a usable file: the mean fallback of the nearest ring (Chebyshev distance r) holding a
   // valid cell, per key: the keys are the union of the ring's key hours and each holds the mean of the
   // ring's interpolated fallbacks there. Every valid cell's fallback is linear between its keys and
@@ -391,6 +419,7 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
   // gives the ring's mean at every time of day. Any ring reaches every cell by r = cells, and a valid
   // cell exists.
   std::vector<glm::ivec2> ring;
+  std::vector<float> hours;
   for (int z = 0; z < cells; ++z)
     for (int x = 0; x < cells; ++x) {
       const size_t self = size_t(layout_.linear({x, z}));
@@ -425,14 +454,10 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
         break;
       }
     }
-  for (const auto& range : keyRange_)
-    fallbackFollowsTimeOfDay_ = fallbackFollowsTimeOfDay_ || range.second > 1;
-  if (missingCells_ > 0)
-    spdlog::warn(
-        "streaming: {} of {} cells have no cell file in {} (they stream their neighbours' mean fallback)",
-        missingCells_, N, options_.cellsDir.string());
-  spdlog::info("streaming: cell files in {}: {} valid, {} missing, {} corrupt; slot {} bytes",
-               options_.cellsDir.string(), validCells_, missingCells_, corruptCells_, maxCellBytes_);
+}
+
+void CellFileSource::chooseDecoder(const std::optional<GeneratorWeights>& probeWeights,
+                                   const std::vector<float>& probeLatents) {
   // The decoder: the timing input is the real first generator cell (its own model, latents and the noon
   // conditioning), so the rates are the ones this world's loads will see.
   const auto cond = conditioningVector(12.0f, options_.weather);
@@ -442,7 +467,6 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
                                     std::span<const float>(cond.data(), condDim), probeCount, selection_,
                                     options_.gpu);
   gpuBackend_ = dynamic_cast<GpuGeneratorBackend*>(backend_.get());
-  samples_.reserve(4096);
 }
 
 const ResolvedSharedModel* CellFileSource::sharedFor(const CellFile& file, const fs::path& path) {

@@ -144,6 +144,13 @@ class CellFileSource final : public CellSource {
   // error).
   const ResolvedSharedModel* sharedFor(const CellFile& file, const std::filesystem::path& path);
   ShL1 keyFallback(glm::ivec2 cell, float timeOfDayHours) const;
+  // Stages of construction, in order.
+  int scanCellFiles(int cells, std::optional<GeneratorWeights>& probeWeights,
+                    std::vector<float>& probeLatents);
+  void sizeSlots(int maxGeneratorN);
+  void fillMissingFallbacks(int cells);
+  void chooseDecoder(const std::optional<GeneratorWeights>& probeWeights,
+                     const std::vector<float>& probeLatents);
 
   CellFileSourceOptions options_;
   WorldLayout layout_;

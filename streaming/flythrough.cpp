@@ -80,6 +80,118 @@ double percentile(std::vector<double> v, double q) {
   return v[i];
 }
 
+// Preloads around the start (a game's loading screen): not counted, so the numbers describe flying.
+void preloadStart(StreamingManager& manager, const PathTable& path, const FlythroughOptions& o) {
+  glm::vec2 p0 = pointAt(path, 0.0);
+  FrameInput in;
+  in.position = {p0.x, o.altitude, p0.y};
+  in.timeOfDayHours = o.todStart;
+  in.weather = o.weatherStart;
+  in.dtSeconds = 1e3f;  // completes every cross-fade
+  for (int i = 0; i < 10000; ++i) {
+    FrameStats st = manager.update(in);
+    if (st.loading == 0 && st.requested == 0 && st.activated == 0) break;
+    if (st.loading > 0) manager.drainIo();
+  }
+  manager.update(in);
+}
+
+void shadeSamples(const StreamingManager& manager, const WorldLayout& layout, const FlythroughOptions& o,
+                  float pitch, glm::vec2 fwd2, FlythroughFrame& fr) {
+  // Visible samples: view rays to the ground plane within the shading distance.
+  auto ts = Clock::now();
+  const float yaw0 = std::atan2(fwd2.y, fwd2.x);
+  for (int j = 0; j < o.sampleRaysY; ++j)
+    for (int i = 0; i < o.sampleRaysX; ++i) {
+      float yaw = yaw0 + glm::radians(-45.0f + 90.0f * (float(i) + 0.5f) / float(o.sampleRaysX));
+      float pt = pitch + glm::radians(-25.0f + 50.0f * (float(j) + 0.5f) / float(o.sampleRaysY));
+      glm::vec3 d(std::cos(yaw) * std::cos(pt), std::sin(pt), std::sin(yaw) * std::cos(pt));
+      if (d.y >= -1e-3f) continue;
+      float dist = o.altitude / -d.y;
+      if (dist > o.shadeDistance) continue;
+      glm::vec3 q = fr.position + dist * d;
+      q.y = 0.0f;
+      if (!layout.contains(layout.cellOf(q))) continue;  // off the world's edge: nothing to light
+      IrradianceSample smp = manager.sample(q, {0.0f, 1.0f, 0.0f});
+      ++fr.visibleSamples;
+      if (smp.missing || !std::isfinite(smp.irradiance.x + smp.irradiance.y + smp.irradiance.z))
+        ++fr.missingSamples;
+      else if (smp.fallbackWeight > 0.01f)
+        ++fr.fallbackSamples;
+    }
+  fr.shadeMs = msSince(ts);
+}
+
+void traceFrame(TraceWriter& trace, const FlythroughFrame& fr, int f, double frameStartUs) {
+  double u = fr.stats.updateMs * 1e3;
+  trace.complete("update", "streaming", frameStartUs, u,
+                 {{"frame", f},
+                  {"requested", fr.stats.requested},
+                  {"activated", fr.stats.activated},
+                  {"evicted", fr.stats.evicted},
+                  {"relit", fr.stats.relit}});
+  trace.complete("shade samples", "shade", frameStartUs + u, fr.shadeMs * 1e3,
+                 {{"visible", fr.visibleSamples}});
+  trace.counter("resident MB", frameStartUs, {{"resident", double(fr.stats.bytesResident) / 1e6}});
+  trace.counter("cells", frameStartUs, {{"resident", fr.stats.resident}, {"loading", fr.stats.loading}});
+  trace.counter("fallback %", frameStartUs, {{"fallback", 100.0 * fr.fallbackFraction()}});
+  trace.counter("stage ms", frameStartUs,
+                {{"io", fr.stats.ioMs},
+                 {"activate", fr.stats.activateMs},
+                 {"relight", fr.stats.relightMs},
+                 {"shade", fr.shadeMs}});
+}
+
+// Per-frame timings and sample counts of a flight, for the summary's percentiles and fractions.
+struct FlightTimings {
+  std::vector<double> frameMs, updateMs, ioMs, activateMs, relightMs, shadeMs, relightIoMs;
+  long visible = 0, fallback = 0;
+};
+
+void accumulateFrame(const FlythroughFrame& fr, FlightTimings& ft, FlythroughSummary& sum) {
+  ft.visible += fr.visibleSamples;
+  ft.fallback += fr.fallbackSamples;
+  sum.framesMissingGi += fr.missingSamples > 0;
+  sum.peakBytesResident = std::max(sum.peakBytesResident, fr.stats.bytesResident);
+  sum.cellsRequested += fr.stats.requested;
+  sum.cellsEvicted += fr.stats.evicted;
+  sum.cellsRelit += fr.stats.relit;
+  sum.cellsFailed += fr.stats.failed;
+  ft.frameMs.push_back(fr.frameMs);
+  ft.updateMs.push_back(fr.stats.updateMs);
+  ft.ioMs.push_back(fr.stats.ioMs);
+  ft.activateMs.push_back(fr.stats.activateMs);
+  ft.relightMs.push_back(fr.stats.relightMs);
+  if (fr.stats.relightIoMs > 0.0) ft.relightIoMs.push_back(fr.stats.relightIoMs);
+  ft.shadeMs.push_back(fr.shadeMs);
+}
+
+void summariseFlight(const FlightTimings& ft, FlythroughSummary& sum) {
+  sum.fallbackFraction = ft.visible ? double(ft.fallback) / double(ft.visible) : 0.0;
+  sum.p50FrameMs = percentile(ft.frameMs, 0.5);
+  sum.p95FrameMs = percentile(ft.frameMs, 0.95);
+  sum.p99FrameMs = percentile(ft.frameMs, 0.99);
+  sum.p50UpdateMs = percentile(ft.updateMs, 0.5);
+  sum.p95UpdateMs = percentile(ft.updateMs, 0.95);
+  sum.p99UpdateMs = percentile(ft.updateMs, 0.99);
+  sum.p99IoMs = percentile(ft.ioMs, 0.99);
+  sum.p99ActivateMs = percentile(ft.activateMs, 0.99);
+  sum.p99RelightMs = percentile(ft.relightMs, 0.99);
+  sum.p99ShadeMs = percentile(ft.shadeMs, 0.99);
+  sum.p50IoMs = percentile(ft.ioMs, 0.5);
+  sum.p50ActivateMs = percentile(ft.activateMs, 0.5);
+  sum.p50RelightMs = percentile(ft.relightMs, 0.5);
+  sum.p50ShadeMs = percentile(ft.shadeMs, 0.5);
+  sum.p95IoMs = percentile(ft.ioMs, 0.95);
+  sum.p95ActivateMs = percentile(ft.activateMs, 0.95);
+  sum.p95RelightMs = percentile(ft.relightMs, 0.95);
+  sum.p95ShadeMs = percentile(ft.shadeMs, 0.95);
+  if (!ft.relightIoMs.empty()) {
+    sum.p50RelightIoMs = percentile(ft.relightIoMs, 0.5);
+    sum.p95RelightIoMs = percentile(ft.relightIoMs, 0.95);
+  }
+}
+
 }  // namespace
 
 void FlythroughOptions::validate() const {
@@ -159,25 +271,10 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
   const int frames = std::max(1, int(std::lround(double(o.seconds) * o.fps)));
   const double dt = 1.0 / o.fps;
   FlythroughSummary sum;
-  std::vector<double> frameMs, updateMs, ioMs, activateMs, relightMs, shadeMs, relightIoMs;
-  long visible = 0, fallback = 0;
+  FlightTimings ft;
   Progress progress("fly-through", size_t(frames), "frames");
   const float pitch = glm::radians(o.pitchDeg);
-  // Preload around the start (a game's loading screen): not counted, so the numbers describe flying.
-  if (o.preload) {
-    glm::vec2 p0 = pointAt(path, 0.0);
-    FrameInput in;
-    in.position = {p0.x, o.altitude, p0.y};
-    in.timeOfDayHours = o.todStart;
-    in.weather = o.weatherStart;
-    in.dtSeconds = 1e3f;  // completes every cross-fade
-    for (int i = 0; i < 10000; ++i) {
-      FrameStats st = manager.update(in);
-      if (st.loading == 0 && st.requested == 0 && st.activated == 0) break;
-      if (st.loading > 0) manager.drainIo();
-    }
-    manager.update(in);
-  }
+  if (o.preload) preloadStart(manager, path, o);
   const auto flightStart = Clock::now();
   for (int f = 0; f < frames; ++f) {
     if (InterruptGuard::interrupted()) {
@@ -202,63 +299,10 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
     const double frameStartUs = trace ? trace->nowUs() : 0.0;
     auto t0 = Clock::now();
     fr.stats = manager.update(in);
-    // Visible samples: view rays to the ground plane within the shading distance.
-    auto ts = Clock::now();
-    const float yaw0 = std::atan2(fwd2.y, fwd2.x);
-    for (int j = 0; j < o.sampleRaysY; ++j)
-      for (int i = 0; i < o.sampleRaysX; ++i) {
-        float yaw = yaw0 + glm::radians(-45.0f + 90.0f * (float(i) + 0.5f) / float(o.sampleRaysX));
-        float pt = pitch + glm::radians(-25.0f + 50.0f * (float(j) + 0.5f) / float(o.sampleRaysY));
-        glm::vec3 d(std::cos(yaw) * std::cos(pt), std::sin(pt), std::sin(yaw) * std::cos(pt));
-        if (d.y >= -1e-3f) continue;
-        float dist = o.altitude / -d.y;
-        if (dist > o.shadeDistance) continue;
-        glm::vec3 q = fr.position + dist * d;
-        q.y = 0.0f;
-        if (!layout.contains(layout.cellOf(q))) continue;  // off the world's edge: nothing to light
-        IrradianceSample smp = manager.sample(q, {0.0f, 1.0f, 0.0f});
-        ++fr.visibleSamples;
-        if (smp.missing || !std::isfinite(smp.irradiance.x + smp.irradiance.y + smp.irradiance.z))
-          ++fr.missingSamples;
-        else if (smp.fallbackWeight > 0.01f)
-          ++fr.fallbackSamples;
-      }
-    fr.shadeMs = msSince(ts);
+    shadeSamples(manager, layout, o, pitch, fwd2, fr);
     fr.frameMs = msSince(t0);
-    if (trace) {
-      double u = fr.stats.updateMs * 1e3;
-      trace->complete("update", "streaming", frameStartUs, u,
-                      {{"frame", f},
-                       {"requested", fr.stats.requested},
-                       {"activated", fr.stats.activated},
-                       {"evicted", fr.stats.evicted},
-                       {"relit", fr.stats.relit}});
-      trace->complete("shade samples", "shade", frameStartUs + u, fr.shadeMs * 1e3,
-                      {{"visible", fr.visibleSamples}});
-      trace->counter("resident MB", frameStartUs, {{"resident", double(fr.stats.bytesResident) / 1e6}});
-      trace->counter("cells", frameStartUs, {{"resident", fr.stats.resident}, {"loading", fr.stats.loading}});
-      trace->counter("fallback %", frameStartUs, {{"fallback", 100.0 * fr.fallbackFraction()}});
-      trace->counter("stage ms", frameStartUs,
-                     {{"io", fr.stats.ioMs},
-                      {"activate", fr.stats.activateMs},
-                      {"relight", fr.stats.relightMs},
-                      {"shade", fr.shadeMs}});
-    }
-    visible += fr.visibleSamples;
-    fallback += fr.fallbackSamples;
-    sum.framesMissingGi += fr.missingSamples > 0;
-    sum.peakBytesResident = std::max(sum.peakBytesResident, fr.stats.bytesResident);
-    sum.cellsRequested += fr.stats.requested;
-    sum.cellsEvicted += fr.stats.evicted;
-    sum.cellsRelit += fr.stats.relit;
-    sum.cellsFailed += fr.stats.failed;
-    frameMs.push_back(fr.frameMs);
-    updateMs.push_back(fr.stats.updateMs);
-    ioMs.push_back(fr.stats.ioMs);
-    activateMs.push_back(fr.stats.activateMs);
-    relightMs.push_back(fr.stats.relightMs);
-    if (fr.stats.relightIoMs > 0.0) relightIoMs.push_back(fr.stats.relightIoMs);
-    shadeMs.push_back(fr.shadeMs);
+    if (trace) traceFrame(*trace, fr, f, frameStartUs);
+    accumulateFrame(fr, ft, sum);
     if (perFrame) perFrame(fr);
     progress.update(size_t(f + 1));
     ++sum.frames;
@@ -268,29 +312,7 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
   }
   manager.drainIo();
   progress.finish();
-  sum.fallbackFraction = visible ? double(fallback) / double(visible) : 0.0;
-  sum.p50FrameMs = percentile(frameMs, 0.5);
-  sum.p95FrameMs = percentile(frameMs, 0.95);
-  sum.p99FrameMs = percentile(frameMs, 0.99);
-  sum.p50UpdateMs = percentile(updateMs, 0.5);
-  sum.p95UpdateMs = percentile(updateMs, 0.95);
-  sum.p99UpdateMs = percentile(updateMs, 0.99);
-  sum.p99IoMs = percentile(ioMs, 0.99);
-  sum.p99ActivateMs = percentile(activateMs, 0.99);
-  sum.p99RelightMs = percentile(relightMs, 0.99);
-  sum.p99ShadeMs = percentile(shadeMs, 0.99);
-  sum.p50IoMs = percentile(ioMs, 0.5);
-  sum.p50ActivateMs = percentile(activateMs, 0.5);
-  sum.p50RelightMs = percentile(relightMs, 0.5);
-  sum.p50ShadeMs = percentile(shadeMs, 0.5);
-  sum.p95IoMs = percentile(ioMs, 0.95);
-  sum.p95ActivateMs = percentile(activateMs, 0.95);
-  sum.p95RelightMs = percentile(relightMs, 0.95);
-  sum.p95ShadeMs = percentile(shadeMs, 0.95);
-  if (!relightIoMs.empty()) {
-    sum.p50RelightIoMs = percentile(relightIoMs, 0.5);
-    sum.p95RelightIoMs = percentile(relightIoMs, 0.95);
-  }
+  summariseFlight(ft, sum);
   return sum;
 }
 

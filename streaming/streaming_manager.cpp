@@ -296,6 +296,27 @@ FrameStats StreamingManager::update(const FrameInput& in) {
   stats.frame = frame_;
   last_ = in;
   source_.setTimeOfDay(in.timeOfDayHours);
+  refreshFallbacks(in);
+  // Straight-line extrapolation, capped: on a curved path a long look-ahead lands off the path (at 400 m/s
+  // on a 1.4 km radius loop, 2 s ahead is ~230 m off it) and would spend IO on cells never visited.
+  glm::vec3 ahead = in.velocity * config_.prefetchSeconds;
+  if (float len = glm::length(ahead); len > config_.maxPrefetchDistance)
+    ahead *= config_.maxPrefetchDistance / len;
+  const glm::vec3 predicted = in.position + ahead;
+
+  advanceFades(in);
+  dropFarCells(in, predicted, stats);
+  collectWanted(in, predicted);
+  requestWanted(stats);
+  collectFinished(stats);
+  activateLoaded(in, stats);
+  startRelights(in, stats);
+  countResidency(stats);
+  stats.updateMs = msSince(t0);
+  return stats;
+}
+
+void StreamingManager::refreshFallbacks(const FrameInput& in) {
   // A source whose fallback follows the time of day (CellFileSource's per-key SH): re-read the resident
   // fallbacks when it moved (a cheap interpolation per cell, game thread; no allocation).
   if (source_.fallbackFollowsTimeOfDay() && !(in.timeOfDayHours == fallbackTimeOfDay_)) {
@@ -304,13 +325,9 @@ FrameStats StreamingManager::update(const FrameInput& in) {
         fallback_[size_t(layout_.linear({x, z}))] = source_.fallback({x, z});
     fallbackTimeOfDay_ = in.timeOfDayHours;
   }
-  // Straight-line extrapolation, capped: on a curved path a long look-ahead lands off the path (at 400 m/s
-  // on a 1.4 km radius loop, 2 s ahead is ~230 m off it) and would spend IO on cells never visited.
-  glm::vec3 ahead = in.velocity * config_.prefetchSeconds;
-  if (float len = glm::length(ahead); len > config_.maxPrefetchDistance)
-    ahead *= config_.maxPrefetchDistance / len;
-  const glm::vec3 predicted = in.position + ahead;
+}
 
+void StreamingManager::advanceFades(const FrameInput& in) {
   // Fade in what is visible (before this frame's activations, which start at 0).
   for (size_t s = 0; s < slots_.size(); ++s) {
     Slot& slot = slots_[s];
@@ -323,7 +340,9 @@ FrameStats StreamingManager::update(const FrameInput& in) {
       if (slot.relightBlend >= 1.0f) endBlend(int(s));
     }
   }
+}
 
+void StreamingManager::dropFarCells(const FrameInput& in, glm::vec3 predicted, FrameStats& stats) {
   // Drop what is beyond the keep radius of both the camera and its prediction.
   for (size_t s = 0; s < slots_.size(); ++s) {
     Slot& slot = slots_[s];
@@ -340,7 +359,9 @@ FrameStats StreamingManager::update(const FrameInput& in) {
       freeSlot(int(s));
     }
   }
+}
 
+void StreamingManager::collectWanted(const FrameInput& in, glm::vec3 predicted) {
   // Wanted cells by priority (ties by index: deterministic).
   wanted_.clear();
   const float r = config_.decodeRadius;
@@ -363,7 +384,10 @@ FrameStats StreamingManager::update(const FrameInput& in) {
     return a.priority != b.priority ? a.priority < b.priority
                                     : layout_.linear(a.cell) < layout_.linear(b.cell);
   });
+}
 
+// Starts loads of wanted_ in order, into free slots or in place of worse resident cells, within the IO caps.
+void StreamingManager::requestWanted(FrameStats& stats) {
   int inFlight = 0;
   for (const Slot& slot : slots_) inFlight += slot.state == SlotState::Loading;
   int inlineLoads = 0;
@@ -392,9 +416,9 @@ FrameStats StreamingManager::update(const FrameInput& in) {
     ++inFlight;
     ++inlineLoads;
   }
+}
 
-  collectFinished(stats);
-
+void StreamingManager::activateLoaded(const FrameInput& in, FrameStats& stats) {
   // Activate loaded cells, best priority first, within the per-frame time budget.
   auto ta = Clock::now();
   for (int n = 0; n < config_.maxActivationsPerFrame; ++n) {
@@ -418,7 +442,9 @@ FrameStats StreamingManager::update(const FrameInput& in) {
     record(StreamingEventType::Activate, slot.cell);
   }
   stats.activateMs = msSince(ta);
+}
 
+void StreamingManager::startRelights(const FrameInput& in, FrameStats& stats) {
   // Start relights of stale cells, nearest first, amortised over frames and capped in flight.
   auto tr = Clock::now();
   bool loadsInFlight = false;
@@ -461,7 +487,9 @@ FrameStats StreamingManager::update(const FrameInput& in) {
     ioCv_.notify_one();
   }
   stats.relightMs += msSince(tr);
+}
 
+void StreamingManager::countResidency(FrameStats& stats) const {
   for (const Slot& slot : slots_) {
     if (slot.state == SlotState::Active) ++stats.resident;
     if (slot.state == SlotState::Loading || slot.state == SlotState::Loaded) ++stats.loading;
@@ -478,8 +506,6 @@ FrameStats StreamingManager::update(const FrameInput& in) {
     if (st.blending) ++stats.relightBlending;
     if (st.busy || st.blending) stats.bytesResident += source_.maxCellBytes();
   }
-  stats.updateMs = msSince(t0);
-  return stats;
 }
 
 bool StreamingManager::isResident(glm::ivec2 cell) const {

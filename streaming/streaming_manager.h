@@ -211,6 +211,15 @@ class StreamingManager {
   void runRelight(int staging);
   void finishRelight(int staging, FrameStats& stats);
   void collectFinished(FrameStats& stats);
+  // Stages of update, in order.
+  void refreshFallbacks(const FrameInput& in);
+  void advanceFades(const FrameInput& in);
+  void dropFarCells(const FrameInput& in, glm::vec3 predicted, FrameStats& stats);
+  void collectWanted(const FrameInput& in, glm::vec3 predicted);
+  void requestWanted(FrameStats& stats);
+  void activateLoaded(const FrameInput& in, FrameStats& stats);
+  void startRelights(const FrameInput& in, FrameStats& stats);
+  void countResidency(FrameStats& stats) const;
   void freeSlot(int slot);
   void record(StreamingEventType type, glm::ivec2 cell);
   glm::vec3 sampleCell(int slot, glm::vec3 p, glm::vec3 n) const;

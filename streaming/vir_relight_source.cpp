@@ -25,6 +25,56 @@ double msSince(Clock::time_point t0) {
 
 constexpr size_t kMaxRecords = 512;  // seed records kept (cells); the oldest is dropped beyond
 
+// The seed of a relight from `current`, our own last result for its cell: current's irradiance and
+// distance less the sun and moon discs (sky) the last relight added where discVisible says they were seen.
+void seedWithoutDiscs(const ProbeField& current, const shared::SkyParams& sky,
+                      const std::vector<uint8_t>& discVisible, ProbeField& scratch) {
+  const size_t count = size_t(current.probeCount());
+  const int n = current.resolution, m = current.irradianceResolution;
+  const size_t m2 = size_t(m) * size_t(m);
+  scratch.grid = current.grid;
+  scratch.resolution = n;
+  scratch.irradianceResolution = m;
+  scratch.irradiance.assign(current.irradiance.begin(), current.irradiance.end());
+  scratch.distance.assign(current.distance.begin(), current.distance.end());
+  const std::pair<glm::vec4, glm::vec4> discs[] = {{sky.sunDirection, sky.sunIrradiance},
+                                                   {sky.moonDirection, sky.moonIrradiance}};
+  for (size_t i = 0; i < count; ++i)
+    for (int d = 0; d < 2; ++d) {
+      if (!(discVisible[i] & (1u << d))) continue;
+      const glm::vec3 dir = glm::normalize(glm::vec3(discs[d].first)), e(discs[d].second);
+      for (size_t t = 0; t < m2; ++t) {
+        const float c =
+            std::max(glm::dot(octTexelDirection(int(t % size_t(m)), int(t / size_t(m)), m), dir), 0.0f);
+        for (int ch = 0; ch < 3; ++ch) {
+          float& v = scratch.irradiance[(i * m2 + t) * 3 + size_t(ch)];
+          v = std::max(0.0f, v - e[ch] * c);
+        }
+      }
+    }
+}
+
+// Geometry as the cell holds it: same active flags, offsets and optional channels; inactive probes keep
+// current's values.
+void keepGeometryAndInactive(const ProbeField& current, ProbeField& out) {
+  const size_t count = size_t(current.probeCount());
+  const int n = current.resolution, m = current.irradianceResolution;
+  const size_t n2 = size_t(n) * size_t(n), m2 = size_t(m) * size_t(m);
+  out.active.assign(current.active.begin(), current.active.end());
+  out.offsets.assign(current.offsets.begin(), current.offsets.end());
+  out.normal.assign(current.normal.begin(), current.normal.end());
+  out.albedo.assign(current.albedo.begin(), current.albedo.end());
+  for (size_t i = 0; i < count; ++i) {
+    if (current.isActive(int64_t(i))) continue;
+    std::copy_n(current.radiance.begin() + ptrdiff_t(i * n2 * 3), n2 * 3,
+                out.radiance.begin() + ptrdiff_t(i * n2 * 3));
+    std::copy_n(current.distance.begin() + ptrdiff_t(i * n2 * 2), n2 * 2,
+                out.distance.begin() + ptrdiff_t(i * n2 * 2));
+    std::copy_n(current.irradiance.begin() + ptrdiff_t(i * m2 * 3), m2 * 3,
+                out.irradiance.begin() + ptrdiff_t(i * m2 * 3));
+  }
+}
+
 }  // namespace
 
 uint64_t lightingHash(const ProbeField& f) {
@@ -179,26 +229,7 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
         it->second.discVisible.size() == count) {
       const Record rec = it->second;
       lock.unlock();
-      scratch_.grid = current.grid;
-      scratch_.resolution = n;
-      scratch_.irradianceResolution = m;
-      scratch_.irradiance.assign(current.irradiance.begin(), current.irradiance.end());
-      scratch_.distance.assign(current.distance.begin(), current.distance.end());
-      const std::pair<glm::vec4, glm::vec4> discs[] = {{rec.sky.sunDirection, rec.sky.sunIrradiance},
-                                                       {rec.sky.moonDirection, rec.sky.moonIrradiance}};
-      for (size_t i = 0; i < count; ++i)
-        for (int d = 0; d < 2; ++d) {
-          if (!(rec.discVisible[i] & (1u << d))) continue;
-          const glm::vec3 dir = glm::normalize(glm::vec3(discs[d].first)), e(discs[d].second);
-          for (size_t t = 0; t < m2; ++t) {
-            const float c =
-                std::max(glm::dot(octTexelDirection(int(t % size_t(m)), int(t / size_t(m)), m), dir), 0.0f);
-            for (int ch = 0; ch < 3; ++ch) {
-              float& v = scratch_.irradiance[(i * m2 + t) * 3 + size_t(ch)];
-              v = std::max(0.0f, v - e[ch] * c);
-            }
-          }
-        }
+      seedWithoutDiscs(current, rec.sky, rec.discVisible, scratch_);
       seed = &scratch_;
     }
   }
@@ -215,21 +246,7 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
   vo.relight.chebyshev = options_.gatherChebyshev;
   relighter_->run(cs->surfels, current.grid, offsets, current.active, sky.params, vo, out, seed,
                   &fieldStats_);
-  // Geometry as the cell holds it: same active flags, offsets and optional channels; inactive probes keep
-  // current's values.
-  out.active.assign(current.active.begin(), current.active.end());
-  out.offsets.assign(current.offsets.begin(), current.offsets.end());
-  out.normal.assign(current.normal.begin(), current.normal.end());
-  out.albedo.assign(current.albedo.begin(), current.albedo.end());
-  for (size_t i = 0; i < count; ++i) {
-    if (current.isActive(int64_t(i))) continue;
-    std::copy_n(current.radiance.begin() + ptrdiff_t(i * n2 * 3), n2 * 3,
-                out.radiance.begin() + ptrdiff_t(i * n2 * 3));
-    std::copy_n(current.distance.begin() + ptrdiff_t(i * n2 * 2), n2 * 2,
-                out.distance.begin() + ptrdiff_t(i * n2 * 2));
-    std::copy_n(current.irradiance.begin() + ptrdiff_t(i * m2 * 3), m2 * 3,
-                out.irradiance.begin() + ptrdiff_t(i * m2 * 3));
-  }
+  keepGeometryAndInactive(current, out);
   spdlog::info(
       "streaming: VIR relight of cell {},{} at {:.2f} h overcast {:.2f}: {} probes, {} surfels, {} "
       "frame(s){}, "

@@ -789,29 +789,8 @@ nlohmann::json floats(std::initializer_list<float> values) {
   return a;
 }
 
-}  // namespace
-
-TriangleMesh importGltf(const std::filesystem::path& file, const GltfImportOptions& options) {
-  GltfImportReport localReport;
-  GltfImportReport& report = options.report ? *options.report : localReport;
-  report = GltfImportReport{};
-  try {
-    return GltfImporter(file, options, report).run();
-  } catch (const std::bad_alloc&) {
-    fail("{}: out of memory while importing", file.string());
-  } catch (const std::length_error& e) {
-    fail("{}: data too large ({})", file.string(), e.what());
-  }
-}
-
-void exportGlb(const std::filesystem::path& file, const TriangleMesh& mesh) {
-  const std::string path = file.string();
-  mesh.validate(path);
-  if (mesh.positions.size() > std::numeric_limits<uint32_t>::max() / 4)
-    fail("{}: mesh too large for glTF", path);
-
-  nlohmann::json doc;
-  doc["asset"] = {{"version", "2.0"}, {"generator", "lfgi exportGlb"}};
+// The document's materials (and the emissive-strength extension where one needs it).
+void addGlbMaterials(nlohmann::json& doc, const TriangleMesh& mesh, const std::string& path) {
   bool usesStrength = false;
   nlohmann::json materials = nlohmann::json::array();
   for (const Material& m : mesh.materials) {
@@ -840,12 +819,15 @@ void exportGlb(const std::filesystem::path& file, const TriangleMesh& mesh) {
   }
   if (!materials.empty()) doc["materials"] = std::move(materials);
   if (usesStrength) doc["extensionsUsed"] = {"KHR_materials_emissive_strength"};
+}
 
+// One primitive per material, its vertices renumbered in first-use order, with the buffer data in bin;
+// and the scene.
+void addGlbMeshes(nlohmann::json& doc, std::vector<std::byte>& bin, const TriangleMesh& mesh) {
   std::vector<std::vector<uint32_t>> trianglesOf(mesh.materials.size());
   for (size_t t = 0; t < mesh.triangleCount(); ++t)
     trianglesOf[mesh.triangleMaterial[t]].push_back(uint32_t(t));
 
-  std::vector<std::byte> bin;
   nlohmann::json views = nlohmann::json::array();
   nlohmann::json accessors = nlohmann::json::array();
   nlohmann::json primitives = nlohmann::json::array();
@@ -916,7 +898,10 @@ void exportGlb(const std::filesystem::path& file, const TriangleMesh& mesh) {
     doc["bufferViews"] = std::move(views);
     doc["buffers"] = nlohmann::json::array({{{"byteLength", bin.size()}}});
   }
+}
 
+std::vector<std::byte> glbContainer(const nlohmann::json& doc, std::vector<std::byte>& bin,
+                                    const std::string& path) {
   // GLB container, glTF 2.0 §4.4: 12-byte header, JSON chunk padded with spaces, BIN chunk padded with
   // zeros, every chunk 4-byte aligned.
   std::string json = doc.dump();
@@ -938,7 +923,36 @@ void exportGlb(const std::filesystem::path& file, const TriangleMesh& mesh) {
     appendU32(out, 0x004E4942u);  // "BIN\0"
     out.insert(out.end(), bin.begin(), bin.end());
   }
-  writeFileAtomic(file, out);
+  return out;
+}
+
+}  // namespace
+
+TriangleMesh importGltf(const std::filesystem::path& file, const GltfImportOptions& options) {
+  GltfImportReport localReport;
+  GltfImportReport& report = options.report ? *options.report : localReport;
+  report = GltfImportReport{};
+  try {
+    return GltfImporter(file, options, report).run();
+  } catch (const std::bad_alloc&) {
+    fail("{}: out of memory while importing", file.string());
+  } catch (const std::length_error& e) {
+    fail("{}: data too large ({})", file.string(), e.what());
+  }
+}
+
+void exportGlb(const std::filesystem::path& file, const TriangleMesh& mesh) {
+  const std::string path = file.string();
+  mesh.validate(path);
+  if (mesh.positions.size() > std::numeric_limits<uint32_t>::max() / 4)
+    fail("{}: mesh too large for glTF", path);
+
+  nlohmann::json doc;
+  doc["asset"] = {{"version", "2.0"}, {"generator", "lfgi exportGlb"}};
+  addGlbMaterials(doc, mesh, path);
+  std::vector<std::byte> bin;
+  addGlbMeshes(doc, bin, mesh);
+  writeFileAtomic(file, glbContainer(doc, bin, path));
 }
 
 // ---- scene presets ------------------------------------------------------------------------------------

@@ -12,21 +12,10 @@
 
 #include "core/error.h"
 #include "core/half.h"
+#include "core/hash.h"
 
 namespace lfgi::worlds {
 namespace {
-
-// splitmix64 finaliser (Steele et al. 2014): a counter-based hash, so each triangle's randomness depends
-// only on (seed, triangle index), never on iteration order.
-uint64_t mix64(uint64_t x) {
-  x += 0x9e3779b97f4a7c15ull;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
-}
-double unitFloat(uint64_t h) {
-  return double(h >> 11) * (1.0 / 9007199254740992.0);
-}
 
 constexpr float kRadiusUnit = 1e-4f;  // radius stored as uint16 in 0.1 mm units (max 6.55 m)
 
@@ -47,11 +36,38 @@ float surfelSpacingForProbeSpacing(float probeSpacingM) {
   return std::clamp(probeSpacingM * 0.25f, 0.05f, 2.0f);
 }
 
-std::vector<Surfel> sampleSurfels(const TriangleMesh& mesh, const SurfelOptions& options) {
-  const double s = options.spacing;
-  if (!std::isfinite(s) || s <= 0.0) fail("surfel spacing must be finite and > 0 (got {})", s);
-  mesh.validate("surfel sampling input");
-  const double cellArea = s * s;
+namespace {
+
+// One sampleSurfels call: the lattice's geometry and the state carried from triangle to triangle.
+// Randomness is splitmix64 (core/hash.h), a counter-based hash: each triangle's randomness depends only on
+// (seed, triangle index), never on iteration order.
+struct SurfelSampler {
+  struct PlaneSum {
+    double area = 0.0;
+    size_t count = 0;
+  };
+
+  SurfelSampler(const TriangleMesh& m, const SurfelOptions& o, std::vector<Surfel>& dst)
+      : mesh(m), options(o), out(dst), s(o.spacing), cellArea(s * s) {
+    out.reserve(size_t(mesh.totalArea() / cellArea * 1.05) + 16);
+    // Triangles smaller than one surfel share a running sum (systematic sampling): each gets one surfel of
+    // area s^2 when the sum crosses an integer, so their total disc area is within s^2 of their total area
+    // (independent coin flips would leave a sqrt(count) s^2 error).
+    smallCarry = unitDouble(splitmix64(options.seed ^ 0x5bd1e995ull));
+  }
+
+  void sampleTriangle(size_t t);
+  uint64_t appendLattice(size_t t, const glm::vec3& n, const glm::vec3& p0, const glm::vec3& p1,
+                         const glm::vec3& p2);
+  void appendR2(uint64_t hash, int first, int count);
+  void emitSurfels(size_t t, const glm::vec3& n, const glm::vec3& p0, const glm::vec3& p1,
+                   const glm::vec3& p2, float radius);
+
+  const TriangleMesh& mesh;
+  const SurfelOptions& options;
+  std::vector<Surfel>& out;
+  const double s;
+  const double cellArea;
   // Hexagonal lattice of cell area s^2: row pitch h sqrt(3) / 2, point pitch h.
   const double h = s * std::sqrt(2.0 / std::sqrt(3.0)), rowPitch = h * std::sqrt(3.0) * 0.5;
   // R2 sequence (fallback for slivers): generalised golden ratio for 2D (Roberts 2018, "The Unreasonable
@@ -59,119 +75,137 @@ std::vector<Surfel> sampleSurfels(const TriangleMesh& mesh, const SurfelOptions&
   const double g = 1.32471795724474602596;
   const double a1 = 1.0 / g, a2 = 1.0 / (g * g);
 
-  std::vector<Surfel> out;
-  out.reserve(size_t(mesh.totalArea() / cellArea * 1.05) + 16);
-  // Triangles smaller than one surfel share a running sum (systematic sampling): each gets one surfel of
-  // area s^2 when the sum crosses an integer, so their total disc area is within s^2 of their total area
-  // (independent coin flips would leave a sqrt(count) s^2 error).
-  double smallCarry = unitFloat(mix64(options.seed ^ 0x5bd1e995ull));
-  std::vector<glm::dvec2> bary;  // (u, v) of this triangle's surfels
-  // Appends `count` points k = first, first + 1, ... of the R2 sequence offset by `hash`, folded from the
-  // unit square onto the triangle (uniform in area).
-  const auto appendR2 = [&](uint64_t hash, int first, int count) {
-    const double o1 = unitFloat(mix64(hash ^ 0x1234567ull)), o2 = unitFloat(mix64(hash ^ 0x89abcdefull));
-    for (int k = first; k < first + count; ++k) {
-      const double u = std::fmod(o1 + a1 * k, 1.0), v = std::fmod(o2 + a2 * k, 1.0);
-      bary.push_back(u + v > 1.0 ? glm::dvec2(1.0 - u, 1.0 - v) : glm::dvec2(u, v));
-    }
-  };
-  struct PlaneSum {
-    double area = 0.0;
-    size_t count = 0;
-  };
+  double smallCarry = 0.0;
+  std::vector<glm::dvec2> bary;                       // (u, v) of this triangle's surfels
   std::unordered_map<uint64_t, uint32_t> planeIndex;  // lattice key -> planes
   std::vector<PlaneSum> planes;
   std::vector<std::pair<size_t, uint32_t>> surfelPlane;  // (surfel, plane) of lattice surfels
-  for (size_t t = 0; t < mesh.triangleCount(); ++t) {
-    const double area = mesh.triangleArea(t);
-    if (!(area > 0.0)) continue;
-    const uint64_t h64 = mix64(options.seed ^ mix64(uint64_t(t) + 1));
-    const double expected = area / cellArea;
-    const glm::vec3 n = mesh.faceNormal(t);
-    const glm::vec3 p0 = mesh.vertex(t, 0), p1 = mesh.vertex(t, 1), p2 = mesh.vertex(t, 2);
-    bary.clear();
-    bool onLattice = false;
-    uint64_t planeKey = 0;
-    if (expected >= 1.0) {
-      // The lattice lives in the triangle's plane, in coordinates along two in-plane axes measured from the
-      // world origin, with an offset hashed from (seed, quantised plane): coplanar triangles (a quad's
-      // two halves, a wall of many) share one lattice, so their surfels tile across shared edges.
-      const glm::dvec3 nd(n);
-      const glm::dvec3 ax = std::abs(nd.y) >= 0.5 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
-      const glm::dvec3 t1 = glm::normalize(ax - glm::dot(ax, nd) * nd), t2 = glm::cross(nd, t1);
-      const glm::dvec3 q0(p0), q1(p1), q2(p2);
-      const glm::dvec2 v0(glm::dot(q0, t1), glm::dot(q0, t2)), v1(glm::dot(q1, t1), glm::dot(q1, t2)),
-          v2(glm::dot(q2, t1), glm::dot(q2, t2));
-      const auto quant = [](double x, double step) { return uint64_t(int64_t(std::llround(x / step))); };
-      const uint64_t plane = mix64(
-          options.seed ^
-          mix64(quant(nd.x, 1e-4) ^
-                mix64(quant(nd.y, 1e-4) ^ mix64(quant(nd.z, 1e-4) ^ mix64(quant(glm::dot(nd, q0), 1e-3))))));
-      planeKey =
-          mix64(plane ^ mix64(uint64_t(mesh.triangleMaterial[t]) + 7));  // radius group: plane x material
-      const double offX = unitFloat(mix64(plane ^ 0x1234567ull)),
-                   offY = unitFloat(mix64(plane ^ 0x89abcdefull));
-      const glm::dvec2 lo = glm::min(v0, glm::min(v1, v2)), hi = glm::max(v0, glm::max(v1, v2));
-      // Barycentrics of a plane point: p = v0 + u (v1 - v0) + v (v2 - v0).
-      const glm::dvec2 e1 = v1 - v0, e2 = v2 - v0;
-      const double det = e1.x * e2.y - e1.y * e2.x;
-      if (std::abs(det) > 0.0) {
-        const long j0 = long(std::ceil(lo.y / rowPitch - offY)),
-                   j1 = long(std::floor(hi.y / rowPitch - offY));
-        for (long j = j0; j <= j1; ++j) {
-          const double y = (double(j) + offY) * rowPitch;
-          const double shift = offX + 0.5 * double(j & 1);
-          const long i0 = long(std::ceil(lo.x / h - shift)), i1 = long(std::floor(hi.x / h - shift));
-          for (long i = i0; i <= i1; ++i) {
-            const glm::dvec2 d = glm::dvec2((double(i) + shift) * h, y) - v0;
-            const double u = (d.x * e2.y - d.y * e2.x) / det, v = (e1.x * d.y - e1.y * d.x) / det;
-            if (u >= 0.0 && v >= 0.0 && u + v <= 1.0) bary.emplace_back(u, v);
-          }
-        }
+};
+
+// Appends `count` points k = first, first + 1, ... of the R2 sequence offset by `hash`, folded from the
+// unit square onto the triangle (uniform in area).
+void SurfelSampler::appendR2(uint64_t hash, int first, int count) {
+  const double o1 = unitDouble(splitmix64(hash ^ 0x1234567ull)),
+               o2 = unitDouble(splitmix64(hash ^ 0x89abcdefull));
+  for (int k = first; k < first + count; ++k) {
+    const double u = std::fmod(o1 + a1 * k, 1.0), v = std::fmod(o2 + a2 * k, 1.0);
+    bary.push_back(u + v > 1.0 ? glm::dvec2(1.0 - u, 1.0 - v) : glm::dvec2(u, v));
+  }
+}
+
+// Appends triangle t's lattice points to bary; returns its radius group (plane x material).
+uint64_t SurfelSampler::appendLattice(size_t t, const glm::vec3& n, const glm::vec3& p0, const glm::vec3& p1,
+                                      const glm::vec3& p2) {
+  // The lattice lives in the triangle's plane, in coordinates along two in-plane axes measured from the
+  // world origin, with an offset hashed from (seed, quantised plane): coplanar triangles (a quad's
+  // two halves, a wall of many) share one lattice, so their surfels tile across shared edges.
+  const glm::dvec3 nd(n);
+  const glm::dvec3 ax = std::abs(nd.y) >= 0.5 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
+  const glm::dvec3 t1 = glm::normalize(ax - glm::dot(ax, nd) * nd), t2 = glm::cross(nd, t1);
+  const glm::dvec3 q0(p0), q1(p1), q2(p2);
+  const glm::dvec2 v0(glm::dot(q0, t1), glm::dot(q0, t2)), v1(glm::dot(q1, t1), glm::dot(q1, t2)),
+      v2(glm::dot(q2, t1), glm::dot(q2, t2));
+  const auto quant = [](double x, double step) { return uint64_t(int64_t(std::llround(x / step))); };
+  const uint64_t plane = splitmix64(
+      options.seed ^
+      splitmix64(quant(nd.x, 1e-4) ^
+                 splitmix64(quant(nd.y, 1e-4) ^
+                            splitmix64(quant(nd.z, 1e-4) ^ splitmix64(quant(glm::dot(nd, q0), 1e-3))))));
+  const uint64_t planeKey = splitmix64(
+      plane ^ splitmix64(uint64_t(mesh.triangleMaterial[t]) + 7));  // radius group: plane x material
+  const double offX = unitDouble(splitmix64(plane ^ 0x1234567ull)),
+               offY = unitDouble(splitmix64(plane ^ 0x89abcdefull));
+  const glm::dvec2 lo = glm::min(v0, glm::min(v1, v2)), hi = glm::max(v0, glm::max(v1, v2));
+  // Barycentrics of a plane point: p = v0 + u (v1 - v0) + v (v2 - v0).
+  const glm::dvec2 e1 = v1 - v0, e2 = v2 - v0;
+  const double det = e1.x * e2.y - e1.y * e2.x;
+  if (std::abs(det) > 0.0) {
+    const long j0 = long(std::ceil(lo.y / rowPitch - offY)), j1 = long(std::floor(hi.y / rowPitch - offY));
+    for (long j = j0; j <= j1; ++j) {
+      const double y = (double(j) + offY) * rowPitch;
+      const double shift = offX + 0.5 * double(j & 1);
+      const long i0 = long(std::ceil(lo.x / h - shift)), i1 = long(std::floor(hi.x / h - shift));
+      for (long i = i0; i <= i1; ++i) {
+        const glm::dvec2 d = glm::dvec2((double(i) + shift) * h, y) - v0;
+        const double u = (d.x * e2.y - d.y * e2.x) / det, v = (e1.x * d.y - e1.y * d.x) / det;
+        if (u >= 0.0 && v >= 0.0 && u + v <= 1.0) bary.emplace_back(u, v);
       }
-      onLattice = !bary.empty();
-      // A sliver narrower than the lattice: R2 points, as many as its area asks.
-      if (bary.empty()) appendR2(h64, 1, int(std::floor(expected + unitFloat(h64))));
-    } else {
-      const double before = std::floor(smallCarry);
-      smallCarry += expected;
-      appendR2(h64, 0, int(std::floor(smallCarry) - before));
-    }
-    if (bary.empty()) continue;
-    // Radius: small triangles a disc of area s^2; sliver R2 points share the sliver's area; lattice points
-    // share the area of their plane's triangles of one material (set below, once all are sampled), so the
-    // surfels of a wall have one radius however the triangles' outlines cut the lattice, and an emitter
-    // inset in a ceiling keeps its exact area (power).
-    const float radius = float(expected < 1.0 ? std::sqrt(cellArea / std::numbers::pi)
-                                              : std::sqrt(area / (double(bary.size()) * std::numbers::pi)));
-    if (onLattice) {
-      auto [it, fresh] = planeIndex.try_emplace(planeKey, uint32_t(planes.size()));
-      if (fresh) planes.push_back({0.0, 0});
-      planes[it->second].area += area;
-      planes[it->second].count += bary.size();
-      for (size_t k = 0; k < bary.size(); ++k) surfelPlane.push_back({out.size() + k, it->second});
-    }
-    const Material& mat = mesh.materials[mesh.triangleMaterial[t]];
-    const Texture* tex = mat.albedoTexture >= 0 ? &mesh.textures[size_t(mat.albedoTexture)] : nullptr;
-    const uint32_t* idx = &mesh.indices[t * 3];
-    for (const glm::dvec2& b : bary) {
-      const float fu = float(b.x), fv = float(b.y), fw = 1.0f - fu - fv;
-      glm::vec3 albedo = mat.albedo;
-      if (tex && !mesh.uvs.empty()) {
-        glm::vec2 uv = mesh.uvs[idx[0]] * fw + mesh.uvs[idx[1]] * fu + mesh.uvs[idx[2]] * fv;
-        albedo *= tex->sampleLinear(uv);
-      }
-      Surfel sf;
-      sf.positionRadius = glm::vec4(p0 * fw + p1 * fu + p2 * fv, radius);
-      sf.normal = glm::vec4(n, 0.0f);
-      sf.albedo = glm::vec4(glm::clamp(albedo, 0.0f, 1.0f), 1.0f);
-      sf.emission = glm::vec4(mat.emission, 0.0f);
-      out.push_back(sf);
     }
   }
-  for (const auto& [i, pl] : surfelPlane)
+  return planeKey;
+}
+
+void SurfelSampler::sampleTriangle(size_t t) {
+  const double area = mesh.triangleArea(t);
+  if (!(area > 0.0)) return;
+  const uint64_t h64 = splitmix64(options.seed ^ splitmix64(uint64_t(t) + 1));
+  const double expected = area / cellArea;
+  const glm::vec3 n = mesh.faceNormal(t);
+  const glm::vec3 p0 = mesh.vertex(t, 0), p1 = mesh.vertex(t, 1), p2 = mesh.vertex(t, 2);
+  bary.clear();
+  bool onLattice = false;
+  uint64_t planeKey = 0;
+  if (expected >= 1.0) {
+    planeKey = appendLattice(t, n, p0, p1, p2);
+    onLattice = !bary.empty();
+    // A sliver narrower than the lattice: R2 points, as many as its area asks.
+    if (bary.empty()) appendR2(h64, 1, int(std::floor(expected + unitDouble(h64))));
+  } else {
+    const double before = std::floor(smallCarry);
+    smallCarry += expected;
+    appendR2(h64, 0, int(std::floor(smallCarry) - before));
+  }
+  if (bary.empty()) return;
+  // Radius: small triangles a disc of area s^2; sliver R2 points share the sliver's area; lattice points
+  // share the area of their plane's triangles of one material (set below, once all are sampled), so the
+  // surfels of a wall have one radius however the triangles' outlines cut the lattice, and an emitter
+  // inset in a ceiling keeps its exact area (power).
+  const float radius = float(expected < 1.0 ? std::sqrt(cellArea / std::numbers::pi)
+                                            : std::sqrt(area / (double(bary.size()) * std::numbers::pi)));
+  if (onLattice) {
+    auto [it, fresh] = planeIndex.try_emplace(planeKey, uint32_t(planes.size()));
+    if (fresh) planes.push_back({0.0, 0});
+    planes[it->second].area += area;
+    planes[it->second].count += bary.size();
+    for (size_t k = 0; k < bary.size(); ++k) surfelPlane.push_back({out.size() + k, it->second});
+  }
+  emitSurfels(t, n, p0, p1, p2, radius);
+}
+
+// Appends one surfel per bary point of triangle t, its albedo from the material's texture where it has one.
+void SurfelSampler::emitSurfels(size_t t, const glm::vec3& n, const glm::vec3& p0, const glm::vec3& p1,
+                                const glm::vec3& p2, float radius) {
+  const Material& mat = mesh.materials[mesh.triangleMaterial[t]];
+  const Texture* tex = mat.albedoTexture >= 0 ? &mesh.textures[size_t(mat.albedoTexture)] : nullptr;
+  const uint32_t* idx = &mesh.indices[t * 3];
+  for (const glm::dvec2& b : bary) {
+    const float fu = float(b.x), fv = float(b.y), fw = 1.0f - fu - fv;
+    glm::vec3 albedo = mat.albedo;
+    if (tex && !mesh.uvs.empty()) {
+      glm::vec2 uv = mesh.uvs[idx[0]] * fw + mesh.uvs[idx[1]] * fu + mesh.uvs[idx[2]] * fv;
+      albedo *= tex->sampleLinear(uv);
+    }
+    Surfel sf;
+    sf.positionRadius = glm::vec4(p0 * fw + p1 * fu + p2 * fv, radius);
+    sf.normal = glm::vec4(n, 0.0f);
+    sf.albedo = glm::vec4(glm::clamp(albedo, 0.0f, 1.0f), 1.0f);
+    sf.emission = glm::vec4(mat.emission, 0.0f);
+    out.push_back(sf);
+  }
+}
+
+}  // namespace
+
+std::vector<Surfel> sampleSurfels(const TriangleMesh& mesh, const SurfelOptions& options) {
+  const double s = options.spacing;
+  if (!std::isfinite(s) || s <= 0.0) fail("surfel spacing must be finite and > 0 (got {})", s);
+  mesh.validate("surfel sampling input");
+  std::vector<Surfel> out;
+  SurfelSampler sampler(mesh, options, out);
+  for (size_t t = 0; t < mesh.triangleCount(); ++t) sampler.sampleTriangle(t);
+  for (const auto& [i, pl] : sampler.surfelPlane)
     out[i].positionRadius.w =
-        float(std::sqrt(planes[pl].area / (double(planes[pl].count) * std::numbers::pi)));
+        float(std::sqrt(sampler.planes[pl].area / (double(sampler.planes[pl].count) * std::numbers::pi)));
   return out;
 }
 

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "core/hash.h"
 
 // Layout of this file: hashing and noise; the world's pure functions (cell kinds, roads, terrain); the
 // CellBuilder that emits boxes into the mesh and the descriptors at once; the building generator; block
@@ -19,27 +20,15 @@ namespace lfgi::worlds {
 namespace {
 
 // ---------------------------------------------------------------------------------------------------
-// Counter-based randomness: splitmix64's finaliser (Steele, Lea, Flood 2014) applied to a key built from
-// (seed, purpose, integers...). No state is shared between cells, so any cell can be generated alone.
-
-constexpr uint64_t mix64(uint64_t z) {
-  z += 0x9e3779b97f4a7c15ull;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-  return z ^ (z >> 31);
-}
+// Counter-based randomness: splitmix64 (core/hash.h) applied to a key built from (seed, purpose,
+// integers...). No state is shared between cells, so any cell can be generated alone.
 
 inline uint64_t hashKey(uint64_t key) {
   return key;
 }
 template <typename... Rest>
 uint64_t hashKey(uint64_t key, int64_t first, Rest... rest) {
-  return hashKey(mix64(key ^ mix64(uint64_t(first) + 0x632be59bd9b4e019ull)), int64_t(rest)...);
-}
-
-// Uniform in [0, 1) from the top 53 bits.
-double toUnit(uint64_t h) {
-  return double(h >> 11) * 0x1.0p-53;
+  return hashKey(splitmix64(key ^ splitmix64(uint64_t(first) + 0x632be59bd9b4e019ull)), int64_t(rest)...);
 }
 
 // What a random number is for; part of every key so streams for different purposes never correlate.
@@ -56,13 +45,13 @@ enum Purpose : int64_t {
   kPurposeEdit = 10,  // world edits (world_edits.h): keyed by edit index
 };
 
-// A stream of numbers from one key: value i is mix64(key + i * golden). Used inside one object's
+// A stream of numbers from one key: value i is splitmix64(key + i * golden). Used inside one object's
 // generation, whose code runs in a fixed order, so the stream is reproducible.
 class Rng {
  public:
   explicit Rng(uint64_t key) : key_(key) {}
-  uint64_t next() { return mix64(key_ + 0x9e3779b97f4a7c15ull * ++counter_); }
-  double u01() { return toUnit(next()); }
+  uint64_t next() { return splitmix64(key_ + kGoldenGamma * ++counter_); }
+  double u01() { return unitDouble(next()); }
   double range(double lo, double hi) { return lo + (hi - lo) * u01(); }
   int irange(int lo, int hi) { return lo + int(next() % uint64_t(hi - lo + 1)); }  // inclusive
   bool chance(double p) { return u01() < p; }
@@ -86,7 +75,7 @@ double valueNoise(uint64_t seed, int64_t purpose, double x, double z) {
   const double fx0 = std::floor(x), fz0 = std::floor(z);
   const int64_t ix = int64_t(fx0), iz = int64_t(fz0);
   const double tx = fade(x - fx0), tz = fade(z - fz0);
-  auto v = [&](int64_t a, int64_t b) { return toUnit(hashKey(seed, purpose, a, b)); };
+  auto v = [&](int64_t a, int64_t b) { return unitDouble(hashKey(seed, purpose, a, b)); };
   const double a = v(ix, iz) + (v(ix + 1, iz) - v(ix, iz)) * tx;
   const double b = v(ix, iz + 1) + (v(ix + 1, iz + 1) - v(ix, iz + 1)) * tx;
   return a + (b - a) * tz;
@@ -166,9 +155,9 @@ struct WorldView {
     const double xm = (double(cx) + 0.5) * cellM, zm = (double(cz) + 0.5) * cellM;
     const double u = 0.65 * valueNoise(seed, kPurposeUrbanLow, xm / 900.0, zm / 900.0) +
                      0.35 * valueNoise(seed, kPurposeUrbanHigh, xm / 350.0, zm / 350.0) +
-                     0.14 * (toUnit(hashKey(seed, kPurposeUrbanJitter, cx, cz)) - 0.5);
+                     0.14 * (unitDouble(hashKey(seed, kPurposeUrbanJitter, cx, cz)) - 0.5);
     if (u > 0.585)
-      return toUnit(hashKey(seed, kPurposePark, cx, cz)) < 0.1 ? CellKind::kPark : CellKind::kCity;
+      return unitDouble(hashKey(seed, kPurposePark, cx, cz)) < 0.1 ? CellKind::kPark : CellKind::kCity;
     if (u > 0.5) return CellKind::kSuburb;
     return CellKind::kField;
   }
@@ -185,7 +174,7 @@ struct WorldView {
         break;
     }
     if (showcase(cx, cz)) return kShowcaseBlocks[cz][cx];
-    const double r = toUnit(hashKey(seed, kPurposeBlockType, cx, cz, bi, bj));
+    const double r = unitDouble(hashKey(seed, kPurposeBlockType, cx, cz, bi, bj));
     if (r < 0.14) return BlockType::kCourtyard;
     if (r < 0.28) return BlockType::kArcade;
     if (r < 0.40) return BlockType::kLeakTest;
@@ -704,10 +693,21 @@ void emitExteriorWall(CellBuilder& cb, const Frame& f, int side, double L, doubl
   if (wallTop > split) emit({s0, s1, split, wallTop});
 }
 
-// Emits one building from its plan; returns its index in layout.buildings, or -1 when a clear region
-// removed it (nothing emitted; the caller's random stream is unchanged either way).
-int emitBuilding(CellBuilder& cb, const BuildingPlan& bp, Rng rng) {
-  if (!bp.edit && cb.cleared(planExtent(bp))) return -1;
+// One building's emission from its plan, stage by stage; the members are the plan's dimensions and what
+// each stage hands to the next.
+struct BuildingEmitter {
+  BuildingEmitter(CellBuilder& builder, const BuildingPlan& plan) : cb(builder), bp(plan) {}
+
+  void planRooms(Rng& rng);
+  void placeOpenings(Rng& rng);
+  void emitExteriorWalls();
+  void emitFloors();
+  void emitRoof();
+  void emitArcade();
+  int record();
+
+  CellBuilder& cb;
+  const BuildingPlan& bp;
   CellLayout& lay = cb.layout();
   const Frame& f = bp.f;
   const double L = bp.L, D = bp.D, t = bp.extT, it = bp.intT, h = bp.storeyH, st = bp.slabT;
@@ -716,12 +716,29 @@ int emitBuilding(CellBuilder& cb, const BuildingPlan& bp, Rng rng) {
   const double wallTop = bp.roof == RoofKind::kFlatParapet ? top + bp.parapet : top - st;
   const double wallBot = bp.base - st;
   const MatSpec inMat = interiorMat(), slab = slabMat();
+  const std::array<glm::dvec3, 4> outward{-f.dirV(), f.dirV(), -f.dirU(), f.dirU()};
 
+  // Plan (planRooms).
+  std::vector<double> dividers;                  // wall centre lines along u
+  std::vector<std::pair<double, double>> roomU;  // air ranges
+  const bool corridor = bp.corridor && D >= 10.0;
+  const double cw = 1.8;
+  const double vc0 = 0.5 * D - 0.5 * cw, vc1 = 0.5 * D + 0.5 * cw;  // corridor air
+  std::vector<std::pair<double, double>> roomV;                     // air ranges across v
+  std::vector<std::pair<double, double>> endSpans;                  // window spans on the end walls
+  std::vector<LocalRoom> rooms;
+
+  std::vector<Opening> openings;  // exterior (placeOpenings), then interior doors (emitFloors)
+  Aabb roofBox;
+  Arcade arcade;
+  bool hasArcade = false;
+};
+
+void BuildingEmitter::planRooms(Rng& rng) {
   // --- plan: rooms along u (bays grouped 1 or 2 per room), optional central corridor along u.
   const double Li = L - 2 * t;
   const int nbay = std::max(1, int(std::floor(Li / bp.win.bay + 1e-9)));
   const double bw = Li / double(nbay);
-  std::vector<double> dividers;  // wall centre lines along u
   {
     int j = 0;
     while (j < nbay) {
@@ -730,7 +747,6 @@ int emitBuilding(CellBuilder& cb, const BuildingPlan& bp, Rng rng) {
       if (j < nbay) dividers.push_back(t + double(j) * bw);
     }
   }
-  std::vector<std::pair<double, double>> roomU;  // air ranges
   {
     double a = t;
     for (double dc : dividers) {
@@ -739,27 +755,23 @@ int emitBuilding(CellBuilder& cb, const BuildingPlan& bp, Rng rng) {
     }
     roomU.push_back({a, L - t});
   }
-  const bool corridor = bp.corridor && D >= 10.0;
-  const double cw = 1.8;
-  const double vc0 = 0.5 * D - 0.5 * cw, vc1 = 0.5 * D + 0.5 * cw;  // corridor air
-  std::vector<std::pair<double, double>> roomV;                     // air ranges across v
   if (corridor)
     roomV = {{t, vc0 - it}, {vc1 + it, D - t}};
   else
     roomV = {{t, D - t}};
-  std::vector<std::pair<double, double>> endSpans = roomV;  // window spans on the end walls
+  endSpans = roomV;
   if (corridor) endSpans.insert(endSpans.begin() + 1, {vc0, vc1});
 
-  std::vector<LocalRoom> rooms;
   for (int k = 0; k < n; ++k) {
     const double yf = bp.base + double(k) * h, yc = yf + h - st;
     for (const auto& [v0, v1] : roomV)
       for (const auto& [u0, u1] : roomU) rooms.push_back(makeRoom(u0, u1, v0, v1, yf, yc, k, false));
     if (corridor) rooms.push_back(makeRoom(t, L - t, vc0, vc1, yf, yc, k, true));
   }
+}
 
+void BuildingEmitter::placeOpenings(Rng& rng) {
   // --- exterior openings
-  std::vector<Opening> openings;
   bool glazed = rng.chance(bp.win.glazedP);
   auto fillFor = [&](Rng& r) {
     return r.chance(bp.win.litP) ? Fill::kLit : (glazed ? Fill::kGlass : Fill::kOpen);
@@ -817,9 +829,10 @@ int emitBuilding(CellBuilder& cb, const BuildingPlan& bp, Rng rng) {
         break;
     }
   }
+}
 
+void BuildingEmitter::emitExteriorWalls() {
   // --- exterior walls: sides 0/1 run the full length, 2/3 fit between them.
-  const std::array<glm::dvec3, 4> outward{-f.dirV(), f.dirV(), -f.dirU(), f.dirU()};
   for (int side = 0; side < 4; ++side) {
     const MatSpec m = facadeMat(bp.facade[size_t(side)]);
     const double s0 = side < 2 ? 0.0 : t, s1 = side < 2 ? L : D - t;
@@ -854,7 +867,9 @@ int emitBuilding(CellBuilder& cb, const BuildingPlan& bp, Rng rng) {
       lay.colouredWalls.push_back(painted);
     }
   }
+}
 
+void BuildingEmitter::emitFloors() {
   // --- slabs, interior walls with doors
   for (int k = 0; k < n; ++k) {
     const double yf = bp.base + double(k) * h, yc = yf + h - st;
@@ -895,19 +910,21 @@ int emitBuilding(CellBuilder& cb, const BuildingPlan& bp, Rng rng) {
       }
     }
   }
+}
+
+void BuildingEmitter::emitRoof() {
   // --- roof
   const MatSpec rm = roofMat();
-  Aabb roofBox;
   if (bp.roof == RoofKind::kFlatParapet) {
     roofBox = f.box(cb, t, L - t, t, D - t, top - st, top, rm);
   } else {
     const double e = bp.overhang;
     roofBox = f.box(cb, -e, L + e, -e, D + e, top - st, top, rm);
   }
+}
 
+void BuildingEmitter::emitArcade() {
   // --- arcade: pillars and a roof slab at the first-floor level, outside facade arcadeSide.
-  Arcade arcade;
-  bool hasArcade = false;
   if (bp.arcadeSide >= 0 && n >= 2) {
     const double ad = bp.arcadeDepth;
     const double vOut = bp.arcadeSide == 0 ? -ad - 0.25 : D + ad + 0.25;  // outer edge of the roof
@@ -929,7 +946,10 @@ int emitBuilding(CellBuilder& cb, const BuildingPlan& bp, Rng rng) {
     arcade.building = int(lay.buildings.size());
     hasArcade = true;
   }
+}
 
+// Counts each room's openings and appends the building and its rooms to the layout; returns its index.
+int BuildingEmitter::record() {
   // --- rooms: openings from probe points.
   for (const Opening& o : openings) {
     const double y = 0.5 * (o.y0 + o.y1);
@@ -973,6 +993,20 @@ int emitBuilding(CellBuilder& cb, const BuildingPlan& bp, Rng rng) {
   lay.buildings.push_back(bld);
   if (hasArcade) lay.arcades.push_back(arcade);
   return index;
+}
+
+// Emits one building from its plan; returns its index in layout.buildings, or -1 when a clear region
+// removed it (nothing emitted; the caller's random stream is unchanged either way).
+int emitBuilding(CellBuilder& cb, const BuildingPlan& bp, Rng rng) {
+  if (!bp.edit && cb.cleared(planExtent(bp))) return -1;
+  BuildingEmitter b(cb, bp);
+  b.planRooms(rng);
+  b.placeOpenings(rng);
+  b.emitExteriorWalls();
+  b.emitFloors();
+  b.emitRoof();
+  b.emitArcade();
+  return b.record();
 }
 
 // The leak-test house: one storey, lit room | thin partition | sealed room. The lit room has a big
