@@ -13,6 +13,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/hash.h"
 #include "core/metrics.h"
 #include "core/octahedral.h"
 #include "core/progress.h"
@@ -24,20 +25,6 @@ namespace lfgi::bake {
 namespace {
 
 constexpr int kBase = 4;
-
-uint64_t fnv(uint64_t h, const void* data, size_t size) {
-  const auto* b = static_cast<const unsigned char*>(data);
-  for (size_t i = 0; i < size; ++i) {
-    h ^= b[i];
-    h *= 1099511628211ull;
-  }
-  return h;
-}
-template <typename T>
-uint64_t fnvValue(uint64_t h, const T& v) {
-  return fnv(h, &v, sizeof(T));
-}
-constexpr uint64_t kFnvOffset = 14695981039346656037ull;
 
 double secondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -263,20 +250,20 @@ Data makeData(const GeneratorTrainingSet& set, const GeneratorTrainingOptions& o
 }
 
 uint64_t fingerprint(const GeneratorTrainingSet& set, const GeneratorTrainingOptions& o, const Data& d) {
-  uint64_t h = fnvValue(kFnvOffset, set.contentHash());
+  uint64_t h = fnv1aValue(kFnv1aOffset, set.contentHash());
   const GeneratorArch& a = o.arch;
-  h = fnvValue(h, a.latentDim);
-  h = fnvValue(h, a.condDim);
-  for (int c : a.convChannels) h = fnvValue(h, c);
-  h = fnvValue(h, uint8_t(a.latentSource));
-  h = fnvValue(h, a.fourierOctaves);
+  h = fnv1aValue(h, a.latentDim);
+  h = fnv1aValue(h, a.condDim);
+  for (int c : a.convChannels) h = fnv1aValue(h, c);
+  h = fnv1aValue(h, uint8_t(a.latentSource));
+  h = fnv1aValue(h, a.fourierOctaves);
   for (float v :
        {o.learningRate, o.latentLearningRate, o.loss.radiance, o.loss.irradiance, o.loss.distance,
         o.loss.normal, o.loss.albedo, o.loss.latent, o.loss.adversarial, d.scale.exposure, d.scale.range})
-    h = fnvValue(h, v);
+    h = fnv1aValue(h, v);
   for (int v : {o.maxSteps, o.discriminatorWidth, o.batchSize, int(o.adversarial), o.latentQuantBits})
-    h = fnvValue(h, v);
-  return fnvValue(h, o.seed);
+    h = fnv1aValue(h, v);
+  return fnv1aValue(h, o.seed);
 }
 
 // Sample indices of step t: positions t*B .. t*B+B-1 of an endless sequence of per-epoch permutations
@@ -479,12 +466,12 @@ void GeneratorTrainingSet::validate() const {
 }
 
 uint64_t GeneratorTrainingSet::contentHash() const {
-  uint64_t h = kFnvOffset;
-  for (glm::vec3 p : positions01) h = fnvValue(h, p);
+  uint64_t h = kFnv1aOffset;
+  for (glm::vec3 p : positions01) h = fnv1aValue(h, p);
   for (const LightingKey& k : keys) {
-    h = fnvValue(h, k.timeOfDayHours);
-    h = fnvValue(h, k.weather);
-    for (const ProbeCapture& c : k.probes) h = fnvValue(h, c.contentHash());
+    h = fnv1aValue(h, k.timeOfDayHours);
+    h = fnv1aValue(h, k.weather);
+    for (const ProbeCapture& c : k.probes) h = fnv1aValue(h, c.contentHash());
   }
   return h;
 }
@@ -546,13 +533,93 @@ GeneratorTrainingSet captureTrainingSet(const EmbreeScene& scene, std::span<cons
 }
 
 // ---- training --------------------------------------------------------------------------------------
-TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const GeneratorTrainingOptions& o) {
-  const auto t0 = std::chrono::steady_clock::now();
+namespace {
+
+// trainGenerator's model and optimisers; latents are trained only when stored (else the position latents).
+struct GeneratorModel {
+  GeneratorNet& gen;
+  torch::Tensor& latents;
+  torch::optim::Adam& opt;
+  Discriminator& disc;
+  torch::optim::Adam& discOpt;
+};
+
+void checkGeneratorInputs(const GeneratorTrainingSet& set, const GeneratorTrainingOptions& o) {
   set.validate();
   o.validate();
   if (o.arch.outputResolution() != set.resolution())
     fail("GeneratorTrainingOptions.arch: output {} x {} but the captures are {} x {}",
          o.arch.outputResolution(), o.arch.outputResolution(), set.resolution(), set.resolution());
+}
+
+void loadGeneratorCheckpoint(torch::serialize::InputArchive& ar, const GeneratorTrainingOptions& o,
+                             GeneratorModel m, bool stored) {
+  torch::serialize::InputArchive g, og;
+  ar.read("gen", g);
+  m.gen->load(g);
+  if (stored) {
+    torch::NoGradGuard noGrad;
+    torch::Tensor z;
+    ar.read("latents", z);
+    m.latents.copy_(z);
+  }
+  ar.read("opt", og);
+  m.opt.load(og);
+  if (o.adversarial) {
+    torch::serialize::InputArchive dg, dog;
+    ar.read("disc", dg);
+    m.disc->load(dg);
+    ar.read("discOpt", dog);
+    m.discOpt.load(dog);
+  }
+}
+
+void saveGeneratorCheckpoint(const GeneratorTrainingOptions& o, GeneratorModel m, bool stored, uint64_t fp,
+                             int step) {
+  if (o.checkpoint.empty()) return;
+  torch::serialize::OutputArchive out, g, og;
+  m.gen->save(g);
+  out.write("gen", g);
+  if (stored) out.write("latents", m.latents.detach());
+  m.opt.save(og);
+  out.write("opt", og);
+  if (o.adversarial) {
+    torch::serialize::OutputArchive dg, dog;
+    m.disc->save(dg);
+    out.write("disc", dg);
+    m.discOpt.save(dog);
+    out.write("discOpt", dog);
+  }
+  saveCheckpointArchive(o.checkpoint, fp, step, out);
+}
+
+// Discriminator step on real captures vs the current (detached) outputs, then the generator's
+// non-saturating term (Goodfellow et al. 2014), unweighted.
+torch::Tensor adversarialTerm(Discriminator& disc, torch::optim::Adam& discOpt, const torch::Tensor& ref,
+                              const torch::Tensor& y, const torch::Tensor& cond) {
+  discOpt.zero_grad();
+  torch::Tensor real = disc->forward(ref, cond), fake = disc->forward(y.detach(), cond);
+  torch::Tensor dLoss = torch::binary_cross_entropy_with_logits(real, torch::ones_like(real)) +
+                        torch::binary_cross_entropy_with_logits(fake, torch::zeros_like(fake));
+  dLoss.backward();
+  discOpt.step();
+  torch::Tensor g = disc->forward(y, cond);
+  return torch::binary_cross_entropy_with_logits(g, torch::ones_like(g));
+}
+
+// The exported model's errors through the core decoder, and whether they meet the target.
+void reportCodecError(GeneratorTrainingReport& r, const CodecError& ce, const GeneratorTrainingOptions& o) {
+  r.irradianceRelativeRms = ce.irradianceRelativeRms;
+  r.radianceRelativeRms = ce.radianceRelativeRms;
+  r.radiancePsnrDb = ce.radiancePsnrDb;
+  r.reachedTarget = ce.irradianceRelativeRms <= o.irradianceErrorTarget;
+}
+
+}  // namespace
+
+TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const GeneratorTrainingOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  checkGeneratorInputs(set, o);
   setThreads(o.threads);
   torch::manual_seed(o.seed);
   const Data d = makeData(set, o);
@@ -569,6 +636,7 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
   torch::optim::Adam opt(std::move(groups), torch::optim::AdamOptions(o.learningRate));
   Discriminator disc(d.n, o.discriminatorWidth, o.arch.condDim);
   torch::optim::Adam discOpt(disc->parameters(), torch::optim::AdamOptions(2e-4).betas({0.5, 0.999}));
+  const GeneratorModel m{gen, latents, opt, disc, discOpt};
 
   const uint64_t fp = fingerprint(set, o, d);
   int step = 0;
@@ -576,43 +644,10 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
   torch::serialize::InputArchive ar;
   if (std::optional<int> resumed = openCheckpoint(o.checkpoint, fp, ar)) {
     step = *resumed;
-    torch::serialize::InputArchive g, og;
-    ar.read("gen", g);
-    gen->load(g);
-    if (stored) {
-      torch::NoGradGuard noGrad;
-      torch::Tensor z;
-      ar.read("latents", z);
-      latents.copy_(z);
-    }
-    ar.read("opt", og);
-    opt.load(og);
-    if (o.adversarial) {
-      torch::serialize::InputArchive dg, dog;
-      ar.read("disc", dg);
-      disc->load(dg);
-      ar.read("discOpt", dog);
-      discOpt.load(dog);
-    }
+    loadGeneratorCheckpoint(ar, o, m, stored);
     result.report.resumedFromStep = step;
   }
-  auto saveCheckpoint = [&]() {
-    if (o.checkpoint.empty()) return;
-    torch::serialize::OutputArchive out, g, og;
-    gen->save(g);
-    out.write("gen", g);
-    if (stored) out.write("latents", latents.detach());
-    opt.save(og);
-    out.write("opt", og);
-    if (o.adversarial) {
-      torch::serialize::OutputArchive dg, dog;
-      disc->save(dg);
-      out.write("disc", dg);
-      discOpt.save(dog);
-      out.write("discOpt", dog);
-    }
-    saveCheckpointArchive(o.checkpoint, fp, step, out);
-  };
+  auto saveCheckpoint = [&]() { saveGeneratorCheckpoint(o, m, stored, fp, step); };
 
   // Latents as the decoder will see them: on the int8 / 4-bit grid with quantization in the loop.
   auto inputs = [&](const torch::Tensor& idx) {
@@ -657,18 +692,7 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
       break;
     }
     torch::Tensor cond = o.arch.condDim > 0 ? d.cond.index_select(0, idx.div(d.P, "floor")) : torch::Tensor();
-    if (o.adversarial) {
-      // Discriminator step on real captures vs the current (detached) outputs, then the generator's
-      // non-saturating term (Goodfellow et al. 2014).
-      discOpt.zero_grad();
-      torch::Tensor real = disc->forward(ref, cond), fake = disc->forward(y.detach(), cond);
-      torch::Tensor dLoss = torch::binary_cross_entropy_with_logits(real, torch::ones_like(real)) +
-                            torch::binary_cross_entropy_with_logits(fake, torch::zeros_like(fake));
-      dLoss.backward();
-      discOpt.step();
-      torch::Tensor g = disc->forward(y, cond);
-      total = total + o.loss.adversarial * torch::binary_cross_entropy_with_logits(g, torch::ones_like(g));
-    }
+    if (o.adversarial) total = total + o.loss.adversarial * adversarialTerm(disc, discOpt, ref, y, cond);
     opt.zero_grad();
     total.backward();
     opt.step();
@@ -688,11 +712,7 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
   result.scale = d.scale;
   result.report.steps = step;
   result.report.finalLoss = loss;
-  const CodecError ce = evaluateGenerator(result, set);
-  result.report.irradianceRelativeRms = ce.irradianceRelativeRms;
-  result.report.radianceRelativeRms = ce.radianceRelativeRms;
-  result.report.radiancePsnrDb = ce.radiancePsnrDb;
-  result.report.reachedTarget = ce.irradianceRelativeRms <= o.irradianceErrorTarget;
+  reportCodecError(result.report, evaluateGenerator(result, set), o);
   result.report.seconds = secondsSince(t0);
   return result;
 }
@@ -724,11 +744,10 @@ TrainedGenerator CellAdaptation::folded(const GeneratorWeights& shared) const {
 
 namespace {
 
-// The one training loop of the shared model: pre-training (frozen == nullptr: shared weights trained
-// with every cell's latents and adapter) and a frozen fit (one or more cells against fixed weights).
-SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const GeneratorWeights* frozen,
-                            const SharedTrainingOptions& so) {
-  const auto t0 = std::chrono::steady_clock::now();
+// trainShared's inputs: valid, captures of the resolution the model outputs, and a frozen model of the
+// options' architecture.
+void checkSharedInputs(std::span<const GeneratorTrainingSet> sets, const GeneratorWeights* frozen,
+                       const SharedTrainingOptions& so) {
   so.validate();
   const GeneratorTrainingOptions& o = so.training;
   if (sets.empty()) fail("shared generator: no training cells");
@@ -745,6 +764,170 @@ SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const Ge
         a.latentSource != b.latentSource)
       fail("shared generator: the options' architecture is not the frozen model's");
   }
+}
+
+// What trainShared trains: the one generator, and per cell c its latents[c] ([P][latentDim]) and adapter
+// film[c] ([2][adapterFloats]); and what the decoder makes of them.
+struct SharedModel {
+  const SharedTrainingOptions& so;
+  const std::vector<Data>& data;
+  int64_t adapterFloats;
+  GeneratorNet gen;
+  std::vector<torch::Tensor> latents, film;
+
+  // What the decoder sees: latents and adapter on their grids when quantized in the loop.
+  torch::Tensor latentsOf(size_t c) const { return fakeQuantize(latents[c], so.training.latentQuantBits); }
+  torch::Tensor filmOf(size_t c) const {
+    return adapterFloats > 0 ? fakeQuantize(film[c].t(), so.adapterQuantBits).t() : torch::Tensor();
+  }
+  torch::Tensor forward(size_t c, const torch::Tensor& idx) {
+    const Data& d = data[c];
+    torch::Tensor z = latentsOf(c).index_select(0, idx.remainder(d.P));
+    if (so.training.arch.condDim > 0) z = torch::cat({z, d.cond.index_select(0, idx.div(d.P, "floor"))}, 1);
+    return gen->forward(z, filmOf(c), so.adapterStages);
+  }
+  double evaluate() {
+    const size_t C = data.size();
+    double sum = 0.0;
+    for (size_t c = 0; c < C; ++c)
+      sum += irradianceError(data[c], [&](const torch::Tensor& idx) { return forward(c, idx); });
+    return sum / double(C);
+  }
+};
+
+// The optimiser's groups (the shared weights unless frozen, the latents, the adapters) and, in baseLr,
+// their learning rates before the schedule.
+std::vector<torch::optim::OptimizerParamGroup> sharedParamGroups(SharedModel& m, bool frozen,
+                                                                 std::vector<float>& baseLr) {
+  const SharedTrainingOptions& so = m.so;
+  const GeneratorTrainingOptions& o = so.training;
+  std::vector<torch::optim::OptimizerParamGroup> groups;
+  if (!frozen) {
+    groups.emplace_back(m.gen->parameters(), std::make_unique<torch::optim::AdamOptions>(o.learningRate));
+    baseLr.push_back(o.learningRate);
+  }
+  groups.emplace_back(m.latents, std::make_unique<torch::optim::AdamOptions>(o.latentLearningRate));
+  baseLr.push_back(o.latentLearningRate);
+  if (m.adapterFloats > 0) {
+    groups.emplace_back(m.film, std::make_unique<torch::optim::AdamOptions>(so.adapterLearningRate));
+    baseLr.push_back(so.adapterLearningRate);
+  }
+  return groups;
+}
+
+uint64_t sharedFingerprint(std::span<const GeneratorTrainingSet> sets, const std::vector<Data>& data,
+                           const GeneratorWeights* frozen, const SharedTrainingOptions& so) {
+  const GeneratorTrainingOptions& o = so.training;
+  const size_t C = sets.size();
+  uint64_t fp = fnv1aValue(kFnv1aOffset, uint64_t(C));
+  for (size_t c = 0; c < C; ++c) fp = fnv1aValue(fp, fingerprint(sets[c], o, data[c]));
+  for (int v : {so.adapterStages, so.adapterQuantBits}) fp = fnv1aValue(fp, v);
+  for (float v : {so.adapterLearningRate, so.adapterPrior}) fp = fnv1aValue(fp, v);
+  fp = fnv1aValue(fp, frozen ? weightsContentHash(*frozen) : uint64_t(0));
+  return fp;
+}
+
+void loadSharedCheckpoint(torch::serialize::InputArchive& ar, SharedModel& m, torch::optim::Adam& opt,
+                          bool frozen) {
+  torch::NoGradGuard noGrad;
+  if (!frozen) {
+    torch::serialize::InputArchive g;
+    ar.read("gen", g);
+    m.gen->load(g);
+  }
+  for (size_t c = 0; c < m.data.size(); ++c) {
+    torch::Tensor z, f;
+    ar.read("latents" + std::to_string(c), z);
+    ar.read("film" + std::to_string(c), f);
+    m.latents[c].copy_(z);
+    m.film[c].copy_(f);
+  }
+  torch::serialize::InputArchive og;
+  ar.read("opt", og);
+  opt.load(og);
+}
+
+void saveSharedCheckpoint(SharedModel& m, torch::optim::Adam& opt, bool frozen, uint64_t fp, int step) {
+  const GeneratorTrainingOptions& o = m.so.training;
+  if (o.checkpoint.empty()) return;
+  torch::serialize::OutputArchive out, og;
+  if (!frozen) {
+    torch::serialize::OutputArchive g;
+    m.gen->save(g);
+    out.write("gen", g);
+  }
+  for (size_t c = 0; c < m.data.size(); ++c) {
+    out.write("latents" + std::to_string(c), m.latents[c].detach());
+    out.write("film" + std::to_string(c), m.film[c].detach());
+  }
+  opt.save(og);
+  out.write("opt", og);
+  saveCheckpointArchive(o.checkpoint, fp, step, out);
+}
+
+// One step's loss: each cell's reconstruction and priors on its batch, averaged over the cells.
+torch::Tensor sharedStepLoss(SharedModel& m, std::vector<BatchSchedule>& schedules, int step) {
+  const SharedTrainingOptions& so = m.so;
+  const GeneratorTrainingOptions& o = so.training;
+  const size_t C = m.data.size();
+  torch::Tensor total = torch::zeros({});
+  for (size_t c = 0; c < C; ++c) {
+    torch::Tensor idx = schedules[c].batch(step);
+    torch::Tensor l = reconstructionLoss(m.forward(c, idx), idx, m.data[c], o.loss);
+    if (o.loss.latent > 0.0f) l = l + o.loss.latent * m.latents[c].pow(2).mean();
+    if (m.adapterFloats > 0 && so.adapterPrior > 0.0f) l = l + so.adapterPrior * m.film[c].pow(2).mean();
+    total = total + l / double(C);
+  }
+  return total;
+}
+
+// Every cell's adaptation to result.weights, its errors measured through the core decoder, and the means
+// of those errors in result.report.
+void reportSharedCells(SharedGenerator& result, const SharedModel& m,
+                       std::span<const GeneratorTrainingSet> sets, int step, double loss) {
+  const SharedTrainingOptions& so = m.so;
+  const GeneratorTrainingOptions& o = so.training;
+  const size_t C = sets.size();
+  const uint64_t sharedHash = weightsContentHash(result.weights);
+  double irr = 0.0, rad = 0.0, psnrDb = 0.0;
+  for (size_t c = 0; c < C; ++c) {
+    CellAdaptation a;
+    a.latents = toVector(m.latentsOf(c));
+    a.adapter.stages = so.adapterStages;
+    if (m.adapterFloats > 0) {
+      const torch::Tensor f = m.filmOf(c);
+      a.adapter.scale = toVector(f[0]);
+      a.adapter.shift = toVector(f[1]);
+    }
+    a.scale = m.data[c].scale;
+    a.sharedWeightsHash = sharedHash;
+    a.report.steps = step;
+    a.report.resumedFromStep = result.report.resumedFromStep;
+    a.report.interrupted = result.report.interrupted;
+    a.report.diverged = result.report.diverged;
+    a.report.finalLoss = loss;
+    const CodecError ce = evaluateGenerator(a.folded(result.weights), sets[c]);
+    reportCodecError(a.report, ce, o);
+    irr += ce.irradianceRelativeRms / double(C);
+    rad += ce.radianceRelativeRms / double(C);
+    psnrDb += ce.radiancePsnrDb / double(C);
+    result.cells.push_back(std::move(a));
+  }
+  result.report.steps = step;
+  result.report.finalLoss = loss;
+  result.report.irradianceRelativeRms = irr;
+  result.report.radianceRelativeRms = rad;
+  result.report.radiancePsnrDb = psnrDb;
+  result.report.reachedTarget = irr <= o.irradianceErrorTarget;
+}
+
+// The one training loop of the shared model: pre-training (frozen == nullptr: shared weights trained
+// with every cell's latents and adapter) and a frozen fit (one or more cells against fixed weights).
+SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const GeneratorWeights* frozen,
+                            const SharedTrainingOptions& so) {
+  const auto t0 = std::chrono::steady_clock::now();
+  checkSharedInputs(sets, frozen, so);
+  const GeneratorTrainingOptions& o = so.training;
   setThreads(o.threads);
   torch::manual_seed(o.seed);
   std::vector<Data> data;
@@ -752,100 +935,36 @@ SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const Ge
   const size_t C = sets.size();
   const int64_t adapterFloats = int64_t(adapterChannels(o.arch, so.adapterStages));
 
-  GeneratorNet gen(o.arch);
+  SharedModel m{so, data, adapterFloats, GeneratorNet(o.arch), {}, {}};
   if (frozen) {
-    importWeights(gen, *frozen);
-    for (torch::Tensor& p : gen->parameters()) p.requires_grad_(false);
+    importWeights(m.gen, *frozen);
+    for (torch::Tensor& p : m.gen->parameters()) p.requires_grad_(false);
   }
-  std::vector<torch::Tensor> latents, film;
   for (const Data& d : data) {
-    latents.push_back((torch::randn({d.P, o.arch.latentDim}) * 0.1).requires_grad_(true));
-    film.push_back(torch::zeros({2, adapterFloats}).requires_grad_(true));
+    m.latents.push_back((torch::randn({d.P, o.arch.latentDim}) * 0.1).requires_grad_(true));
+    m.film.push_back(torch::zeros({2, adapterFloats}).requires_grad_(true));
   }
-  std::vector<torch::optim::OptimizerParamGroup> groups;
   std::vector<float> baseLr;
-  if (!frozen) {
-    groups.emplace_back(gen->parameters(), std::make_unique<torch::optim::AdamOptions>(o.learningRate));
-    baseLr.push_back(o.learningRate);
-  }
-  groups.emplace_back(latents, std::make_unique<torch::optim::AdamOptions>(o.latentLearningRate));
-  baseLr.push_back(o.latentLearningRate);
-  if (adapterFloats > 0) {
-    groups.emplace_back(film, std::make_unique<torch::optim::AdamOptions>(so.adapterLearningRate));
-    baseLr.push_back(so.adapterLearningRate);
-  }
-  torch::optim::Adam opt(std::move(groups), torch::optim::AdamOptions(o.learningRate));
+  torch::optim::Adam opt(sharedParamGroups(m, frozen, baseLr), torch::optim::AdamOptions(o.learningRate));
 
-  uint64_t fp = fnvValue(kFnvOffset, uint64_t(C));
-  for (size_t c = 0; c < C; ++c) fp = fnvValue(fp, fingerprint(sets[c], o, data[c]));
-  for (int v : {so.adapterStages, so.adapterQuantBits}) fp = fnvValue(fp, v);
-  for (float v : {so.adapterLearningRate, so.adapterPrior}) fp = fnvValue(fp, v);
-  fp = fnvValue(fp, frozen ? weightsContentHash(*frozen) : uint64_t(0));
-
+  const uint64_t fp = sharedFingerprint(sets, data, frozen, so);
   int step = 0;
   SharedGenerator result;
   torch::serialize::InputArchive ar;
   if (std::optional<int> resumed = openCheckpoint(o.checkpoint, fp, ar)) {
     step = *resumed;
-    torch::NoGradGuard noGrad;
-    if (!frozen) {
-      torch::serialize::InputArchive g;
-      ar.read("gen", g);
-      gen->load(g);
-    }
-    for (size_t c = 0; c < C; ++c) {
-      torch::Tensor z, f;
-      ar.read("latents" + std::to_string(c), z);
-      ar.read("film" + std::to_string(c), f);
-      latents[c].copy_(z);
-      film[c].copy_(f);
-    }
-    torch::serialize::InputArchive og;
-    ar.read("opt", og);
-    opt.load(og);
+    loadSharedCheckpoint(ar, m, opt, frozen);
     result.report.resumedFromStep = step;
   }
-  auto saveCheckpoint = [&]() {
-    if (o.checkpoint.empty()) return;
-    torch::serialize::OutputArchive out, og;
-    if (!frozen) {
-      torch::serialize::OutputArchive g;
-      gen->save(g);
-      out.write("gen", g);
-    }
-    for (size_t c = 0; c < C; ++c) {
-      out.write("latents" + std::to_string(c), latents[c].detach());
-      out.write("film" + std::to_string(c), film[c].detach());
-    }
-    opt.save(og);
-    out.write("opt", og);
-    saveCheckpointArchive(o.checkpoint, fp, step, out);
-  };
-
-  // What the decoder sees: latents and adapter on their grids when quantized in the loop.
-  auto latentsOf = [&](size_t c) { return fakeQuantize(latents[c], o.latentQuantBits); };
-  auto filmOf = [&](size_t c) {
-    return adapterFloats > 0 ? fakeQuantize(film[c].t(), so.adapterQuantBits).t() : torch::Tensor();
-  };
-  auto forward = [&](size_t c, const torch::Tensor& idx) {
-    const Data& d = data[c];
-    torch::Tensor z = latentsOf(c).index_select(0, idx.remainder(d.P));
-    if (o.arch.condDim > 0) z = torch::cat({z, d.cond.index_select(0, idx.div(d.P, "floor"))}, 1);
-    return gen->forward(z, filmOf(c), so.adapterStages);
-  };
-  auto evaluate = [&]() {
-    double sum = 0.0;
-    for (size_t c = 0; c < C; ++c)
-      sum += irradianceError(data[c], [&](const torch::Tensor& idx) { return forward(c, idx); });
-    return sum / double(C);
-  };
+  auto saveCheckpoint = [&]() { saveSharedCheckpoint(m, opt, frozen, fp, step); };
+  auto evaluate = [&]() { return m.evaluate(); };
 
   std::vector<BatchSchedule> schedules;
   for (size_t c = 0; c < C; ++c) schedules.emplace_back(data[c].S, o.batchSize, o.seed + c);
-  std::vector<torch::Tensor> trainable = latents;
-  trainable.insert(trainable.end(), film.begin(), film.end());
+  std::vector<torch::Tensor> trainable = m.latents;
+  trainable.insert(trainable.end(), m.film.begin(), m.film.end());
   if (!frozen)
-    for (const torch::Tensor& p : gen->parameters()) trainable.push_back(p);
+    for (const torch::Tensor& p : m.gen->parameters()) trainable.push_back(p);
   std::vector<torch::Tensor> lastFinite = snapshotOf(trainable);
   auto restoreLastFinite = [&]() {
     restoreFrom(trainable, lastFinite);
@@ -864,14 +983,7 @@ SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const Ge
     }
     const float factor = learningRateAt(o, step) / o.learningRate;
     for (size_t g = 0; g < baseLr.size(); ++g) setGroupLr(opt, g, baseLr[g] * factor);
-    torch::Tensor total = torch::zeros({});
-    for (size_t c = 0; c < C; ++c) {
-      torch::Tensor idx = schedules[c].batch(step);
-      torch::Tensor l = reconstructionLoss(forward(c, idx), idx, data[c], o.loss);
-      if (o.loss.latent > 0.0f) l = l + o.loss.latent * latents[c].pow(2).mean();
-      if (adapterFloats > 0 && so.adapterPrior > 0.0f) l = l + so.adapterPrior * film[c].pow(2).mean();
-      total = total + l / double(C);
-    }
+    torch::Tensor total = sharedStepLoss(m, schedules, step);
     if (!std::isfinite(total.item<double>())) {
       restoreLastFinite();
       break;
@@ -890,41 +1002,8 @@ SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const Ge
   if (progress) progress->finish();
   closeCheckpoint(result.report.interrupted, o.checkpoint, saveCheckpoint);
 
-  result.weights = exportWeights(gen, o.arch);
-  const uint64_t sharedHash = weightsContentHash(result.weights);
-  double irr = 0.0, rad = 0.0, psnrDb = 0.0;
-  for (size_t c = 0; c < C; ++c) {
-    CellAdaptation a;
-    a.latents = toVector(latentsOf(c));
-    a.adapter.stages = so.adapterStages;
-    if (adapterFloats > 0) {
-      const torch::Tensor f = filmOf(c);
-      a.adapter.scale = toVector(f[0]);
-      a.adapter.shift = toVector(f[1]);
-    }
-    a.scale = data[c].scale;
-    a.sharedWeightsHash = sharedHash;
-    a.report.steps = step;
-    a.report.resumedFromStep = result.report.resumedFromStep;
-    a.report.interrupted = result.report.interrupted;
-    a.report.diverged = result.report.diverged;
-    a.report.finalLoss = loss;
-    const CodecError ce = evaluateGenerator(a.folded(result.weights), sets[c]);
-    a.report.irradianceRelativeRms = ce.irradianceRelativeRms;
-    a.report.radianceRelativeRms = ce.radianceRelativeRms;
-    a.report.radiancePsnrDb = ce.radiancePsnrDb;
-    a.report.reachedTarget = ce.irradianceRelativeRms <= o.irradianceErrorTarget;
-    irr += ce.irradianceRelativeRms / double(C);
-    rad += ce.radianceRelativeRms / double(C);
-    psnrDb += ce.radiancePsnrDb / double(C);
-    result.cells.push_back(std::move(a));
-  }
-  result.report.steps = step;
-  result.report.finalLoss = loss;
-  result.report.irradianceRelativeRms = irr;
-  result.report.radianceRelativeRms = rad;
-  result.report.radiancePsnrDb = psnrDb;
-  result.report.reachedTarget = irr <= o.irradianceErrorTarget;
+  result.weights = exportWeights(m.gen, o.arch);
+  reportSharedCells(result, m, sets, step, loss);
   result.report.seconds = secondsSince(t0);
   for (CellAdaptation& a : result.cells) a.report.seconds = result.report.seconds;
   return result;

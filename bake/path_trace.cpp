@@ -64,6 +64,66 @@ Discs activeDiscs(const worlds::SkyModel& sky) {
   return d;
 }
 
+namespace {
+
+// Light L emitted towards hit k - 1 (by the sky after a miss, or by the surface hit k).
+inline void addEmitted(glm::vec3& radiance, glm::vec3& beyond, glm::vec3 throughput, glm::vec3 rest,
+                       PathSplit* split, int k, glm::vec3 L) {
+  radiance += throughput * L;
+  if (split) {
+    if (k <= 1) {
+      split->direct += throughput * L;
+    } else {
+      beyond += rest * L;
+    }
+  }
+}
+
+// Bounce at hit k: the next direction into dir and the bounce's weight into the throughput; false ends the
+// path. Lambertian with cosine sampling: f cos / pdf = albedo exactly; otherwise brdf.h's mixture.
+inline bool bounce(const SurfaceBrdf& brdf, bool lambertian, glm::vec3 albedo, glm::vec3 n, glm::vec3 wo,
+                   int k, const PathOptions& o, PathRng& rng, PathSplit* split, glm::vec3& throughput,
+                   glm::vec3& rest, glm::vec3& w0Diffuse, glm::vec3& w0Specular, glm::vec3& dir) {
+  glm::vec3 weight;
+  if (lambertian) {
+    weight = albedo;
+    const float u1 = rng.nextFloat();
+    const float u2 = rng.nextFloat();
+    dir = cosineSampleHemisphere(n, u1, u2);
+    if (split && k == 0) w0Diffuse = albedo;
+  } else {
+    const float u0 = rng.nextFloat();
+    const float u1 = rng.nextFloat();
+    const float u2 = rng.nextFloat();
+    const BrdfSample bs = sampleBrdf(brdf, n, wo, u0, u1, u2);
+    if (!bs.valid) return false;
+    weight = bs.weight;
+    dir = bs.wi;
+    if (split && k == 0) {
+      // f = f_diffuse + f_specular, both over the same mixture pdf: each part is an unbiased estimate of
+      // its own lobe's share whichever lobe was sampled.
+      w0Diffuse = diffuseBrdf(brdf) * (glm::dot(n, bs.wi) / bs.pdf);
+      w0Specular = bs.weight - w0Diffuse;
+    }
+  }
+  if (!(maxComponent(weight) > 0.0f)) return false;
+  if (k >= o.rouletteAfter) {
+    // Survival by this bounce's weight (the albedo for Lambertian), not by the path throughput: the
+    // path weight then never grows through roulette (weight / q <= 1 per bounce while weight <= 0.95),
+    // which keeps single samples bounded and the standard error estimate trustworthy.
+    // Throughput-based survival (as in pbrt-v4) gave 1/q factors of 16 and more in a furnace of albedo
+    // 0.5 and a heavy-tailed, underestimated noise.
+    const float q = std::min(0.95f, maxComponent(weight));
+    if (rng.nextFloat() >= q) return false;
+    weight /= q;
+  }
+  throughput *= weight;
+  if (k >= 1) rest *= weight;
+  return true;
+}
+
+}  // namespace
+
 // The split (when asked for) rides along without touching the total's arithmetic: contributions at hit 0
 // and those arriving at hit 0 straight from an emitter or the sky are `direct`; everything else is
 // accumulated in `beyond` per unit of the first bounce's weight w0 (rest = the throughput after it) and
@@ -82,14 +142,7 @@ glm::vec3 tracePath(const EmbreeScene& scene, const worlds::SkyModel& sky, const
     if (!hit) {
       glm::vec3 L = worlds::skyRadiance(sky, dir);
       if (k == 0 && o.discsOnPrimaryMiss) L += worlds::discRadiance(sky, dir);
-      radiance += throughput * L;
-      if (split) {
-        if (k <= 1) {
-          split->direct += throughput * L;
-        } else {
-          beyond += rest * L;
-        }
-      }
+      addEmitted(radiance, beyond, throughput, rest, split, k, L);
       break;
     }
     const worlds::Material& m = mesh.materials[mesh.triangleMaterial[hit->triangle]];
@@ -101,14 +154,7 @@ glm::vec3 tracePath(const EmbreeScene& scene, const worlds::SkyModel& sky, const
       first.albedo = albedo;
     }
     if (hit->backface && !m.doubleSided) break;  // inside solid: black absorber
-    radiance += throughput * m.emission;
-    if (split) {
-      if (k <= 1) {
-        split->direct += throughput * m.emission;
-      } else {
-        beyond += rest * m.emission;
-      }
-    }
+    addEmitted(radiance, beyond, throughput, rest, split, k, m.emission);
     if (k >= o.maxBounces) break;
     const glm::vec3 po = offsetRayOrigin(hitPoint(mesh, *hit), n);
     const SurfaceBrdf brdf{albedo, m.roughness, m.metallic};
@@ -131,42 +177,9 @@ glm::vec3 tracePath(const EmbreeScene& scene, const worlds::SkyModel& sky, const
         }
       }
     }
-    // Bounce. Lambertian with cosine sampling: f cos / pdf = albedo exactly; otherwise brdf.h's mixture.
-    glm::vec3 weight;
-    if (lambertian) {
-      weight = albedo;
-      const float u1 = rng.nextFloat();
-      const float u2 = rng.nextFloat();
-      dir = cosineSampleHemisphere(n, u1, u2);
-      if (split && k == 0) w0Diffuse = albedo;
-    } else {
-      const float u0 = rng.nextFloat();
-      const float u1 = rng.nextFloat();
-      const float u2 = rng.nextFloat();
-      const BrdfSample bs = sampleBrdf(brdf, n, wo, u0, u1, u2);
-      if (!bs.valid) break;
-      weight = bs.weight;
-      dir = bs.wi;
-      if (split && k == 0) {
-        // f = f_diffuse + f_specular, both over the same mixture pdf: each part is an unbiased estimate of
-        // its own lobe's share whichever lobe was sampled.
-        w0Diffuse = diffuseBrdf(brdf) * (glm::dot(n, bs.wi) / bs.pdf);
-        w0Specular = bs.weight - w0Diffuse;
-      }
-    }
-    if (!(maxComponent(weight) > 0.0f)) break;
-    if (k >= o.rouletteAfter) {
-      // Survival by this bounce's weight (the albedo for Lambertian), not by the path throughput: the
-      // path weight then never grows through roulette (weight / q <= 1 per bounce while weight <= 0.95),
-      // which keeps single samples bounded and the standard error estimate trustworthy.
-      // Throughput-based survival (as in pbrt-v4) gave 1/q factors of 16 and more in a furnace of albedo
-      // 0.5 and a heavy-tailed, underestimated noise.
-      const float q = std::min(0.95f, maxComponent(weight));
-      if (rng.nextFloat() >= q) break;
-      weight /= q;
-    }
-    throughput *= weight;
-    if (k >= 1) rest *= weight;
+    if (!bounce(brdf, lambertian, albedo, n, wo, k, o, rng, split, throughput, rest, w0Diffuse, w0Specular,
+                dir))
+      break;
     origin = po;
   }
   if (split) {

@@ -64,6 +64,129 @@ void validatePosition(glm::vec3 p, size_t index) {
   if (!finite(p)) fail("probe {}: position ({}, {}, {}) is not finite", index, p.x, p.y, p.z);
 }
 
+// What every path of one probe's capture shares.
+struct ProbeTracer {
+  const EmbreeScene& scene;
+  const worlds::SkyModel& sky;
+  const detail::Discs& discs;
+  const detail::PathOptions& po;
+  glm::vec3 position;
+  uint64_t key;
+  int n;
+  int S;
+};
+
+// Texel (i, j) of c's maps and its luminance standard error, from S weighted primary samples.
+void captureTexel(const ProbeTracer& p, int i, int j, ProbeCapture& c, std::vector<float>& luminanceStdError,
+                  uint64_t& localRays) {
+  const EmbreeScene& scene = p.scene;
+  const worlds::SkyModel& sky = p.sky;
+  const detail::Discs& discs = p.discs;
+  const detail::PathOptions& po = p.po;
+  const glm::vec3 position = p.position;
+  const uint64_t key = p.key;
+  const int n = p.n, S = p.S;
+  const int texel = j * n + i;
+  // Weighted sums in double: sum w, sum w^2, and per channel (RGB, luminance) sum w f, sum w^2 f,
+  // sum w^2 f^2 for the delta-method standard error of the ratio estimate.
+  double sw = 0, sw2 = 0, swf[4] = {}, sw2f[4] = {}, sw2f2[4] = {};
+  double sr = 0, sr2 = 0, sn[3] = {}, sa[3] = {};
+  for (int s = 0; s < S; ++s) {
+    PathRng rng(key, texel, s);
+    const TexelSample ts = primarySample(i, j, n, s, S, rng);
+    detail::FirstHit first;
+    const glm::vec3 L =
+        detail::tracePath(scene, sky, discs, po, position, ts.direction, rng, first, localRays);
+    const double w = ts.weight;
+    sw += w;
+    sw2 += w * w;
+    const double f[4] = {L.x, L.y, L.z, luminance(L)};
+    for (int ch = 0; ch < 4; ++ch) {
+      swf[ch] += w * f[ch];
+      sw2f[ch] += w * w * f[ch];
+      sw2f2[ch] += w * w * f[ch] * f[ch];
+    }
+    sr += w * first.r;
+    sr2 += w * double(first.r) * double(first.r);
+    for (int ch = 0; ch < 3; ++ch) {
+      sn[ch] += w * first.normal[ch];
+      sa[ch] += w * first.albedo[ch];
+    }
+  }
+  const size_t t = size_t(texel);
+  for (int ch = 0; ch < 4; ++ch) {
+    const double mean = swf[ch] / sw;
+    const double sq = sw2f2[ch] - 2.0 * mean * sw2f[ch] + mean * mean * sw2;
+    const float se = float(std::sqrt(std::max(0.0, sq)) / sw);
+    if (ch < 3) {
+      c.radiance[t * 3 + size_t(ch)] = float(mean);
+      c.radianceStdError[t * 3 + size_t(ch)] = se;
+    } else {
+      luminanceStdError[t] = se;
+    }
+  }
+  c.distance[t * 2] = float(sr / sw);
+  c.distance[t * 2 + 1] = float(sr2 / sw);
+  for (int ch = 0; ch < 3; ++ch) {
+    c.normal[t * 3 + size_t(ch)] = float(sn[ch] / sw);
+    c.albedo[t * 3 + size_t(ch)] = float(sa[ch] / sw);
+  }
+}
+
+// Discs on the primary segment: energy / Omega into the texel holding the disc centre; irradiance
+// gets them analytically instead (see the header). The discs seen from position go to visible; returns the
+// shadow rays traced.
+uint64_t depositDiscs(const EmbreeScene& scene, const detail::Discs& discs, glm::vec3 position,
+                      const CaptureOptions& o, const std::vector<double>& solidAngles, ProbeCapture& c,
+                      std::vector<const worlds::DiscLight*>& visible) {
+  const int n = o.resolution;
+  uint64_t discRays = 0;
+  for (int d = 0; d < discs.count; ++d) {
+    const worlds::DiscLight& l = *discs.light[d];
+    ++discRays;
+    if (scene.occluded(position, l.direction, 0.0f, o.maxDistance)) continue;
+    visible.push_back(&l);
+    const glm::ivec2 tx = octDirectionTexel(l.direction, n);
+    const size_t t = size_t(tx.y) * size_t(n) + size_t(tx.x);
+    const glm::vec3 add = l.irradianceNormal() / float(solidAngles[t]);
+    for (int ch = 0; ch < 3; ++ch) c.radiance[t * 3 + size_t(ch)] += add[ch];
+  }
+  return discRays;
+}
+
+double meanRelativeStdError(const ProbeCapture& c, const std::vector<float>& luminanceStdError,
+                            size_t texels) {
+  double relSum = 0.0;
+  size_t relCount = 0;
+  for (size_t t = 0; t < texels; ++t) {
+    const float y = luminance(glm::vec3(c.radiance[t * 3], c.radiance[t * 3 + 1], c.radiance[t * 3 + 2]));
+    if (y > 0.0f) {
+      relSum += double(luminanceStdError[t]) / double(y);
+      ++relCount;
+    }
+  }
+  return relCount ? relSum / double(relCount) : 0.0;
+}
+
+// c's irradiance map: the radiance without discs integrated, plus each visible disc analytically.
+void integrateIrradiance(ProbeCapture& c, const std::vector<float>& withoutDiscs,
+                         const std::vector<const worlds::DiscLight*>& visible,
+                         const std::vector<double>& solidAngles) {
+  const int n = c.resolution, m = c.irradianceResolution;
+  c.irradiance.assign(size_t(m) * size_t(m) * 3, 0.0f);
+  for (int j = 0; j < m; ++j) {
+    for (int i = 0; i < m; ++i) {
+      const glm::vec3 nrm = octTexelDirection(i, j, m);
+      glm::vec3 e = bruteForceIrradiance(withoutDiscs, n, nrm, solidAngles);
+      for (const worlds::DiscLight* l : visible) e += l->irradiance(nrm);
+      const size_t t = (size_t(j) * size_t(m) + size_t(i)) * 3;
+      c.irradiance[t] = e.x;
+      c.irradiance[t + 1] = e.y;
+      c.irradiance[t + 2] = e.z;
+    }
+  }
+}
+
 ProbeCapture captureOne(const EmbreeScene& scene, const worlds::SkyModel& sky, glm::vec3 position,
                         const CaptureOptions& o, const std::vector<double>& solidAngles) {
   const int n = o.resolution;
@@ -88,99 +211,21 @@ ProbeCapture captureOne(const EmbreeScene& scene, const worlds::SkyModel& sky, g
   po.maxDistance = o.maxDistance;
   std::atomic<uint64_t> rays{0};
 
+  const ProbeTracer tracer{scene, sky, discs, po, position, key, n, S};
+
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 1), [&](const tbb::blocked_range<int>& rows) {
     uint64_t localRays = 0;
-    for (int j = rows.begin(); j < rows.end(); ++j) {
-      for (int i = 0; i < n; ++i) {
-        const int texel = j * n + i;
-        // Weighted sums in double: sum w, sum w^2, and per channel (RGB, luminance) sum w f, sum w^2 f,
-        // sum w^2 f^2 for the delta-method standard error of the ratio estimate.
-        double sw = 0, sw2 = 0, swf[4] = {}, sw2f[4] = {}, sw2f2[4] = {};
-        double sr = 0, sr2 = 0, sn[3] = {}, sa[3] = {};
-        for (int s = 0; s < S; ++s) {
-          PathRng rng(key, texel, s);
-          const TexelSample ts = primarySample(i, j, n, s, S, rng);
-          detail::FirstHit first;
-          const glm::vec3 L =
-              detail::tracePath(scene, sky, discs, po, position, ts.direction, rng, first, localRays);
-          const double w = ts.weight;
-          sw += w;
-          sw2 += w * w;
-          const double f[4] = {L.x, L.y, L.z, luminance(L)};
-          for (int ch = 0; ch < 4; ++ch) {
-            swf[ch] += w * f[ch];
-            sw2f[ch] += w * w * f[ch];
-            sw2f2[ch] += w * w * f[ch] * f[ch];
-          }
-          sr += w * first.r;
-          sr2 += w * double(first.r) * double(first.r);
-          for (int ch = 0; ch < 3; ++ch) {
-            sn[ch] += w * first.normal[ch];
-            sa[ch] += w * first.albedo[ch];
-          }
-        }
-        const size_t t = size_t(texel);
-        for (int ch = 0; ch < 4; ++ch) {
-          const double mean = swf[ch] / sw;
-          const double sq = sw2f2[ch] - 2.0 * mean * sw2f[ch] + mean * mean * sw2;
-          const float se = float(std::sqrt(std::max(0.0, sq)) / sw);
-          if (ch < 3) {
-            c.radiance[t * 3 + size_t(ch)] = float(mean);
-            c.radianceStdError[t * 3 + size_t(ch)] = se;
-          } else {
-            luminanceStdError[t] = se;
-          }
-        }
-        c.distance[t * 2] = float(sr / sw);
-        c.distance[t * 2 + 1] = float(sr2 / sw);
-        for (int ch = 0; ch < 3; ++ch) {
-          c.normal[t * 3 + size_t(ch)] = float(sn[ch] / sw);
-          c.albedo[t * 3 + size_t(ch)] = float(sa[ch] / sw);
-        }
-      }
-    }
+    for (int j = rows.begin(); j < rows.end(); ++j)
+      for (int i = 0; i < n; ++i) captureTexel(tracer, i, j, c, luminanceStdError, localRays);
     rays.fetch_add(localRays, std::memory_order_relaxed);
   });
 
-  // Discs on the primary segment: energy / Omega into the texel holding the disc centre; irradiance
-  // gets them analytically instead (see the header).
+  // Discs on the primary segment go into the radiance map; irradiance gets them analytically instead.
   std::vector<float> withoutDiscs = c.radiance;
   std::vector<const worlds::DiscLight*> visible;
-  uint64_t discRays = 0;
-  for (int d = 0; d < discs.count; ++d) {
-    const worlds::DiscLight& l = *discs.light[d];
-    ++discRays;
-    if (scene.occluded(position, l.direction, 0.0f, o.maxDistance)) continue;
-    visible.push_back(&l);
-    const glm::ivec2 tx = octDirectionTexel(l.direction, n);
-    const size_t t = size_t(tx.y) * size_t(n) + size_t(tx.x);
-    const glm::vec3 add = l.irradianceNormal() / float(solidAngles[t]);
-    for (int ch = 0; ch < 3; ++ch) c.radiance[t * 3 + size_t(ch)] += add[ch];
-  }
-
-  double relSum = 0.0;
-  size_t relCount = 0;
-  for (size_t t = 0; t < texels; ++t) {
-    const float y = luminance(glm::vec3(c.radiance[t * 3], c.radiance[t * 3 + 1], c.radiance[t * 3 + 2]));
-    if (y > 0.0f) {
-      relSum += double(luminanceStdError[t]) / double(y);
-      ++relCount;
-    }
-  }
-  c.meanRelativeStdError = relCount ? relSum / double(relCount) : 0.0;
-
-  c.irradiance.assign(size_t(m) * size_t(m) * 3, 0.0f);
-  for (int j = 0; j < m; ++j) {
-    for (int i = 0; i < m; ++i) {
-      const glm::vec3 nrm = octTexelDirection(i, j, m);
-      glm::vec3 e = bruteForceIrradiance(withoutDiscs, n, nrm, solidAngles);
-      for (const worlds::DiscLight* l : visible) e += l->irradiance(nrm);
-      const size_t t = (size_t(j) * size_t(m) + size_t(i)) * 3;
-      c.irradiance[t] = e.x;
-      c.irradiance[t + 1] = e.y;
-      c.irradiance[t + 2] = e.z;
-    }
-  }
+  const uint64_t discRays = depositDiscs(scene, discs, position, o, solidAngles, c, visible);
+  c.meanRelativeStdError = meanRelativeStdError(c, luminanceStdError, texels);
+  integrateIrradiance(c, withoutDiscs, visible, solidAngles);
   c.rays = rays.load() + discRays;
   return c;
 }

@@ -214,6 +214,70 @@ uint64_t sampleOrderKey(uint64_t seed, worlds::CellCoord c) {
   return ContentHasher().addValue(seed).addValue(c.x).addValue(c.z).digest();
 }
 
+ModelSizingOptions cellSizingOptions(const WorldBakeSettings& settings) {
+  ModelSizingOptions sizing;
+  sizing.irradianceErrorTarget = settings.errorTarget;
+  sizing.noNetworkKinds = {CellModelKind::kShL1};  // the cell file stores one SH L1 per cell
+  sizing.training.maxSteps = settings.maxSteps;
+  sizing.training.seed = settings.seed;
+  sizing.training.threads = settings.threads;
+  sizing.training.validate();
+  if (!settings.modelWidths.empty() || !settings.modelLatents.empty()) {
+    auto listed = [](const std::vector<int>& v, int x) {
+      return v.empty() || std::find(v.begin(), v.end(), x) != v.end();
+    };
+    for (const GeneratorArch& a : sizingCandidates(settings.resolution, LatentSource::Stored))
+      if (listed(settings.modelWidths, a.convChannels.front()) && listed(settings.modelLatents, a.latentDim))
+        sizing.candidates.push_back(a);
+  }
+  return sizing;
+}
+
+// The cell fitted to the world's shared model: its quantized latents and adapter into cf.
+void storeSharedFit(worlds::CellCoord c, const GeneratorTrainingSet& set, const WorldBakeSettings& settings,
+                    const ResolvedSharedModel* shared, CellFile& cf, CellBakeReport& r) {
+  // Latents + adapter against the frozen dequantized shared model, int8 quantized in the loop.
+  const CellAdaptation fit = fitCellToSharedGenerator(
+      shared->weights, set, sharedFitOptions(settings, settings.maxSteps, settings.errorTarget, 8));
+  if (InterruptGuard::interrupted()) fail("bake: cell {},{}: interrupted during training", c.x, c.z);
+  const GeneratorArch& arch = shared->weights.arch;
+  CellGenerator gen;
+  gen.weights.arch = arch;
+  gen.weights.precision = WeightPrecision::Int8;
+  gen.latents = quantizeLatents(fit.latents, arch.latentDim, 8);
+  gen.shared = CellSharedModelRef{shared->hash, quantizeAdapter(fit.adapter, 8)};
+  cf.outputScale = fit.scale;
+  // The stored error is the quantized cell's through the decoder weights a reader builds.
+  TrainedGenerator q;
+  q.weights = resolveCellWeights(gen, shared, fmt::format("cell {},{}", c.x, c.z));
+  q.latents = dequantizeLatents(gen.latents);
+  q.scale = fit.scale;
+  cf.stats.errorAchieved = evaluateGenerator(q, set).irradianceRelativeRms;
+  cf.stats.trainingSeconds = fit.report.seconds;
+  cf.stats.model = fmt::format("shared z{} C{} + FiLM {} int8", arch.latentDim, arch.convChannels.front(),
+                               gen.shared->adapter.stages);
+  r.trainingSeconds = fit.report.seconds;
+  cf.generator = std::move(gen);
+  r.network = true;
+}
+
+// The chosen per-cell generator int8 quantized into cf.
+void storeGenerator(const TrainedGenerator& g, const GeneratorTrainingSet& set, CellFile& cf,
+                    CellBakeReport& r) {
+  CellGenerator gen;
+  gen.weights = quantizeWeights(g.weights, WeightPrecision::Int8);
+  if (!g.latents.empty()) gen.latents = quantizeLatents(g.latents, g.weights.arch.latentDim, 8);
+  cf.outputScale = g.scale;
+  // The stored error is the quantized model's (what a reader decodes).
+  TrainedGenerator q = g;
+  q.weights = dequantizeWeights(gen.weights);
+  if (!g.latents.empty()) q.latents = dequantizeLatents(gen.latents);
+  cf.stats.errorAchieved = evaluateGenerator(q, set).irradianceRelativeRms;
+  cf.stats.model += " int8";
+  cf.generator = std::move(gen);
+  r.network = true;
+}
+
 }  // namespace
 
 CellBakeInputs prepareCellBake(const worlds::SyntheticWorld& world, worlds::CellCoord c,
@@ -253,21 +317,7 @@ CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const 
   if (settings.sharedCodec() && !shared)
     fail("bake: cell {},{}: --codec shared needs the world's shared model", in.cell.x, in.cell.z);
   const std::vector<LightingKeySpec> keys = parseLightingKeys(settings.keys);
-  ModelSizingOptions sizing;
-  sizing.irradianceErrorTarget = settings.errorTarget;
-  sizing.noNetworkKinds = {CellModelKind::kShL1};  // the cell file stores one SH L1 per cell
-  sizing.training.maxSteps = settings.maxSteps;
-  sizing.training.seed = settings.seed;
-  sizing.training.threads = settings.threads;
-  sizing.training.validate();
-  if (!settings.modelWidths.empty() || !settings.modelLatents.empty()) {
-    auto listed = [](const std::vector<int>& v, int x) {
-      return v.empty() || std::find(v.begin(), v.end(), x) != v.end();
-    };
-    for (const GeneratorArch& a : sizingCandidates(settings.resolution, LatentSource::Stored))
-      if (listed(settings.modelWidths, a.convChannels.front()) && listed(settings.modelLatents, a.latentDim))
-        sizing.candidates.push_back(a);
-  }
+  ModelSizingOptions sizing = cellSizingOptions(settings);
 
   const worlds::CellCoord c = in.cell;
   const worlds::BuiltCell& cell = in.built;
@@ -297,29 +347,7 @@ CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const 
     cf.fallback = fallbackOf(set);
     cf.stats.errorTarget = settings.errorTarget;
     if (fitShared) {
-      // Latents + adapter against the frozen dequantized shared model, int8 quantized in the loop.
-      const CellAdaptation fit = fitCellToSharedGenerator(
-          shared->weights, set, sharedFitOptions(settings, settings.maxSteps, settings.errorTarget, 8));
-      if (InterruptGuard::interrupted()) fail("bake: cell {},{}: interrupted during training", c.x, c.z);
-      const GeneratorArch& arch = shared->weights.arch;
-      CellGenerator gen;
-      gen.weights.arch = arch;
-      gen.weights.precision = WeightPrecision::Int8;
-      gen.latents = quantizeLatents(fit.latents, arch.latentDim, 8);
-      gen.shared = CellSharedModelRef{shared->hash, quantizeAdapter(fit.adapter, 8)};
-      cf.outputScale = fit.scale;
-      // The stored error is the quantized cell's through the decoder weights a reader builds.
-      TrainedGenerator q;
-      q.weights = resolveCellWeights(gen, shared, fmt::format("cell {},{}", c.x, c.z));
-      q.latents = dequantizeLatents(gen.latents);
-      q.scale = fit.scale;
-      cf.stats.errorAchieved = evaluateGenerator(q, set).irradianceRelativeRms;
-      cf.stats.trainingSeconds = fit.report.seconds;
-      cf.stats.model = fmt::format("shared z{} C{} + FiLM {} int8", arch.latentDim, arch.convChannels.front(),
-                                   gen.shared->adapter.stages);
-      r.trainingSeconds = fit.report.seconds;
-      cf.generator = std::move(gen);
-      r.network = true;
+      storeSharedFit(c, set, settings, shared, cf, r);
     } else {
       // On Ctrl-C, training stops and chooseCellModel returns the best model so far. Stored under this
       // cell's input hash, that half-trained model would be skipped by every rerun (and differ from an
@@ -330,21 +358,8 @@ CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const 
       cf.stats.errorAchieved = choice.error.irradianceRelativeRms;
       r.trainingSeconds = choice.trainingSeconds;
     }
-    if (choice.kind == CellModelKind::kGenerator && choice.generator) {
-      TrainedGenerator& g = *choice.generator;
-      CellGenerator gen;
-      gen.weights = quantizeWeights(g.weights, WeightPrecision::Int8);
-      if (!g.latents.empty()) gen.latents = quantizeLatents(g.latents, g.weights.arch.latentDim, 8);
-      cf.outputScale = g.scale;
-      // The stored error is the quantized model's (what a reader decodes).
-      TrainedGenerator q = g;
-      q.weights = dequantizeWeights(gen.weights);
-      if (!g.latents.empty()) q.latents = dequantizeLatents(gen.latents);
-      cf.stats.errorAchieved = evaluateGenerator(q, set).irradianceRelativeRms;
-      cf.stats.model += " int8";
-      cf.generator = std::move(gen);
-      r.network = true;
-    }
+    if (choice.kind == CellModelKind::kGenerator && choice.generator)
+      storeGenerator(*choice.generator, set, cf, r);
   }
   r.totalSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
   if (report) *report = r;

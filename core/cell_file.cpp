@@ -259,23 +259,26 @@ std::vector<std::byte> detail::encodeCellFileWithOverrides(const CellFile& cell,
   return encode(cell, overrides);
 }
 
-CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& name,
-                        CellFileBytes* bytesByPart) {
-  // 1. Envelope (size, trailer, checksum), then 2. the OpenVDB parse of bytes our writer produced.
-  const OpenedStream opened = vdbfile::open(bytes, name, kTrailerMagic, kCellFileMaxBytes, "cell file");
-  const openvdb::MetaMap::Ptr& meta = opened.meta;
-  const openvdb::GridPtrVecPtr& grids = opened.grids;
+// ---- decode ---------------------------------------------------------------------------------------------
 
-  // 3. Fields, each checked on its own and against the others.
-  MetaReader r(*meta, name);
+namespace {
+
+// Every read below checks its field on its own and against those read before it; the order of the checks
+// (and so which error a broken file reports) is the reader's contract.
+
+// The magic and the format version.
+int64_t readVersion(const MetaReader& r, const std::string& name) {
   std::string magic = r.get<std::string>("lfgi_magic");
   if (magic != kMagic) fail("{}: lfgi_magic is '{}', expected '{}' (not a cell file)", name, magic, kMagic);
   int64_t version = r.get<int32_t>("lfgi_format_version");
   if (version < 1 || version > kCellFileVersion)
     fail("{}: cell file format version {}, this build reads versions 1 to {} (rebake the cell)", name,
          version, kCellFileVersion);
+  return version;
+}
 
-  CellFile c;
+// Identity, probe grid and output scale into c; returns probe_count (the active probes).
+int64_t readGridFields(const MetaReader& r, const std::string& name, CellFile& c) {
   c.worldSeed = parseHex64(r.get<std::string>("world_seed"), name + ": world_seed");
   c.cellX = r.get<int32_t>("cell_x");
   c.cellZ = r.get<int32_t>("cell_z");
@@ -296,8 +299,12 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
   const int64_t probeCount = r.getInt("probe_count", 0, c.grid.probeCount());
   c.outputScale.exposure = r.getFinite("exposure");
   c.outputScale.range = r.getFinite("range");
+  return probeCount;
+}
 
-  // The probe topology.
+// The probe topology: the one mask grid, its voxels the active probes (c.active unless all are).
+void readTopology(const openvdb::GridPtrVecPtr& grids, const std::string& name, int64_t probeCount,
+                  CellFile& c) {
   if (grids->size() != 1)
     fail("{}: {} grids, a cell file holds exactly one ('{}')", name, grids->size(), kGridName);
   openvdb::MaskGrid::Ptr mask = openvdb::gridPtrCast<openvdb::MaskGrid>((*grids)[0]);
@@ -325,15 +332,17 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
     openvdb::Coord q = it.getCoord();
     glm::ivec3 g(q.x(), q.y(), q.z());
     if (glm::any(glm::lessThan(g, glm::ivec3(0))) || glm::any(glm::greaterThanEqual(g, c.grid.dims)))
-      fail("{}: probe voxel ({}, {}, {}) lies outside the probe grid {}x{}x{}", name, g.x, g.y, g.z, d.x(),
-           d.y(), d.z());
+      fail("{}: probe voxel ({}, {}, {}) lies outside the probe grid {}x{}x{}", name, g.x, g.y, g.z,
+           c.grid.dims.x, c.grid.dims.y, c.grid.dims.z);
     active[size_t(c.grid.linearIndex(g))] = 1;
   }
   if (probeCount != c.grid.probeCount()) c.active = std::move(active);
+}
 
-  // The model.
+// The model: none, the cell's own network, or a reference to the world's shared model.
+void readModel(const MetaReader& r, const std::string& name, int64_t version, int64_t probeCount, CellFile& c,
+               CellFileBytes& parts) {
   std::string model = r.get<std::string>("model");
-  CellFileBytes parts;
   if (model == "network" || model == "shared") {
     if (model == "shared" && version < kSharedRefVersion)
       fail("{}: a version-{} cell file refers to a shared model (version {} and later only)", name, version,
@@ -391,7 +400,11 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
   } else if (model != "none") {
     fail("{}: model '{}' is unknown (network, shared, none)", name, model);
   }
+}
 
+// The SH L1 fallback and its lighting keys.
+void readFallback(const MetaReader& r, const std::string& name, int64_t version, int64_t probeCount,
+                  CellFile& c, CellFileBytes& parts) {
   std::string fk = r.get<std::string>("fallback_kind");
   if (fk == "sh_l1_per_cell")
     c.fallback.kind = CellFallback::Kind::PerCell;
@@ -427,6 +440,26 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
   c.fallback.shHalf.resize(keys * entries * kShHalves);
   if (!fb.empty()) std::memcpy(c.fallback.shHalf.data(), fb.data(), fb.size());
   parts.fallback += fb.size();
+}
+
+}  // namespace
+
+CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& name,
+                        CellFileBytes* bytesByPart) {
+  // 1. Envelope (size, trailer, checksum), then 2. the OpenVDB parse of bytes our writer produced.
+  const OpenedStream opened = vdbfile::open(bytes, name, kTrailerMagic, kCellFileMaxBytes, "cell file");
+  const openvdb::MetaMap::Ptr& meta = opened.meta;
+  const openvdb::GridPtrVecPtr& grids = opened.grids;
+
+  // 3. Fields, each checked on its own and against the others.
+  MetaReader r(*meta, name);
+  const int64_t version = readVersion(r, name);
+  CellFile c;
+  const int64_t probeCount = readGridFields(r, name, c);
+  readTopology(grids, name, probeCount, c);
+  CellFileBytes parts;
+  readModel(r, name, version, probeCount, c, parts);
+  readFallback(r, name, version, probeCount, c, parts);
 
   c.stats.errorAchieved = r.getFiniteDouble("error_achieved");
   c.stats.errorTarget = r.getFiniteDouble("error_target");
