@@ -11,8 +11,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bench/bench_output.h"
@@ -72,6 +74,188 @@ Seconds bestSeconds(int reps, F f) {
   return best;
 }
 
+struct Ceiling {
+  double wall = 0.0, cpu = 0.0;  // GFLOP per second of wall / of process CPU time
+};
+
+struct Headline {
+  double pps = 0, frac = 0, fracWall = 0, fracCpu = 0;
+  std::string kernel;
+};
+
+// Ceilings of the same devices, in this run, defined as bench/ceilings does (best over GEMM sizes; here
+// 256^3 and 512^3 for the GPU, 512^3 for OpenBLAS), re-measured just before each row. Two bases: device
+// (wall) time, the contract on a real GPU; and process CPU time, which on lavapipe (a CPU device) is the
+// work itself and stays meaningful when other processes share the cores (a 7 ms GEMM often gets both
+// cores while a 300 ms decode gets its fair share, which makes wall-time ratios of a loaded machine
+// noise).
+class DecodeBench {
+ public:
+  DecodeBench(const std::string& out, bool quick)
+      : o_(out, quick),
+        ctx_(gpu::createContext()),
+        cpuDevice_(ctx_->info.type == "cpu"),
+        gemmProgram_(*ctx_, "gemm_rowstrip"),
+        pass_(*ctx_),
+        batches_(quick ? std::vector<uint32_t>{64, 256} : std::vector<uint32_t>{64, 256, 1024}) {
+    o_.setDevice(ctx_->info.name);
+    spdlog::info("codec_decode on {} ({})", ctx_->info.name, quick ? "quick" : "full");
+    const auto condArr = conditioningVector(13.0f, 0.2f);
+    cond_.assign(condArr.begin(), condArr.end());
+  }
+
+  void run() {
+    const Ceiling g = gpuCeilingNow(), c = cpuCeilingNow();
+    spdlog::info(
+        "ceilings now: GPU gemm_rowstrip {:.2f} GFLOP/s ({:.2f} per CPU-s), OpenBLAS sgemm 512^3 {:.1f} "
+        "GFLOP/s ({:.1f} per CPU-s)",
+        g.wall, g.cpu, c.wall, c.cpu);
+    o_.setColumns({"model", "out_res", "mflop_per_probe", "method", "batch_probes", "decode_us_per_probe",
+                   "probes_per_s", "gflops", "fraction_of_ceiling", "ceiling_gflops", "gflops_per_cpu_s",
+                   "fraction_of_ceiling_cpu_time", "ceiling_gflops_per_cpu_s", "max_rel_error_vs_reference"});
+    nlohmann::ordered_json perModel = nlohmann::ordered_json::object();
+    unsigned seed = 1;
+    for (const Model& m : models()) perModel[m.name] = measureModel(m, seed);
+    writeSummary(perModel);
+    o_.save();
+    spdlog::info("wrote {}", (o_.dir() / "summary.json").string());
+  }
+
+ private:
+  static constexpr uint32_t kRefProbes = 16;  // the reference decoder runs on this many probes (it is slow)
+
+  Ceiling gpuCeilingNow() {
+    Ceiling c;
+    for (int size : {256, 512}) {
+      GemmResult g = gpuGemm(*ctx_, gemmProgram_, size);
+      if (g.maxRelError > 1e-4)
+        fail("GPU GEMM {}^3 disagrees with OpenBLAS (max rel error {:.2e})", size, g.maxRelError);
+      c.wall = std::max(c.wall, g.gflops);
+      c.cpu = std::max(c.cpu, g.gflopsPerCpuSecond);
+    }
+    gemmCeiling_ = std::max(gemmCeiling_, c.wall);
+    return c;
+  }
+  Ceiling cpuCeilingNow() {
+    GemmResult g = cpuSgemm(512);
+    sgemmCeiling_ = std::max(sgemmCeiling_, g.gflops);
+    return Ceiling{g.gflops, g.gflopsPerCpuSecond};
+  }
+
+  // One CSV row; returns {fraction (wall), fraction (CPU time)}.
+  std::pair<double, double> addRow(const Model& m, const std::string& method, uint32_t batch, Seconds t,
+                                   Ceiling ceil, double err) {
+    const GeneratorArch& a = m.arch;
+    const double flop = 2.0 * a.macsPerProbe();
+    const size_t R = size_t(a.outputResolution());
+    const double us = t.wall / batch * 1e6, gflops = flop * batch / t.wall * 1e-9;
+    const double gflopsCpu = flop * batch / t.cpu * 1e-9;
+    o_.addRow({m.name, std::to_string(R), num(flop * 1e-6), method, std::to_string(batch), num(us),
+               num(batch / t.wall), num(gflops), num(gflops / ceil.wall), num(ceil.wall), num(gflopsCpu),
+               num(gflopsCpu / ceil.cpu), num(ceil.cpu), num(err)});
+    spdlog::info(
+        "{:12} {:13} batch {:5}: {:9.2f} us/probe {:6.2f} GFLOP/s = {:5.1f} % of ceiling; per CPU-s "
+        "{:6.2f} = {:5.1f} %; err {:.1e}",
+        m.name, method, batch, us, gflops, 100.0 * gflops / ceil.wall, gflopsCpu,
+        100.0 * gflopsCpu / ceil.cpu, err);
+    return std::pair{gflops / ceil.wall, gflopsCpu / ceil.cpu};
+  }
+
+  // The reference decode, then per batch the CPU sgemm decoder and each GPU kernel; the model's summary.
+  nlohmann::ordered_json measureModel(const Model& m, unsigned& seed) {
+    const GeneratorArch& a = m.arch;
+    const size_t R = size_t(a.outputResolution()), per = size_t(a.outChannels()) * R * R;
+    const GeneratorWeights w = randomGeneratorWeights(a, seed++);
+    const uint32_t maxBatch = batches_.back();
+    std::vector<float> z(size_t(maxBatch) * size_t(a.latentDim));
+    std::mt19937 rng(seed++);
+    std::normal_distribution<float> nd(0.0f, 1.0f);
+    for (float& v : z) v = nd(rng);
+
+    std::vector<float> ref(kRefProbes * per);
+    {
+      const Ceiling c = cpuCeilingNow();
+      const Seconds t = bestSeconds(1, [&] {
+        generatorForward(w, std::span(z).first(kRefProbes * size_t(a.latentDim)), cond_, kRefProbes, ref);
+      });
+      addRow(m, "cpu_reference", kRefProbes, t, c, 0.0);
+    }
+    GeneratorCpu fast(w);
+    gpu::GeneratorGpuModel gm(*ctx_, w);
+    nlohmann::ordered_json mj;
+    mj["mflop_per_probe"] = 2.0 * a.macsPerProbe() * 1e-6;
+    mj["parameters"] = a.parameterCount();
+    for (uint32_t batch : batches_) {
+      std::span<const float> zb = std::span(z).first(size_t(batch) * size_t(a.latentDim));
+      std::vector<float> y(size_t(batch) * per);
+      const Ceiling cpuCeiling = cpuCeilingNow();
+      const Seconds cpuT = bestSeconds(3, [&] { fast.forward(zb, cond_, batch, y); });
+      auto [cpuWall, cpuCpu] =
+          addRow(m, "cpu_sgemm", batch, cpuT, cpuCeiling, relMaxError(std::span(y).first(ref.size()), ref));
+      mj["cpu_sgemm_batch_" + std::to_string(batch) + "_fraction"] = cpuWall;
+      measureGpuKernels(m, gm, zb, batch, y.size(), ref, mj);
+      if (m.name == "medium_16px" && batch == maxBatch)
+        hc_ = {batch / cpuT.wall, cpuCpu, cpuWall, cpuCpu, "sgemm"};
+    }
+    return mj;
+  }
+
+  void measureGpuKernels(const Model& m, const gpu::GeneratorGpuModel& gm, std::span<const float> zb,
+                         uint32_t batch, size_t outFloats, const std::vector<float>& ref,
+                         nlohmann::ordered_json& mj) {
+    gpu::Buffer lat = gpu::createStorageBuffer(*ctx_, zb.size_bytes());
+    gpu::upload<float>(*ctx_, lat, zb);
+    gpu::Buffer outBuf = gpu::createStorageBuffer(*ctx_, outFloats * sizeof(float));
+    gpu::GeneratorScratch scratch(*ctx_, m.arch, batch);
+    for (gpu::GeneratorKernel k : {gpu::GeneratorKernel::RowStrip, gpu::GeneratorKernel::Tiled}) {
+      // the tiled kernel is several times slower on lavapipe: one repetition of the large batches only
+      const int reps = (k == gpu::GeneratorKernel::Tiled && batch > 64) ? 1 : 3;
+      const Ceiling gpuCeiling = gpuCeilingNow();
+      const GpuTime t = bestGpuTime(*ctx_, reps, [&](VkCommandBuffer cmd) {
+        pass_.record(cmd, gm, scratch, lat, cond_, batch, outBuf, k);
+      });
+      std::vector<float> g(ref.size());
+      gpu::readback<float>(*ctx_, outBuf, g);
+      const std::string method = std::string("gpu_") + gpu::generatorKernelName(k);
+      auto [wall, cpu] =
+          addRow(m, method, batch, {t.ms * 1e-3, t.cpuMs * 1e-3}, gpuCeiling, relMaxError(g, ref));
+      mj[method + "_batch_" + std::to_string(batch) + "_fraction"] = wall;
+      if (cpuDevice_) mj[method + "_batch_" + std::to_string(batch) + "_fraction_cpu_time"] = cpu;
+      const double headline = cpuDevice_ ? cpu : wall;
+      if (m.name == "medium_16px" && batch == batches_.back() && headline > hg_.frac)
+        hg_ = {batch / (t.ms * 1e-3), headline, wall, cpu, gpu::generatorKernelName(k)};
+    }
+  }
+
+  void writeSummary(const nlohmann::ordered_json& perModel) {
+    auto& s = o_.summary();
+    s["gpu_decode_probes_per_s"] = hg_.pps;
+    s["gpu_decode_fraction_of_gemm_ceiling"] = hg_.frac;
+    s["gpu_decode_fraction_basis"] = cpuDevice_ ? "process CPU time (CPU device)" : "device time";
+    s["gpu_decode_fraction_of_gemm_ceiling_device_time"] = hg_.fracWall;
+    s["gpu_decode_kernel"] = hg_.kernel;
+    s["cpu_decode_probes_per_s"] = hc_.pps;
+    s["cpu_decode_fraction_of_sgemm"] = hc_.frac;
+    s["cpu_decode_fraction_basis"] = "process CPU time";
+    s["cpu_decode_fraction_of_sgemm_wall_time"] = hc_.fracWall;
+    s["headline_model"] = "medium_16px";
+    s["headline_batch_probes"] = batches_.back();
+    s["gemm_gflops"] = gemmCeiling_;
+    s["cpu_sgemm_gflops"] = sgemmCeiling_;
+    s["models"] = perModel;
+  }
+
+  BenchOutput o_;
+  std::unique_ptr<gpu::Context> ctx_;
+  bool cpuDevice_;
+  gpu::Program gemmProgram_;
+  gpu::GeneratorDecodePass pass_;
+  std::vector<uint32_t> batches_;
+  std::vector<float> cond_;
+  double gemmCeiling_ = 0.0, sgemmCeiling_ = 0.0;
+  Headline hg_, hc_;
+};
+
 }  // namespace
 }  // namespace lfgi::bench
 
@@ -84,159 +268,7 @@ int main(int argc, char** argv) {
   app.add_flag("--quick", quick, "Smaller batches (< 10 minutes on 2 cores)");
   CLI11_PARSE(app, argc, argv);
   try {
-    bench::BenchOutput o(out, quick);
-    auto ctx = gpu::createContext();
-    o.setDevice(ctx->info.name);
-    spdlog::info("codec_decode on {} ({})", ctx->info.name, quick ? "quick" : "full");
-
-    // Ceilings of the same devices, in this run, defined as bench/ceilings does (best over GEMM sizes; here
-    // 256^3 and 512^3 for the GPU, 512^3 for OpenBLAS), re-measured just before each row. Two bases: device
-    // (wall) time, the contract on a real GPU; and process CPU time, which on lavapipe (a CPU device) is the
-    // work itself and stays meaningful when other processes share the cores (a 7 ms GEMM often gets both
-    // cores while a 300 ms decode gets its fair share, which makes wall-time ratios of a loaded machine
-    // noise).
-    const bool cpuDevice = ctx->info.type == "cpu";
-    gpu::Program gemmProgram(*ctx, "gemm_rowstrip");
-    double gemmCeiling = 0.0, sgemmCeiling = 0.0;
-    struct Ceiling {
-      double wall = 0.0, cpu = 0.0;  // GFLOP per second of wall / of process CPU time
-    };
-    auto gpuCeilingNow = [&] {
-      Ceiling c;
-      for (int size : {256, 512}) {
-        bench::GemmResult g = bench::gpuGemm(*ctx, gemmProgram, size);
-        if (g.maxRelError > 1e-4)
-          fail("GPU GEMM {}^3 disagrees with OpenBLAS (max rel error {:.2e})", size, g.maxRelError);
-        c.wall = std::max(c.wall, g.gflops);
-        c.cpu = std::max(c.cpu, g.gflopsPerCpuSecond);
-      }
-      gemmCeiling = std::max(gemmCeiling, c.wall);
-      return c;
-    };
-    auto cpuCeilingNow = [&] {
-      bench::GemmResult g = bench::cpuSgemm(512);
-      sgemmCeiling = std::max(sgemmCeiling, g.gflops);
-      return Ceiling{g.gflops, g.gflopsPerCpuSecond};
-    };
-    {
-      Ceiling g = gpuCeilingNow(), c = cpuCeilingNow();
-      spdlog::info(
-          "ceilings now: GPU gemm_rowstrip {:.2f} GFLOP/s ({:.2f} per CPU-s), OpenBLAS sgemm 512^3 {:.1f} "
-          "GFLOP/s ({:.1f} per CPU-s)",
-          g.wall, g.cpu, c.wall, c.cpu);
-    }
-
-    o.setColumns({"model", "out_res", "mflop_per_probe", "method", "batch_probes", "decode_us_per_probe",
-                  "probes_per_s", "gflops", "fraction_of_ceiling", "ceiling_gflops", "gflops_per_cpu_s",
-                  "fraction_of_ceiling_cpu_time", "ceiling_gflops_per_cpu_s", "max_rel_error_vs_reference"});
-    const std::vector<uint32_t> batches =
-        quick ? std::vector<uint32_t>{64, 256} : std::vector<uint32_t>{64, 256, 1024};
-    const uint32_t refProbes = 16;  // the reference decoder runs on this many probes (it is slow)
-    gpu::GeneratorDecodePass pass(*ctx);
-    auto condArr = conditioningVector(13.0f, 0.2f);
-    std::vector<float> cond(condArr.begin(), condArr.end());
-    nlohmann::ordered_json perModel = nlohmann::ordered_json::object();
-    struct Headline {
-      double pps = 0, frac = 0, fracWall = 0, fracCpu = 0;
-      std::string kernel;
-    } hg, hc;
-
-    unsigned seed = 1;
-    for (const bench::Model& m : bench::models()) {
-      const GeneratorArch& a = m.arch;
-      const double flop = 2.0 * a.macsPerProbe();
-      const size_t R = size_t(a.outputResolution()), per = size_t(a.outChannels()) * R * R;
-      GeneratorWeights w = randomGeneratorWeights(a, seed++);
-      const uint32_t maxBatch = batches.back();
-      std::vector<float> z(size_t(maxBatch) * size_t(a.latentDim));
-      std::mt19937 rng(seed++);
-      std::normal_distribution<float> nd(0.0f, 1.0f);
-      for (float& v : z) v = nd(rng);
-
-      std::vector<float> ref(refProbes * per);
-      // Returns {fraction (wall), fraction (CPU time)}.
-      auto addRow = [&](const std::string& method, uint32_t batch, bench::Seconds t, Ceiling ceil,
-                        double err) {
-        const double us = t.wall / batch * 1e6, gflops = flop * batch / t.wall * 1e-9;
-        const double gflopsCpu = flop * batch / t.cpu * 1e-9;
-        o.addRow({m.name, std::to_string(R), bench::num(flop * 1e-6), method, std::to_string(batch),
-                  bench::num(us), bench::num(batch / t.wall), bench::num(gflops),
-                  bench::num(gflops / ceil.wall), bench::num(ceil.wall), bench::num(gflopsCpu),
-                  bench::num(gflopsCpu / ceil.cpu), bench::num(ceil.cpu), bench::num(err)});
-        spdlog::info(
-            "{:12} {:13} batch {:5}: {:9.2f} us/probe {:6.2f} GFLOP/s = {:5.1f} % of ceiling; per CPU-s "
-            "{:6.2f} = {:5.1f} %; err {:.1e}",
-            m.name, method, batch, us, gflops, 100.0 * gflops / ceil.wall, gflopsCpu,
-            100.0 * gflopsCpu / ceil.cpu, err);
-        return std::pair{gflops / ceil.wall, gflopsCpu / ceil.cpu};
-      };
-      {
-        Ceiling c = cpuCeilingNow();
-        bench::Seconds t = bench::bestSeconds(1, [&] {
-          generatorForward(w, std::span(z).first(refProbes * size_t(a.latentDim)), cond, refProbes, ref);
-        });
-        addRow("cpu_reference", refProbes, t, c, 0.0);
-      }
-
-      GeneratorCpu fast(w);
-      gpu::GeneratorGpuModel gm(*ctx, w);
-      nlohmann::ordered_json mj;
-      mj["mflop_per_probe"] = flop * 1e-6;
-      mj["parameters"] = a.parameterCount();
-      for (uint32_t batch : batches) {
-        std::span<const float> zb = std::span(z).first(size_t(batch) * size_t(a.latentDim));
-        std::vector<float> y(size_t(batch) * per);
-        const Ceiling cpuCeiling = cpuCeilingNow();
-        const bench::Seconds cpuT = bench::bestSeconds(3, [&] { fast.forward(zb, cond, batch, y); });
-        auto [cpuWall, cpuCpu] = addRow("cpu_sgemm", batch, cpuT, cpuCeiling,
-                                        bench::relMaxError(std::span(y).first(ref.size()), ref));
-        mj["cpu_sgemm_batch_" + std::to_string(batch) + "_fraction"] = cpuWall;
-
-        gpu::Buffer lat = gpu::createStorageBuffer(*ctx, zb.size_bytes());
-        gpu::upload<float>(*ctx, lat, zb);
-        gpu::Buffer outBuf = gpu::createStorageBuffer(*ctx, y.size() * sizeof(float));
-        gpu::GeneratorScratch scratch(*ctx, a, batch);
-        for (gpu::GeneratorKernel k : {gpu::GeneratorKernel::RowStrip, gpu::GeneratorKernel::Tiled}) {
-          // the tiled kernel is several times slower on lavapipe: one repetition of the large batches only
-          const int reps = (k == gpu::GeneratorKernel::Tiled && batch > 64) ? 1 : 3;
-          const Ceiling gpuCeiling = gpuCeilingNow();
-          const bench::GpuTime t = bench::bestGpuTime(*ctx, reps, [&](VkCommandBuffer cmd) {
-            pass.record(cmd, gm, scratch, lat, cond, batch, outBuf, k);
-          });
-          std::vector<float> g(ref.size());
-          gpu::readback<float>(*ctx, outBuf, g);
-          const std::string method = std::string("gpu_") + gpu::generatorKernelName(k);
-          auto [wall, cpu] =
-              addRow(method, batch, {t.ms * 1e-3, t.cpuMs * 1e-3}, gpuCeiling, bench::relMaxError(g, ref));
-          mj[method + "_batch_" + std::to_string(batch) + "_fraction"] = wall;
-          if (cpuDevice) mj[method + "_batch_" + std::to_string(batch) + "_fraction_cpu_time"] = cpu;
-          const double headline = cpuDevice ? cpu : wall;
-          if (m.name == "medium_16px" && batch == maxBatch && headline > hg.frac) {
-            hg = {batch / (t.ms * 1e-3), headline, wall, cpu, gpu::generatorKernelName(k)};
-          }
-        }
-        if (m.name == "medium_16px" && batch == maxBatch)
-          hc = {batch / cpuT.wall, cpuCpu, cpuWall, cpuCpu, "sgemm"};
-      }
-      perModel[m.name] = mj;
-    }
-    auto& s = o.summary();
-    s["gpu_decode_probes_per_s"] = hg.pps;
-    s["gpu_decode_fraction_of_gemm_ceiling"] = hg.frac;
-    s["gpu_decode_fraction_basis"] = cpuDevice ? "process CPU time (CPU device)" : "device time";
-    s["gpu_decode_fraction_of_gemm_ceiling_device_time"] = hg.fracWall;
-    s["gpu_decode_kernel"] = hg.kernel;
-    s["cpu_decode_probes_per_s"] = hc.pps;
-    s["cpu_decode_fraction_of_sgemm"] = hc.frac;
-    s["cpu_decode_fraction_basis"] = "process CPU time";
-    s["cpu_decode_fraction_of_sgemm_wall_time"] = hc.fracWall;
-    s["headline_model"] = "medium_16px";
-    s["headline_batch_probes"] = batches.back();
-    s["gemm_gflops"] = gemmCeiling;
-    s["cpu_sgemm_gflops"] = sgemmCeiling;
-    s["models"] = perModel;
-    o.save();
-    spdlog::info("wrote {}", (o.dir() / "summary.json").string());
+    bench::DecodeBench(out, quick).run();
   } catch (const Error& e) {
     spdlog::error("{}", e.what());
     return 1;

@@ -86,363 +86,435 @@ bake::RenderOptions worldCellReferenceOptions(bool quick, int bounces) {
   return ro;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"lfgi benchmark: shading from light-field probes vs path-traced reference"};
+// Command-line options.
+struct Options {
   std::string out = "out/bench/shading";
   bool quick = false;
   bool sourcesOnly = false;
   bool neighboursOnly = false;
   std::string scenesDir = worlds::defaultScenesDir().string();
-  app.add_option("--out", out, "Output directory");
-  app.add_option("--scenes-dir", scenesDir, "Folder of the scene presets")->capture_default_str();
-  app.add_flag("--quick", quick, "Smaller images and sweeps");
-  app.add_flag("--sources", sourcesOnly, "Only the probe-source comparison (capture / vir / codec)");
-  app.add_flag("--neighbours", neighboursOnly,
+};
+
+// What every section shares: the options, the output, the device and the image sizes.
+struct Bench {
+  const Options& opt;
+  bench::BenchOutput& o;
+  gpu::Context& ctx;
+  int refSize = 0, refSpp = 0, timeSize = 0;
+};
+
+// One scene: reference once, then each (grid, resolution) configuration, from each probe source.
+std::vector<Row> sweep(const Bench& b, const std::string& name, const worlds::TriangleMesh& mesh,
+                       const worlds::SkyModel& sky, const bake::PinholeCamera& cam, int refW, int refH,
+                       int spp, const std::vector<std::pair<glm::ivec3, int>>& configs, int captureSpp,
+                       float emitterLevel, const std::vector<std::string>& sources = {"capture"}) {
+  const bake::EmbreeScene scene(mesh, name);
+  bake::RenderOptions ro;
+  ro.width = refW;
+  ro.height = refH;
+  ro.samplesPerPixel = spp;
+  const auto t0 = std::chrono::steady_clock::now();
+  const bake::RenderResult ref = bake::renderShadingReference(scene, sky, cam, ro);
+  spdlog::info("{}: reference {}x{} at {} spp in {:.1f} s", name, refW, refH, spp,
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  bake::ShadingRenderer renderer(b.ctx, mesh);
+  std::vector<worlds::Surfel> surfels;
+  const worlds::Aabb box = mesh.bounds();
+  if (std::find(sources.begin(), sources.end(), "vir") != sources.end())
+    surfels =
+        worlds::sampleSurfels(bake::meshWithBackFaces(mesh), {glm::length(box.max - box.min) / 64.0f, 1});
+  std::vector<Row> rows;
+  for (const auto& [dims, res] : configs)
+    for (const std::string& source : sources) {
+      worlds::ScenePreset preset;
+      preset.probeDims = dims;
+      const ProbeGrid grid = worlds::presetProbeGrid(preset, mesh.bounds());
+      bake::CaptureOptions co;
+      co.resolution = res;
+      co.irradianceResolution = std::max(4, res / 2);
+      co.samplesPerTexel = captureSpp;
+      const auto c0 = std::chrono::steady_clock::now();
+      ProbeField f;
+      if (source == "vir") {
+        bake::VirProbeOptions vo;
+        vo.resolution = res;
+        vo.irradianceResolution = co.irradianceResolution;
+        vo.maxRange = 2.0f * glm::length(box.max - box.min);
+        f = bake::virProbeField(b.ctx, surfels, grid, {}, {}, sky, vo);
+      } else {
+        f = bake::captureGridField(scene, sky, grid, {}, {}, co);
+      }
+      const double captureS = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
+      const ProbeField* fields[] = {&f};
+      renderer.setProbes(fields);
+      const bake::ShadedView v = renderer.render(sky, cam, refW, refH);
+      const std::vector<uint8_t> mask = surfaceMask(v.image, ref.image, emitterLevel);
+      Row row;
+      row.indirect = bake::layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
+      row.total = bake::layerRelativeRms(v.image, "", ref.image, "", &mask);
+      // Timing at a larger size (best of 3 runs, device timestamps).
+      const int tw = b.timeSize, th = b.timeSize * refH / refW;
+      double shadeMs = 1e30, gbufMs = 1e30;
+      for (int k = 0; k < 3; ++k) {
+        const bake::ShadedView t = renderer.render(sky, cam, tw, th);
+        shadeMs = std::min(shadeMs, t.shadeMs);
+        gbufMs = std::min(gbufMs, t.gbufferMs);
+      }
+      row.shadeMsPerMpix = shadeMs / (double(tw) * double(th) * 1e-6);
+      const float spacing = std::min({grid.spacing.x, grid.spacing.y, grid.spacing.z});
+      b.o.addRow({name, fmt::format("{}x{}x{}", dims.x, dims.y, dims.z), bench::num(spacing),
+                  std::to_string(res), std::to_string(grid.probeCount()), bench::num(captureS),
+                  bench::num(shadeMs), bench::num(row.shadeMsPerMpix), bench::num(gbufMs),
+                  bench::num(row.indirect), bench::num(row.total), source, "-"});
+      spdlog::info(
+          "{} grid {}x{}x{} res {} {}: indirect rel RMS {:.4f}, total {:.4f}, probes in {:.2f} s, shade "
+          "{:.2f} ms ({:.1f} ms/Mpixel)",
+          name, dims.x, dims.y, dims.z, res, source, row.indirect, row.total, captureS, shadeMs,
+          row.shadeMsPerMpix);
+      rows.push_back(row);
+    }
+  return rows;
+}
+
+// The cells of the 2 x 2 world for the neighbours comparison, captured at noon.
+struct NeighbourCells {
+  std::vector<worlds::CellCoord> coords{{0, 0}, {1, 0}, {0, 1}, {1, 1}};
+  std::vector<ProbeField> fields;
+  std::vector<ShL1> fallbacks;
+  double captureS = 0.0;
+};
+
+// Every cell of the 2 x 2 world: all its probes outside solid captured; its fallback = the mean SH L1 of
+// those (bake::fieldFallback, as the bake makes the cell file's, but without the sun).
+NeighbourCells captureNeighbourCells(const worlds::SyntheticWorld& world, const bake::WorldBakeSettings& bs,
+                                     const bake::EmbreeScene& scene, const worlds::SkyModel& noon) {
+  bake::CaptureOptions co = bake::worldBakeCaptureOptions(world, bs);
+  co.irradianceResolution = 8;
+  NeighbourCells n;
+  const auto c0 = std::chrono::steady_clock::now();
+  for (const worlds::CellCoord cc : n.coords) {
+    const worlds::BuiltCell b = worlds::buildCell(world, cc);
+    std::vector<uint8_t> active(b.probes.flags.size());
+    for (size_t i = 0; i < active.size(); ++i)
+      active[i] = (b.probes.flags[i] & worlds::kProbeDisabledSolid) ? 0 : 1;
+    n.fields.push_back(bake::captureGridField(scene, noon, b.probes.grid, b.probes.offsets, active, co));
+    n.fallbacks.push_back(bake::fieldFallback(n.fields.back()));
+  }
+  n.captureS = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
+  return n;
+}
+
+// Points along a line crossing the x = 32 m border at (lineY, lineZ), 5 cm steps, shading irradiance.
+gpu::GBufferHost borderLine(float lineY, float lineZ) {
+  gpu::GBufferHost line;
+  for (int k = 0; k <= 320; ++k) {
+    line.position.push_back(glm::vec4(24.0f + 0.05f * float(k), lineY, lineZ, 1.0f));
+    line.normal.push_back(glm::vec4(0.0f, 1.0f, 0.0f, 1.0f));
+    line.albedo.push_back(glm::vec4(glm::vec3(3.14159265f), 0.0f));  // diffuse = irradiance
+    line.emission.push_back(glm::vec4(0.0f));
+  }
+  line.width = int(line.position.size());
+  line.height = 1;
+  return line;
+}
+
+// The world-cell view the neighbour states are shaded and measured on.
+struct NeighbourView {
+  const NeighbourCells& cells;
+  const worlds::SkyModel& noon;
+  const bake::PinholeCamera& wc;
+  int w = 0, h = 0;
+  const bake::RenderResult& ref;
+  bake::ShadingRenderer& renderer;
+  const ProbeGrid& g;
+  float lineY = 0.0f;
+  const gpu::GBufferHost& line;
+};
+
+// One neighbour state ("full" or "fallback"): its row, error, shading time and the steps along the border
+// line; appends the shaded image. msFull is the full state's ms per megapixel, for the fallback's ratio.
+void neighbourState(const Bench& b, const NeighbourView& nv, const std::string& state, double& msFull,
+                    std::vector<Image>& images) {
+  const NeighbourCells& n = nv.cells;
+  std::vector<gpu::ShadingCellInput> cells;
+  for (size_t k = 0; k < n.coords.size(); ++k) {
+    gpu::ShadingCellInput c;
+    c.fallback = n.fallbacks[k];
+    if (k == 1 || state == "full") {
+      c.field = &n.fields[k];
+    } else {
+      c.fallbackOnly = true;
+      c.box = n.fields[k].grid;
+    }
+    cells.push_back(c);
+  }
+  nv.renderer.setCells(cells);
+  const bake::ShadedView v = nv.renderer.render(nv.noon, nv.wc, nv.w, nv.h);
+  images.push_back(v.image);
+  const std::vector<uint8_t> mask = surfaceMask(v.image, nv.ref.image, 1e30f);
+  const double indirect = bake::layerRelativeRms(v.image, "indirect.", nv.ref.image, "indirect.", &mask);
+  const double total = bake::layerRelativeRms(v.image, "", nv.ref.image, "", &mask);
+  double shadeMs = 1e30, gbufMs = 1e30;
+  const int tw = b.timeSize, th = b.timeSize * 9 / 16;
+  for (int k = 0; k < 3; ++k) {
+    const bake::ShadedView t = nv.renderer.render(nv.noon, nv.wc, tw, th);
+    shadeMs = std::min(shadeMs, t.shadeMs);
+    gbufMs = std::min(gbufMs, t.gbufferMs);
+  }
+  const double msPerMpix = shadeMs / (double(tw) * double(th) * 1e-6);
+  const gpu::ShadeOutputHost l = nv.renderer.shadePoints(nv.noon, nv.line, nv.wc.position, {});
+  double jump = 0.0, mean = 0.0, borderStep = 0.0;
+  for (size_t k = 0; k < l.diffuse.size(); ++k) {
+    mean += double(l.diffuse[k].y) / double(l.diffuse.size());
+    if (k > 0) jump = std::max(jump, double(std::abs(l.diffuse[k].y - l.diffuse[k - 1].y)));
+    if (k > 0 && nv.line.position[k - 1].x < 32.0f && nv.line.position[k].x >= 32.0f)
+      borderStep = std::abs(l.diffuse[k].y - l.diffuse[k - 1].y);
+  }
+  const ProbeGrid& g = nv.g;
+  const float spacing = std::min({g.spacing.x, g.spacing.y, g.spacing.z});
+  b.o.addRow({"world_cell", fmt::format("{}x{}x{}", g.dims.x, g.dims.y, g.dims.z), bench::num(spacing),
+              std::to_string(n.fields[1].resolution), std::to_string(g.probeCount()), bench::num(n.captureS),
+              bench::num(shadeMs), bench::num(msPerMpix), bench::num(gbufMs), bench::num(indirect),
+              bench::num(total), "capture", state});
+  b.o.summary()["neighbours_" + state + "_indirect_rel_rms"] = indirect;
+  b.o.summary()["neighbours_" + state + "_shade_ms_per_mpixel"] = msPerMpix;
+  b.o.summary()["neighbours_" + state + "_line_max_step_rel"] = jump / std::max(mean, 1e-12);
+  b.o.summary()["neighbours_" + state + "_line_border_step_rel"] = borderStep / std::max(mean, 1e-12);
+  if (state == "full")
+    msFull = msPerMpix;
+  else
+    b.o.summary()["neighbours_fallback_vs_full_shade_ms_ratio"] = msPerMpix / msFull;
+  spdlog::info(
+      "world cell 1,0, neighbours {}: indirect rel RMS {:.4f}, total {:.4f}, shade {:.1f} ms/Mpixel, "
+      "line y = {:.1f} m: largest 5 cm step {:.4f} of the mean {:.3f}, at the border {:.4f}",
+      state, indirect, total, msPerMpix, nv.lineY, jump / mean, mean, borderStep / mean);
+}
+
+// The same comparison over the pixels the fallback run shades mostly from fallbacks (the neighbours).
+void neighboursOnFallbackPixels(const Bench& b, const std::vector<Image>& images,
+                                const bake::RenderResult& ref, int w, int h) {
+  std::vector<uint8_t> onFallback = surfaceMask(images[1], ref.image, 1e30f);
+  const int fc = images[1].channelIndex("fallback");
+  size_t count = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      uint8_t& m = onFallback[size_t(y) * size_t(w) + size_t(x)];
+      m = m && images[1].at(x, y, fc) > 0.5f;
+      count += m;
+    }
+  if (count > 0) {
+    const double full = bake::layerRelativeRms(images[0], "indirect.", ref.image, "indirect.", &onFallback);
+    const double fb = bake::layerRelativeRms(images[1], "indirect.", ref.image, "indirect.", &onFallback);
+    b.o.summary()["neighbours_pixels_on_fallback"] = double(count);
+    b.o.summary()["neighbours_full_indirect_rel_rms_on_those_pixels"] = full;
+    b.o.summary()["neighbours_fallback_indirect_rel_rms_on_those_pixels"] = fb;
+    spdlog::info(
+        "{} of {} pixels mostly on fallback: indirect rel RMS there {:.4f} (neighbours full) vs {:.4f} "
+        "(on fallback)",
+        count, w * h, full, fb);
+  }
+}
+
+// The world cell with its neighbours full vs on their fallback (capture probes, noon).
+void neighbours(const Bench& b) {
+  const worlds::SyntheticWorld world(worlds::WorldParams{3, 64.0, 32.0});
+  const worlds::CellCoord cell{1, 0};
+  bake::WorldBakeSettings bs = worldCellBakeSettings(b.opt.quick);
+  const bake::CellBakeInputs in = bake::prepareCellBake(world, cell, bs);
+  const bake::EmbreeScene scene(in.sceneMesh, "world cell 1,0 + neighbours");
+  const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
+  const NeighbourCells n = captureNeighbourCells(world, bs, scene, noon);
+  const bake::PinholeCamera wc = worldCellCamera();
+  const bake::RenderOptions ro = worldCellReferenceOptions(b.opt.quick, bs.bounces);
+  const int w = ro.width, h = ro.height;
+  const bake::RenderResult ref = bake::renderShadingReference(scene, noon, wc, ro);
+  bake::ShadingRenderer renderer(b.ctx, in.sceneMesh);
+  const ProbeGrid& g = n.fields[1].grid;
+  const float lineY = g.origin.y + 0.5f * float(g.dims.y - 1) * g.spacing.y, lineZ = 16.0f;
+  const gpu::GBufferHost line = borderLine(lineY, lineZ);
+  const NeighbourView nv{n, noon, wc, w, h, ref, renderer, g, lineY, line};
+  double msFull = 0.0;
+  std::vector<Image> images;
+  for (const std::string state : {"full", "fallback"}) neighbourState(b, nv, state, msFull, images);
+  neighboursOnFallbackPixels(b, images, ref, w, h);
+}
+
+// Cornell box: the probe-source comparison (--sources) or the grid and resolution sweep.
+void cornellSection(const Bench& b) {
+  const bool quick = b.opt.quick, sourcesOnly = b.opt.sourcesOnly;
+  const worlds::ScenePreset& cornellPreset = worlds::findScenePreset("cornell");
+  const worlds::TriangleMesh cornell = worlds::loadScenePreset(cornellPreset, b.opt.scenesDir);
+  const worlds::SkyModel night = worlds::makeSky(worlds::SkyState{0.0f, 45.0f, 172, 3.0f, 1.0f});
+  bake::PinholeCamera cc;
+  cc.position = glm::vec3(-0.278f, 0.274f, 1.0f);
+  cc.target = glm::vec3(-0.278f, 0.274f, -0.28f);
+  cc.verticalFovDeg = 40.0f;
+  if (sourcesOnly) {
+    const std::vector<Row> c =
+        sweep(b, "cornell", cornell, night, cc, b.refSize, b.refSize, b.refSpp,
+              {{glm::ivec3(2), 16}, {glm::ivec3(4), 16}}, 64, 0.01f, {"capture", "vir"});
+    b.o.summary()["cornell_indirect_rel_rms_capture_2x2x2"] = c[0].indirect;
+    b.o.summary()["cornell_indirect_rel_rms_vir_2x2x2"] = c[1].indirect;
+    b.o.summary()["cornell_indirect_rel_rms_capture_4x4x4"] = c[2].indirect;
+    b.o.summary()["cornell_indirect_rel_rms_vir_4x4x4"] = c[3].indirect;
+  }
+  std::vector<std::pair<glm::ivec3, int>> configs;
+  const std::vector<int> grids = quick ? std::vector<int>{2, 3, 4} : std::vector<int>{2, 3, 4, 6, 8};
+  const std::vector<int> resolutions = quick ? std::vector<int>{8, 32} : std::vector<int>{8, 32, 64};
+  for (int g : grids) configs.push_back({glm::ivec3(g), 16});
+  for (int r : resolutions) configs.push_back({glm::ivec3(4), r});
+  if (!sourcesOnly) {
+    const std::vector<Row> c = sweep(b, "cornell", cornell, night, cc, b.refSize, b.refSize, b.refSpp,
+                                     configs, 64, 0.01f, {"capture", "vir"});
+    // Rows per configuration: capture, vir.
+    b.o.summary()["cornell_indirect_rel_rms"] = c[0].indirect;  // the paper's 2 x 2 x 2 grid, 16 x 16 maps
+    b.o.summary()["cornell_indirect_rel_rms_grid"] = "2x2x2, 16x16 maps";
+    b.o.summary()["cornell_indirect_rel_rms_vir"] = c[1].indirect;
+    b.o.summary()["shade_ms_per_mpixel"] = c[0].shadeMsPerMpix;
+  }
+}
+
+// A world cell from capture, VIR and codec probes.
+void worldCellSources(const Bench& b) {
+  const bool quick = b.opt.quick;
+  const worlds::SyntheticWorld world(worlds::WorldParams{3, 64.0, 32.0});
+  const worlds::CellCoord cell{1, 0};
+  bake::WorldBakeSettings bs = worldCellBakeSettings(quick);
+  bs.keys = "12";
+  bs.maxSteps = quick ? 300 : 1500;
+  bake::CellBakeInputs in = bake::prepareCellBake(world, cell, bs);
+  const worlds::BuiltCell built = in.built;
+  worlds::TriangleMesh mesh = in.sceneMesh;
+  const bake::EmbreeScene scene(mesh, "world cell 1,0 + neighbours");
+  const auto b0 = std::chrono::steady_clock::now();
+  const CellFile cf = bake::bakeCell(world, std::move(in), bs);
+  const double bakeS = std::chrono::duration<double>(std::chrono::steady_clock::now() - b0).count();
+  spdlog::info("world cell 1,0: baked ({}) in {:.1f} s, stored irradiance error {:.4f}", cf.stats.model,
+               bakeS, cf.stats.errorAchieved);
+  b.o.summary()["world_cell_bake_s"] = bakeS;
+  b.o.summary()["world_cell_model"] = cf.stats.model;
+  const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
+  const bake::PinholeCamera wc = worldCellCamera();
+  const bake::RenderOptions ro = worldCellReferenceOptions(quick, bs.bounces);
+  const int w = ro.width, h = ro.height;
+  const bake::RenderResult ref = bake::renderShadingReference(scene, noon, wc, ro);
+  bake::ShadingRenderer renderer(b.ctx, mesh);
+  const ProbeGrid& grid = built.probes.grid;
+  std::vector<uint8_t> active(built.probes.flags.size());
+  for (size_t i = 0; i < active.size(); ++i)
+    active[i] = (built.probes.flags[i] & worlds::kProbeDisabledSolid) ? 0 : 1;
+  for (const std::string source : {"capture", "vir", "codec"}) {
+    const auto c0 = std::chrono::steady_clock::now();
+    ProbeField f;
+    if (source == "capture") {
+      bake::CaptureOptions co = bake::worldBakeCaptureOptions(world, bs);
+      co.irradianceResolution = 8;
+      f = bake::captureGridField(scene, noon, grid, built.probes.offsets, active, co);
+    } else if (source == "vir") {
+      bake::VirProbeOptions vo;
+      vo.resolution = bs.resolution;
+      vo.maxRange = 32.0f;
+      f = bake::virProbeField(b.ctx, built.surfels, grid, built.probes.offsets, active, noon, vo);
+    } else {
+      f = bake::codecProbeField(cf, "cell 1,0", scene, noon, bs.resolution);
+      // Visibility from the cell's geometry (docs/ARCHITECTURE.md, "Where visibility comes from").
+      bake::regenerateVirMoments(b.ctx, built.surfels, built.probes.offsets, f, 32.0f);
+    }
+    const double sourceS = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
+    const ProbeField* fields[] = {&f};
+    renderer.setProbes(fields);
+    const bake::ShadedView v = renderer.render(noon, wc, w, h);
+    const std::vector<uint8_t> mask = surfaceMask(v.image, ref.image, 1e30f);
+    const double indirect = bake::layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
+    const double total = bake::layerRelativeRms(v.image, "", ref.image, "", &mask);
+    const float spacing = std::min({grid.spacing.x, grid.spacing.y, grid.spacing.z});
+    b.o.addRow({"world_cell", fmt::format("{}x{}x{}", grid.dims.x, grid.dims.y, grid.dims.z),
+                bench::num(spacing), std::to_string(f.resolution), std::to_string(grid.probeCount()),
+                bench::num(sourceS), bench::num(v.shadeMs),
+                bench::num(v.shadeMs / (double(w) * double(h) * 1e-6)), bench::num(v.gbufferMs),
+                bench::num(indirect), bench::num(total), source, "absent"});
+    b.o.summary()["world_cell_indirect_rel_rms_" + source] = indirect;
+    spdlog::info("world cell 1,0 {}: indirect rel RMS {:.4f}, total {:.4f}, probes in {:.2f} s", source,
+                 indirect, total, sourceS);
+  }
+}
+
+// Sponza at noon, one coarse grid (the paper's 18 x 7 x 11 is too slow to capture here with --quick).
+void sponzaSection(const Bench& b) {
+  const bool quick = b.opt.quick;
+  const worlds::ScenePreset& sp = worlds::findScenePreset("sponza");
+  const worlds::TriangleMesh sponza = worlds::loadScenePreset(sp, b.opt.scenesDir);
+  const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
+  bake::PinholeCamera scam;
+  scam.position = glm::vec3(-12.0f, 5.0f, -0.5f);
+  scam.target = glm::vec3(12.0f, 7.0f, -0.5f);
+  scam.verticalFovDeg = 60.0f;
+  const glm::ivec3 dims = quick ? glm::ivec3(9, 4, 6) : glm::ivec3(18, 7, 11);
+  const std::vector<Row> s = sweep(b, "sponza", sponza, noon, scam, quick ? 64 : 128, quick ? 36 : 72,
+                                   quick ? 64 : 256, {{dims, quick ? 8 : 16}}, quick ? 16 : 64, 1e30f);
+  b.o.summary()["sponza_indirect_rel_rms"] = s[0].indirect;
+  b.o.summary()["sponza_grid"] = fmt::format("{}x{}x{}", dims.x, dims.y, dims.z);
+}
+
+// Leak test house.
+void leakTestSection(const Bench& b) {
+  const worlds::SyntheticWorld world(worlds::WorldParams::smallDefault(1));
+  const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
+  bake::CaptureOptions co;
+  co.samplesPerTexel = b.opt.quick ? 16 : 64;
+  co.maxBounces = 6;
+  const bake::LeakTestResult l = bake::measureLeakTest(b.ctx, world, {1, 1}, noon, co);
+  b.o.summary()["leak_ratio"] = l.ratioOn();
+  b.o.summary()["leak_ratio_without_chebyshev"] = l.ratioOff();
+  spdlog::info("leak test: sealed / lit indirect {:.5f} with Chebyshev, {:.5f} without", l.ratioOn(),
+               l.ratioOff());
+}
+
+// Runs the sections the options select, then writes the results.
+void run(const Options& opt) {
+  bench::BenchOutput o(opt.out, opt.quick);
+  auto ctx = gpu::createContext();
+  o.setDevice(ctx->info.name);
+  o.setColumns({"scene", "grid", "spacing_m", "resolution", "probes", "capture_s", "shade_ms",
+                "shade_ms_per_mpixel", "gbuffer_ms", "indirect_rel_rms", "total_rel_rms", "probe_source",
+                "neighbour_state"});
+  const Bench b{opt,
+                o,
+                *ctx,
+                opt.quick ? 32 : 64,
+                opt.quick ? 2048 : 4096,  // the Cornell light is small: the reference needs many samples
+                opt.quick ? 256 : 512};
+  if (opt.neighboursOnly) {
+    neighbours(b);
+    o.save();
+    return;
+  }
+  cornellSection(b);
+  worldCellSources(b);
+  if (opt.sourcesOnly) {
+    o.save();
+    return;
+  }
+  neighbours(b);
+  sponzaSection(b);
+  leakTestSection(b);
+  o.save();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"lfgi benchmark: shading from light-field probes vs path-traced reference"};
+  Options opt;
+  app.add_option("--out", opt.out, "Output directory");
+  app.add_option("--scenes-dir", opt.scenesDir, "Folder of the scene presets")->capture_default_str();
+  app.add_flag("--quick", opt.quick, "Smaller images and sweeps");
+  app.add_flag("--sources", opt.sourcesOnly, "Only the probe-source comparison (capture / vir / codec)");
+  app.add_flag("--neighbours", opt.neighboursOnly,
                "Only the world-cell comparison of neighbours full vs on their SH L1 fallback");
   CLI11_PARSE(app, argc, argv);
   try {
-    bench::BenchOutput o(out, quick);
-    auto ctx = gpu::createContext();
-    o.setDevice(ctx->info.name);
-    o.setColumns({"scene", "grid", "spacing_m", "resolution", "probes", "capture_s", "shade_ms",
-                  "shade_ms_per_mpixel", "gbuffer_ms", "indirect_rel_rms", "total_rel_rms", "probe_source",
-                  "neighbour_state"});
-    const int refSize = quick ? 32 : 64;
-    const int refSpp = quick ? 2048 : 4096;  // the Cornell light is small: the reference needs many samples
-    const int timeSize = quick ? 256 : 512;
-
-    // One scene: reference once, then each (grid, resolution) configuration, from each probe source.
-    auto sweep = [&](const std::string& name, const worlds::TriangleMesh& mesh, const worlds::SkyModel& sky,
-                     const bake::PinholeCamera& cam, int refW, int refH, int spp,
-                     const std::vector<std::pair<glm::ivec3, int>>& configs, int captureSpp,
-                     float emitterLevel, const std::vector<std::string>& sources = {"capture"}) {
-      const bake::EmbreeScene scene(mesh, name);
-      bake::RenderOptions ro;
-      ro.width = refW;
-      ro.height = refH;
-      ro.samplesPerPixel = spp;
-      const auto t0 = std::chrono::steady_clock::now();
-      const bake::RenderResult ref = bake::renderShadingReference(scene, sky, cam, ro);
-      spdlog::info("{}: reference {}x{} at {} spp in {:.1f} s", name, refW, refH, spp,
-                   std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-      bake::ShadingRenderer renderer(*ctx, mesh);
-      std::vector<worlds::Surfel> surfels;
-      const worlds::Aabb box = mesh.bounds();
-      if (std::find(sources.begin(), sources.end(), "vir") != sources.end())
-        surfels =
-            worlds::sampleSurfels(bake::meshWithBackFaces(mesh), {glm::length(box.max - box.min) / 64.0f, 1});
-      std::vector<Row> rows;
-      for (const auto& [dims, res] : configs)
-        for (const std::string& source : sources) {
-          worlds::ScenePreset preset;
-          preset.probeDims = dims;
-          const ProbeGrid grid = worlds::presetProbeGrid(preset, mesh.bounds());
-          bake::CaptureOptions co;
-          co.resolution = res;
-          co.irradianceResolution = std::max(4, res / 2);
-          co.samplesPerTexel = captureSpp;
-          const auto c0 = std::chrono::steady_clock::now();
-          ProbeField f;
-          if (source == "vir") {
-            bake::VirProbeOptions vo;
-            vo.resolution = res;
-            vo.irradianceResolution = co.irradianceResolution;
-            vo.maxRange = 2.0f * glm::length(box.max - box.min);
-            f = bake::virProbeField(*ctx, surfels, grid, {}, {}, sky, vo);
-          } else {
-            f = bake::captureGridField(scene, sky, grid, {}, {}, co);
-          }
-          const double captureS =
-              std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
-          const ProbeField* fields[] = {&f};
-          renderer.setProbes(fields);
-          const bake::ShadedView v = renderer.render(sky, cam, refW, refH);
-          const std::vector<uint8_t> mask = surfaceMask(v.image, ref.image, emitterLevel);
-          Row row;
-          row.indirect = bake::layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
-          row.total = bake::layerRelativeRms(v.image, "", ref.image, "", &mask);
-          // Timing at a larger size (best of 3 runs, device timestamps).
-          const int tw = timeSize, th = timeSize * refH / refW;
-          double shadeMs = 1e30, gbufMs = 1e30;
-          for (int k = 0; k < 3; ++k) {
-            const bake::ShadedView t = renderer.render(sky, cam, tw, th);
-            shadeMs = std::min(shadeMs, t.shadeMs);
-            gbufMs = std::min(gbufMs, t.gbufferMs);
-          }
-          row.shadeMsPerMpix = shadeMs / (double(tw) * double(th) * 1e-6);
-          const float spacing = std::min({grid.spacing.x, grid.spacing.y, grid.spacing.z});
-          o.addRow({name, fmt::format("{}x{}x{}", dims.x, dims.y, dims.z), bench::num(spacing),
-                    std::to_string(res), std::to_string(grid.probeCount()), bench::num(captureS),
-                    bench::num(shadeMs), bench::num(row.shadeMsPerMpix), bench::num(gbufMs),
-                    bench::num(row.indirect), bench::num(row.total), source, "-"});
-          spdlog::info(
-              "{} grid {}x{}x{} res {} {}: indirect rel RMS {:.4f}, total {:.4f}, probes in {:.2f} s, shade "
-              "{:.2f} ms ({:.1f} ms/Mpixel)",
-              name, dims.x, dims.y, dims.z, res, source, row.indirect, row.total, captureS, shadeMs,
-              row.shadeMsPerMpix);
-          rows.push_back(row);
-        }
-      return rows;
-    };
-
-    // The world cell with its neighbours full vs on their fallback (capture probes, noon).
-    auto neighbours = [&] {
-      const worlds::SyntheticWorld world(worlds::WorldParams{3, 64.0, 32.0});
-      const worlds::CellCoord cell{1, 0};
-      bake::WorldBakeSettings bs = worldCellBakeSettings(quick);
-      const bake::CellBakeInputs in = bake::prepareCellBake(world, cell, bs);
-      const bake::EmbreeScene scene(in.sceneMesh, "world cell 1,0 + neighbours");
-      const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
-      bake::CaptureOptions co = bake::worldBakeCaptureOptions(world, bs);
-      co.irradianceResolution = 8;
-      // Every cell of the 2 x 2 world: all its probes outside solid captured; its fallback = the mean SH L1
-      // of those (bake::fieldFallback, as the bake makes the cell file's, but without the sun).
-      std::vector<worlds::CellCoord> coords{{0, 0}, {1, 0}, {0, 1}, {1, 1}};
-      std::vector<ProbeField> fields;
-      std::vector<ShL1> fallbacks;
-      const auto c0 = std::chrono::steady_clock::now();
-      for (const worlds::CellCoord cc : coords) {
-        const worlds::BuiltCell b = worlds::buildCell(world, cc);
-        std::vector<uint8_t> active(b.probes.flags.size());
-        for (size_t i = 0; i < active.size(); ++i)
-          active[i] = (b.probes.flags[i] & worlds::kProbeDisabledSolid) ? 0 : 1;
-        fields.push_back(bake::captureGridField(scene, noon, b.probes.grid, b.probes.offsets, active, co));
-        fallbacks.push_back(bake::fieldFallback(fields.back()));
-      }
-      const double captureS = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
-      const bake::PinholeCamera wc = worldCellCamera();
-      const bake::RenderOptions ro = worldCellReferenceOptions(quick, bs.bounces);
-      const int w = ro.width, h = ro.height;
-      const bake::RenderResult ref = bake::renderShadingReference(scene, noon, wc, ro);
-      bake::ShadingRenderer renderer(*ctx, in.sceneMesh);
-      const ProbeGrid& g = fields[1].grid;
-      const float lineY = g.origin.y + 0.5f * float(g.dims.y - 1) * g.spacing.y, lineZ = 16.0f;
-      gpu::GBufferHost line;
-      for (int k = 0; k <= 320; ++k) {
-        line.position.push_back(glm::vec4(24.0f + 0.05f * float(k), lineY, lineZ, 1.0f));
-        line.normal.push_back(glm::vec4(0.0f, 1.0f, 0.0f, 1.0f));
-        line.albedo.push_back(glm::vec4(glm::vec3(3.14159265f), 0.0f));  // diffuse = irradiance
-        line.emission.push_back(glm::vec4(0.0f));
-      }
-      line.width = int(line.position.size());
-      line.height = 1;
-      double msFull = 0.0;
-      std::vector<Image> images;
-      for (const std::string state : {"full", "fallback"}) {
-        std::vector<gpu::ShadingCellInput> cells;
-        for (size_t k = 0; k < coords.size(); ++k) {
-          gpu::ShadingCellInput c;
-          c.fallback = fallbacks[k];
-          if (k == 1 || state == "full") {
-            c.field = &fields[k];
-          } else {
-            c.fallbackOnly = true;
-            c.box = fields[k].grid;
-          }
-          cells.push_back(c);
-        }
-        renderer.setCells(cells);
-        const bake::ShadedView v = renderer.render(noon, wc, w, h);
-        images.push_back(v.image);
-        const std::vector<uint8_t> mask = surfaceMask(v.image, ref.image, 1e30f);
-        const double indirect = bake::layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
-        const double total = bake::layerRelativeRms(v.image, "", ref.image, "", &mask);
-        double shadeMs = 1e30, gbufMs = 1e30;
-        const int tw = timeSize, th = timeSize * 9 / 16;
-        for (int k = 0; k < 3; ++k) {
-          const bake::ShadedView t = renderer.render(noon, wc, tw, th);
-          shadeMs = std::min(shadeMs, t.shadeMs);
-          gbufMs = std::min(gbufMs, t.gbufferMs);
-        }
-        const double msPerMpix = shadeMs / (double(tw) * double(th) * 1e-6);
-        const gpu::ShadeOutputHost l = renderer.shadePoints(noon, line, wc.position, {});
-        double jump = 0.0, mean = 0.0, borderStep = 0.0;
-        for (size_t k = 0; k < l.diffuse.size(); ++k) {
-          mean += double(l.diffuse[k].y) / double(l.diffuse.size());
-          if (k > 0) jump = std::max(jump, double(std::abs(l.diffuse[k].y - l.diffuse[k - 1].y)));
-          if (k > 0 && line.position[k - 1].x < 32.0f && line.position[k].x >= 32.0f)
-            borderStep = std::abs(l.diffuse[k].y - l.diffuse[k - 1].y);
-        }
-        const float spacing = std::min({g.spacing.x, g.spacing.y, g.spacing.z});
-        o.addRow({"world_cell", fmt::format("{}x{}x{}", g.dims.x, g.dims.y, g.dims.z), bench::num(spacing),
-                  std::to_string(fields[1].resolution), std::to_string(g.probeCount()), bench::num(captureS),
-                  bench::num(shadeMs), bench::num(msPerMpix), bench::num(gbufMs), bench::num(indirect),
-                  bench::num(total), "capture", state});
-        o.summary()["neighbours_" + state + "_indirect_rel_rms"] = indirect;
-        o.summary()["neighbours_" + state + "_shade_ms_per_mpixel"] = msPerMpix;
-        o.summary()["neighbours_" + state + "_line_max_step_rel"] = jump / std::max(mean, 1e-12);
-        o.summary()["neighbours_" + state + "_line_border_step_rel"] = borderStep / std::max(mean, 1e-12);
-        if (state == "full")
-          msFull = msPerMpix;
-        else
-          o.summary()["neighbours_fallback_vs_full_shade_ms_ratio"] = msPerMpix / msFull;
-        spdlog::info(
-            "world cell 1,0, neighbours {}: indirect rel RMS {:.4f}, total {:.4f}, shade {:.1f} ms/Mpixel, "
-            "line y = {:.1f} m: largest 5 cm step {:.4f} of the mean {:.3f}, at the border {:.4f}",
-            state, indirect, total, msPerMpix, lineY, jump / mean, mean, borderStep / mean);
-      }
-      // The same comparison over the pixels the fallback run shades mostly from fallbacks (the neighbours).
-      std::vector<uint8_t> onFallback = surfaceMask(images[1], ref.image, 1e30f);
-      const int fc = images[1].channelIndex("fallback");
-      size_t count = 0;
-      for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-          uint8_t& m = onFallback[size_t(y) * size_t(w) + size_t(x)];
-          m = m && images[1].at(x, y, fc) > 0.5f;
-          count += m;
-        }
-      if (count > 0) {
-        const double full =
-            bake::layerRelativeRms(images[0], "indirect.", ref.image, "indirect.", &onFallback);
-        const double fb = bake::layerRelativeRms(images[1], "indirect.", ref.image, "indirect.", &onFallback);
-        o.summary()["neighbours_pixels_on_fallback"] = double(count);
-        o.summary()["neighbours_full_indirect_rel_rms_on_those_pixels"] = full;
-        o.summary()["neighbours_fallback_indirect_rel_rms_on_those_pixels"] = fb;
-        spdlog::info(
-            "{} of {} pixels mostly on fallback: indirect rel RMS there {:.4f} (neighbours full) vs {:.4f} "
-            "(on fallback)",
-            count, w * h, full, fb);
-      }
-    };
-    if (neighboursOnly) {
-      neighbours();
-      o.save();
-      return 0;
-    }
-
-    // Cornell box.
-    const worlds::ScenePreset& cornellPreset = worlds::findScenePreset("cornell");
-    const worlds::TriangleMesh cornell = worlds::loadScenePreset(cornellPreset, scenesDir);
-    const worlds::SkyModel night = worlds::makeSky(worlds::SkyState{0.0f, 45.0f, 172, 3.0f, 1.0f});
-    bake::PinholeCamera cc;
-    cc.position = glm::vec3(-0.278f, 0.274f, 1.0f);
-    cc.target = glm::vec3(-0.278f, 0.274f, -0.28f);
-    cc.verticalFovDeg = 40.0f;
-    if (sourcesOnly) {
-      const std::vector<Row> c =
-          sweep("cornell", cornell, night, cc, refSize, refSize, refSpp,
-                {{glm::ivec3(2), 16}, {glm::ivec3(4), 16}}, 64, 0.01f, {"capture", "vir"});
-      o.summary()["cornell_indirect_rel_rms_capture_2x2x2"] = c[0].indirect;
-      o.summary()["cornell_indirect_rel_rms_vir_2x2x2"] = c[1].indirect;
-      o.summary()["cornell_indirect_rel_rms_capture_4x4x4"] = c[2].indirect;
-      o.summary()["cornell_indirect_rel_rms_vir_4x4x4"] = c[3].indirect;
-    }
-    std::vector<std::pair<glm::ivec3, int>> configs;
-    const std::vector<int> grids = quick ? std::vector<int>{2, 3, 4} : std::vector<int>{2, 3, 4, 6, 8};
-    const std::vector<int> resolutions = quick ? std::vector<int>{8, 32} : std::vector<int>{8, 32, 64};
-    for (int g : grids) configs.push_back({glm::ivec3(g), 16});
-    for (int r : resolutions) configs.push_back({glm::ivec3(4), r});
-    if (!sourcesOnly) {
-      const std::vector<Row> c = sweep("cornell", cornell, night, cc, refSize, refSize, refSpp, configs, 64,
-                                       0.01f, {"capture", "vir"});
-      // Rows per configuration: capture, vir.
-      o.summary()["cornell_indirect_rel_rms"] = c[0].indirect;  // the paper's 2 x 2 x 2 grid, 16 x 16 maps
-      o.summary()["cornell_indirect_rel_rms_grid"] = "2x2x2, 16x16 maps";
-      o.summary()["cornell_indirect_rel_rms_vir"] = c[1].indirect;
-      o.summary()["shade_ms_per_mpixel"] = c[0].shadeMsPerMpix;
-    }
-
-    // A world cell from capture, VIR and codec probes.
-    {
-      const worlds::SyntheticWorld world(worlds::WorldParams{3, 64.0, 32.0});
-      const worlds::CellCoord cell{1, 0};
-      bake::WorldBakeSettings bs = worldCellBakeSettings(quick);
-      bs.keys = "12";
-      bs.maxSteps = quick ? 300 : 1500;
-      bake::CellBakeInputs in = bake::prepareCellBake(world, cell, bs);
-      const worlds::BuiltCell built = in.built;
-      worlds::TriangleMesh mesh = in.sceneMesh;
-      const bake::EmbreeScene scene(mesh, "world cell 1,0 + neighbours");
-      const auto b0 = std::chrono::steady_clock::now();
-      const CellFile cf = bake::bakeCell(world, std::move(in), bs);
-      const double bakeS = std::chrono::duration<double>(std::chrono::steady_clock::now() - b0).count();
-      spdlog::info("world cell 1,0: baked ({}) in {:.1f} s, stored irradiance error {:.4f}", cf.stats.model,
-                   bakeS, cf.stats.errorAchieved);
-      o.summary()["world_cell_bake_s"] = bakeS;
-      o.summary()["world_cell_model"] = cf.stats.model;
-      const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
-      const bake::PinholeCamera wc = worldCellCamera();
-      const bake::RenderOptions ro = worldCellReferenceOptions(quick, bs.bounces);
-      const int w = ro.width, h = ro.height;
-      const bake::RenderResult ref = bake::renderShadingReference(scene, noon, wc, ro);
-      bake::ShadingRenderer renderer(*ctx, mesh);
-      const ProbeGrid& grid = built.probes.grid;
-      std::vector<uint8_t> active(built.probes.flags.size());
-      for (size_t i = 0; i < active.size(); ++i)
-        active[i] = (built.probes.flags[i] & worlds::kProbeDisabledSolid) ? 0 : 1;
-      for (const std::string source : {"capture", "vir", "codec"}) {
-        const auto c0 = std::chrono::steady_clock::now();
-        ProbeField f;
-        if (source == "capture") {
-          bake::CaptureOptions co = bake::worldBakeCaptureOptions(world, bs);
-          co.irradianceResolution = 8;
-          f = bake::captureGridField(scene, noon, grid, built.probes.offsets, active, co);
-        } else if (source == "vir") {
-          bake::VirProbeOptions vo;
-          vo.resolution = bs.resolution;
-          vo.maxRange = 32.0f;
-          f = bake::virProbeField(*ctx, built.surfels, grid, built.probes.offsets, active, noon, vo);
-        } else {
-          f = bake::codecProbeField(cf, "cell 1,0", scene, noon, bs.resolution);
-          // Visibility from the cell's geometry (docs/ARCHITECTURE.md, "Where visibility comes from").
-          bake::regenerateVirMoments(*ctx, built.surfels, built.probes.offsets, f, 32.0f);
-        }
-        const double sourceS = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
-        const ProbeField* fields[] = {&f};
-        renderer.setProbes(fields);
-        const bake::ShadedView v = renderer.render(noon, wc, w, h);
-        const std::vector<uint8_t> mask = surfaceMask(v.image, ref.image, 1e30f);
-        const double indirect = bake::layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
-        const double total = bake::layerRelativeRms(v.image, "", ref.image, "", &mask);
-        const float spacing = std::min({grid.spacing.x, grid.spacing.y, grid.spacing.z});
-        o.addRow({"world_cell", fmt::format("{}x{}x{}", grid.dims.x, grid.dims.y, grid.dims.z),
-                  bench::num(spacing), std::to_string(f.resolution), std::to_string(grid.probeCount()),
-                  bench::num(sourceS), bench::num(v.shadeMs),
-                  bench::num(v.shadeMs / (double(w) * double(h) * 1e-6)), bench::num(v.gbufferMs),
-                  bench::num(indirect), bench::num(total), source, "absent"});
-        o.summary()["world_cell_indirect_rel_rms_" + source] = indirect;
-        spdlog::info("world cell 1,0 {}: indirect rel RMS {:.4f}, total {:.4f}, probes in {:.2f} s", source,
-                     indirect, total, sourceS);
-      }
-    }
-    if (sourcesOnly) {
-      o.save();
-      return 0;
-    }
-    neighbours();
-
-    // Sponza at noon, one coarse grid (the paper's 18 x 7 x 11 is too slow to capture here with --quick).
-    {
-      const worlds::ScenePreset& sp = worlds::findScenePreset("sponza");
-      const worlds::TriangleMesh sponza = worlds::loadScenePreset(sp, scenesDir);
-      const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
-      bake::PinholeCamera scam;
-      scam.position = glm::vec3(-12.0f, 5.0f, -0.5f);
-      scam.target = glm::vec3(12.0f, 7.0f, -0.5f);
-      scam.verticalFovDeg = 60.0f;
-      const glm::ivec3 dims = quick ? glm::ivec3(9, 4, 6) : glm::ivec3(18, 7, 11);
-      const std::vector<Row> s = sweep("sponza", sponza, noon, scam, quick ? 64 : 128, quick ? 36 : 72,
-                                       quick ? 64 : 256, {{dims, quick ? 8 : 16}}, quick ? 16 : 64, 1e30f);
-      o.summary()["sponza_indirect_rel_rms"] = s[0].indirect;
-      o.summary()["sponza_grid"] = fmt::format("{}x{}x{}", dims.x, dims.y, dims.z);
-    }
-
-    // Leak test house.
-    {
-      const worlds::SyntheticWorld world(worlds::WorldParams::smallDefault(1));
-      const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
-      bake::CaptureOptions co;
-      co.samplesPerTexel = quick ? 16 : 64;
-      co.maxBounces = 6;
-      const bake::LeakTestResult l = bake::measureLeakTest(*ctx, world, {1, 1}, noon, co);
-      o.summary()["leak_ratio"] = l.ratioOn();
-      o.summary()["leak_ratio_without_chebyshev"] = l.ratioOff();
-      spdlog::info("leak test: sealed / lit indirect {:.5f} with Chebyshev, {:.5f} without", l.ratioOn(),
-                   l.ratioOff());
-    }
-    o.save();
+    run(opt);
   } catch (const Error& e) {
     spdlog::error("{}", e.what());
     return 1;

@@ -509,91 +509,76 @@ std::vector<float> virRelightRadiance(Ctx& c, CellSetup& cs, const bake::Capture
   return out;
 }
 
-UnseenSummary unseenSection(Ctx& c, CellSetup& cs, const bake::EmbreeScene& scene) {
-  UnseenSummary sum;
-  const bake::CaptureOptions co = c.capture();
-  const glm::vec3 lo = cs.grid.origin, hi = cs.grid.boxMax();
-  struct Eval {
-    float tod, weather;
-    std::string kind;
-  };
-  const std::vector<Eval> evals = {{8.0f, 0.0f, "trained"},  {12.0f, 0.0f, "trained"},
-                                   {17.5f, 0.0f, "trained"}, {10.0f, 0.0f, "between"},
-                                   {15.0f, 0.0f, "between"}, {6.0f, 0.0f, "outside"},
-                                   {20.0f, 0.0f, "outside"}, {12.0f, 1.0f, "overcast"}};
-  std::vector<bake::LightingKeySpec> specs;
-  for (const Eval& e : evals) specs.push_back({e.tod, e.weather});
-  const bake::GeneratorTrainingSet all = bake::captureTrainingSet(scene, cs.positions, lo, hi, specs, co);
+// One lighting condition of the unseen section.
+struct UnseenEval {
+  float tod, weather;
+  std::string kind;
+};
+
+// One evaluation: the generator decoded at ev (key e of all) against the capture there, beside the nearest
+// training key, the blend of the adjacent keys and the VIR relight; adds to sum and the between-keys mean.
+void unseenEval(Ctx& c, CellSetup& cs, const bake::CaptureOptions& co, const bake::GeneratorTrainingSet& all,
+                size_t e, const UnseenEval& ev, UnseenSummary& sum, double& betweenSum, int& betweenN) {
   const float trainT[] = {8.0f, 12.0f, 17.5f};
-  double betweenSum = 0.0;
-  int betweenN = 0;
-  for (size_t e = 0; e < evals.size(); ++e) {
-    bake::GeneratorTrainingSet one;
-    one.positions01 = all.positions01;
-    one.keys = {all.keys[e]};
-    // Generator decoded at this key (through the same decode the runtime uses).
-    ProbeField f = decodeTarget(cs, co);
-    f.offsets = cs.placement.offsets;
-    f.active = cs.placement.active;
-    const size_t bad = decodeGenerator(cs.model, cs.train, cs.idx, evals[e].tod, evals[e].weather, f);
-    sum.nonFiniteValues += bad + nonFinite(f.irradiance);
-    std::vector<std::vector<float>> decoded(1);
-    const size_t n2 = size_t(f.resolution) * size_t(f.resolution);
-    for (int64_t i : cs.idx)
-      decoded[0].insert(decoded[0].end(), f.radiance.begin() + std::ptrdiff_t(size_t(i) * n2 * 3),
-                        f.radiance.begin() + std::ptrdiff_t(size_t(i + 1) * n2 * 3));
-    const double gen = bake::codecError(one, decoded).irradianceRelativeRms;
-    // Baselines: nearest training key's capture; linear blend of the two adjacent keys (clamped outside).
-    size_t nearest = 0;
-    for (size_t k = 1; k < 3; ++k)
-      if (std::abs(trainT[k] - evals[e].tod) < std::abs(trainT[nearest] - evals[e].tod)) nearest = k;
-    auto keyRadiance = [&](size_t k) {
-      std::vector<float> v;
-      for (const bake::ProbeCapture& p : cs.train.keys[k].probes)
-        v.insert(v.end(), p.radiance.begin(), p.radiance.end());
-      return v;
-    };
-    std::vector<std::vector<float>> near = {keyRadiance(nearest)};
-    const double nearestErr = bake::codecError(one, near).irradianceRelativeRms;
-    size_t a = 0;
-    while (a + 2 < 3 && evals[e].tod > trainT[a + 1]) ++a;
-    const float w = std::clamp((evals[e].tod - trainT[a]) / (trainT[a + 1] - trainT[a]), 0.0f, 1.0f);
-    std::vector<float> ra = keyRadiance(a), rb = keyRadiance(a + 1);
-    for (size_t i = 0; i < ra.size(); ++i) ra[i] = (1.0f - w) * ra[i] + w * rb[i];
-    std::vector<std::vector<float>> blend = {ra};
-    const double blendErr = bake::codecError(one, blend).irradianceRelativeRms;
-    double virMs = 0.0;
-    std::vector<std::vector<float>> virMaps = {
-        virRelightRadiance(c, cs, co, evals[e].tod, evals[e].weather, &virMs)};
-    const double virErr = bake::codecError(one, virMaps).irradianceRelativeRms;
-    c.row("unseen", "vir_relight", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather,
-          "irr_rel_rms", virErr);
-    c.row("unseen", "vir_relight", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather, "relight_ms",
-          virMs);
-    c.row("unseen", "generator", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather, "irr_rel_rms",
-          gen);
-    c.row("unseen", "nearest_key", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather,
-          "irr_rel_rms", nearestErr);
-    c.row("unseen", "key_blend", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather, "irr_rel_rms",
-          blendErr);
-    c.row("unseen", "generator", 0.2, 1.0, evals[e].kind, "-", evals[e].tod, evals[e].weather,
-          "nonfinite_values", double(bad));
-    spdlog::info(
-        "unseen {} h overcast {} ({}): generator irr rel RMS {:.4f}, nearest key {:.4f}, key blend {:.4f}, "
-        "VIR relight {:.4f} ({:.0f} ms), {} non-finite",
-        evals[e].tod, evals[e].weather, evals[e].kind, gen, nearestErr, blendErr, virErr, virMs, bad);
-    if (evals[e].kind != "trained") {
-      sum.generator[fmt::format("{}h{}", evals[e].tod, evals[e].weather > 0.0f ? "_overcast1" : "")] = gen;
-      sum.vir[fmt::format("{}h{}", evals[e].tod, evals[e].weather > 0.0f ? "_overcast1" : "")] = virErr;
-      if (evals[e].kind == "between") {
-        betweenSum += gen;
-        ++betweenN;
-      }
+  bake::GeneratorTrainingSet one;
+  one.positions01 = all.positions01;
+  one.keys = {all.keys[e]};
+  // Generator decoded at this key (through the same decode the runtime uses).
+  ProbeField f = decodeTarget(cs, co);
+  f.offsets = cs.placement.offsets;
+  f.active = cs.placement.active;
+  const size_t bad = decodeGenerator(cs.model, cs.train, cs.idx, ev.tod, ev.weather, f);
+  sum.nonFiniteValues += bad + nonFinite(f.irradiance);
+  std::vector<std::vector<float>> decoded(1);
+  const size_t n2 = size_t(f.resolution) * size_t(f.resolution);
+  for (int64_t i : cs.idx)
+    decoded[0].insert(decoded[0].end(), f.radiance.begin() + std::ptrdiff_t(size_t(i) * n2 * 3),
+                      f.radiance.begin() + std::ptrdiff_t(size_t(i + 1) * n2 * 3));
+  const double gen = bake::codecError(one, decoded).irradianceRelativeRms;
+  // Baselines: nearest training key's capture; linear blend of the two adjacent keys (clamped outside).
+  size_t nearest = 0;
+  for (size_t k = 1; k < 3; ++k)
+    if (std::abs(trainT[k] - ev.tod) < std::abs(trainT[nearest] - ev.tod)) nearest = k;
+  auto keyRadiance = [&](size_t k) {
+    std::vector<float> v;
+    for (const bake::ProbeCapture& p : cs.train.keys[k].probes)
+      v.insert(v.end(), p.radiance.begin(), p.radiance.end());
+    return v;
+  };
+  std::vector<std::vector<float>> near = {keyRadiance(nearest)};
+  const double nearestErr = bake::codecError(one, near).irradianceRelativeRms;
+  size_t a = 0;
+  while (a + 2 < 3 && ev.tod > trainT[a + 1]) ++a;
+  const float w = std::clamp((ev.tod - trainT[a]) / (trainT[a + 1] - trainT[a]), 0.0f, 1.0f);
+  std::vector<float> ra = keyRadiance(a), rb = keyRadiance(a + 1);
+  for (size_t i = 0; i < ra.size(); ++i) ra[i] = (1.0f - w) * ra[i] + w * rb[i];
+  std::vector<std::vector<float>> blend = {ra};
+  const double blendErr = bake::codecError(one, blend).irradianceRelativeRms;
+  double virMs = 0.0;
+  std::vector<std::vector<float>> virMaps = {virRelightRadiance(c, cs, co, ev.tod, ev.weather, &virMs)};
+  const double virErr = bake::codecError(one, virMaps).irradianceRelativeRms;
+  c.row("unseen", "vir_relight", 0.2, 1.0, ev.kind, "-", ev.tod, ev.weather, "irr_rel_rms", virErr);
+  c.row("unseen", "vir_relight", 0.2, 1.0, ev.kind, "-", ev.tod, ev.weather, "relight_ms", virMs);
+  c.row("unseen", "generator", 0.2, 1.0, ev.kind, "-", ev.tod, ev.weather, "irr_rel_rms", gen);
+  c.row("unseen", "nearest_key", 0.2, 1.0, ev.kind, "-", ev.tod, ev.weather, "irr_rel_rms", nearestErr);
+  c.row("unseen", "key_blend", 0.2, 1.0, ev.kind, "-", ev.tod, ev.weather, "irr_rel_rms", blendErr);
+  c.row("unseen", "generator", 0.2, 1.0, ev.kind, "-", ev.tod, ev.weather, "nonfinite_values", double(bad));
+  spdlog::info(
+      "unseen {} h overcast {} ({}): generator irr rel RMS {:.4f}, nearest key {:.4f}, key blend {:.4f}, "
+      "VIR relight {:.4f} ({:.0f} ms), {} non-finite",
+      ev.tod, ev.weather, ev.kind, gen, nearestErr, blendErr, virErr, virMs, bad);
+  if (ev.kind != "trained") {
+    sum.generator[fmt::format("{}h{}", ev.tod, ev.weather > 0.0f ? "_overcast1" : "")] = gen;
+    sum.vir[fmt::format("{}h{}", ev.tod, ev.weather > 0.0f ? "_overcast1" : "")] = virErr;
+    if (ev.kind == "between") {
+      betweenSum += gen;
+      ++betweenN;
     }
   }
-  sum.betweenRelRms = betweenN ? betweenSum / betweenN : 0.0;
+}
 
-  // Extremes of the conditioning the codec never saw: every decoded value finite.
+// Extremes of the conditioning the codec never saw: every decoded value finite.
+void unseenExtremes(Ctx& c, const CellSetup& cs, const bake::CaptureOptions& co, UnseenSummary& sum) {
   for (const auto& [tod, weather] :
        std::vector<std::pair<float, float>>{{0.0f, 0.0f}, {24.0f, 1.0f}, {3.0f, 1.0f}, {12.0f, 1.0f}}) {
     ProbeField f = decodeTarget(cs, co);
@@ -601,50 +586,70 @@ UnseenSummary unseenSection(Ctx& c, CellSetup& cs, const bake::EmbreeScene& scen
     sum.nonFiniteValues += bad;
     c.row("unseen", "generator", 0.2, 1.0, "extreme", "-", tod, weather, "nonfinite_values", double(bad));
   }
+}
 
-  // The 1e-5 interior light through FP16 and the generator: dark-room probes' irradiance error.
-  {
-    const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
-    const ProbeField f = fieldFromKey(cs, cs.train.keys[1], scene, noon);
-    auto raw = makeRawFp16Codec();
-    const ProbeField r = codecRoundTrip(f, *raw);
-    const size_t bad = nonFinite(r.radiance) + nonFinite(r.irradiance);
-    sum.nonFiniteValues += bad;
-    const int m2 = f.irradianceResolution * f.irradianceResolution;
-    double litE = 0.0, darkE = 0.0, se = 0.0, sg = 0.0;
-    size_t litN = 0, darkN = 0;
-    for (int64_t i : cs.idx) {
-      const glm::vec3 p = f.probePosition(i);
-      const bool dark = glm::all(glm::greaterThan(p, cs.scene.darkAir.min)) &&
-                        glm::all(glm::lessThan(p, cs.scene.darkAir.max));
-      const bool lit = glm::all(glm::greaterThan(p, cs.scene.litAir.min)) &&
-                       glm::all(glm::lessThan(p, cs.scene.litAir.max));
-      for (int t = 0; t < m2; ++t) {
-        const size_t o = (size_t(i) * size_t(m2) + size_t(t)) * 3;
-        const glm::vec3 e(f.irradiance[o], f.irradiance[o + 1], f.irradiance[o + 2]);
-        const glm::vec3 d(r.irradiance[o], r.irradiance[o + 1], r.irradiance[o + 2]);
-        if (dark) {
-          darkE += lum(e);
-          ++darkN;
-          se += double(glm::dot(d - e, d - e));
-          sg += double(glm::dot(e, e));
-        }
-        if (lit) {
-          litE += lum(e);
-          ++litN;
-        }
+// The 1e-5 interior light through FP16 and the generator: dark-room probes' irradiance error.
+void interiorPanel(Ctx& c, const CellSetup& cs, const bake::EmbreeScene& scene, UnseenSummary& sum) {
+  const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
+  const ProbeField f = fieldFromKey(cs, cs.train.keys[1], scene, noon);
+  auto raw = makeRawFp16Codec();
+  const ProbeField r = codecRoundTrip(f, *raw);
+  const size_t bad = nonFinite(r.radiance) + nonFinite(r.irradiance);
+  sum.nonFiniteValues += bad;
+  const int m2 = f.irradianceResolution * f.irradianceResolution;
+  double litE = 0.0, darkE = 0.0, se = 0.0, sg = 0.0;
+  size_t litN = 0, darkN = 0;
+  for (int64_t i : cs.idx) {
+    const glm::vec3 p = f.probePosition(i);
+    const bool dark = glm::all(glm::greaterThan(p, cs.scene.darkAir.min)) &&
+                      glm::all(glm::lessThan(p, cs.scene.darkAir.max));
+    const bool lit =
+        glm::all(glm::greaterThan(p, cs.scene.litAir.min)) && glm::all(glm::lessThan(p, cs.scene.litAir.max));
+    for (int t = 0; t < m2; ++t) {
+      const size_t o = (size_t(i) * size_t(m2) + size_t(t)) * 3;
+      const glm::vec3 e(f.irradiance[o], f.irradiance[o + 1], f.irradiance[o + 2]);
+      const glm::vec3 d(r.irradiance[o], r.irradiance[o + 1], r.irradiance[o + 2]);
+      if (dark) {
+        darkE += lum(e);
+        ++darkN;
+        se += double(glm::dot(d - e, d - e));
+        sg += double(glm::dot(e, e));
+      }
+      if (lit) {
+        litE += lum(e);
+        ++litN;
       }
     }
-    const double ratio = darkN && litN && darkE > 0.0 ? (litE / double(litN)) / (darkE / double(darkN)) : 0.0;
-    const double relRms = sg > 0.0 ? std::sqrt(se / sg) : 0.0;
-    c.row("unseen", "raw_fp16", 0.2, 1.0, "panel_1e-5", "-", 12.0, 0.0, "lit_over_dark_irradiance", ratio);
-    c.row("unseen", "raw_fp16", 0.2, 1.0, "panel_1e-5", "-", 12.0, 0.0, "dark_irr_rel_rms", relRms);
-    c.row("unseen", "raw_fp16", 0.2, 1.0, "panel_1e-5", "-", 12.0, 0.0, "nonfinite_values", double(bad));
-    spdlog::info(
-        "interior panel: lit/dark probe irradiance {:.3g}; FP16 dark-room irradiance rel RMS {:.3g}, {} "
-        "non-finite",
-        ratio, relRms, bad);
   }
+  const double ratio = darkN && litN && darkE > 0.0 ? (litE / double(litN)) / (darkE / double(darkN)) : 0.0;
+  const double relRms = sg > 0.0 ? std::sqrt(se / sg) : 0.0;
+  c.row("unseen", "raw_fp16", 0.2, 1.0, "panel_1e-5", "-", 12.0, 0.0, "lit_over_dark_irradiance", ratio);
+  c.row("unseen", "raw_fp16", 0.2, 1.0, "panel_1e-5", "-", 12.0, 0.0, "dark_irr_rel_rms", relRms);
+  c.row("unseen", "raw_fp16", 0.2, 1.0, "panel_1e-5", "-", 12.0, 0.0, "nonfinite_values", double(bad));
+  spdlog::info(
+      "interior panel: lit/dark probe irradiance {:.3g}; FP16 dark-room irradiance rel RMS {:.3g}, {} "
+      "non-finite",
+      ratio, relRms, bad);
+}
+
+UnseenSummary unseenSection(Ctx& c, CellSetup& cs, const bake::EmbreeScene& scene) {
+  UnseenSummary sum;
+  const bake::CaptureOptions co = c.capture();
+  const glm::vec3 lo = cs.grid.origin, hi = cs.grid.boxMax();
+  const std::vector<UnseenEval> evals = {{8.0f, 0.0f, "trained"},  {12.0f, 0.0f, "trained"},
+                                         {17.5f, 0.0f, "trained"}, {10.0f, 0.0f, "between"},
+                                         {15.0f, 0.0f, "between"}, {6.0f, 0.0f, "outside"},
+                                         {20.0f, 0.0f, "outside"}, {12.0f, 1.0f, "overcast"}};
+  std::vector<bake::LightingKeySpec> specs;
+  for (const UnseenEval& e : evals) specs.push_back({e.tod, e.weather});
+  const bake::GeneratorTrainingSet all = bake::captureTrainingSet(scene, cs.positions, lo, hi, specs, co);
+  double betweenSum = 0.0;
+  int betweenN = 0;
+  for (size_t e = 0; e < evals.size(); ++e)
+    unseenEval(c, cs, co, all, e, evals[e], sum, betweenSum, betweenN);
+  sum.betweenRelRms = betweenN ? betweenSum / betweenN : 0.0;
+  unseenExtremes(c, cs, co, sum);
+  interiorPanel(c, cs, scene, sum);
   return sum;
 }
 
@@ -797,10 +802,9 @@ struct StreamSummary {
   int missing = 0;
 };
 
-StreamSummary streamingSection(Ctx& c) {
-  StreamSummary sum;
-  // Pops: the camera appears at a point, a probe-lit cell arrives; largest relative change of the sampled
-  // irradiance at visible points between consecutive frames.
+// Pops: the camera appears at a point, a probe-lit cell arrives; largest relative change of the sampled
+// irradiance at visible points between consecutive frames.
+void streamingPops(Ctx& c, StreamSummary& sum) {
   for (float fade : {0.5f, 0.0f}) {
     streaming::SyntheticCellSource src(streamWorld());
     streaming::StreamingManager m(src, streamConfig(src.maxCellBytes(), fade));
@@ -828,98 +832,238 @@ StreamSummary streamingSection(Ctx& c) {
           "pop_max_rel_change", worst);
     spdlog::info("streaming pop, fade {} s: largest frame-to-frame change {:.4g} (relative)", fade, worst);
   }
-  // Seams: jump of the sampled irradiance across the border x = 1024 at visible points, with the neighbour
-  // resident, and with it not resident (the camera far enough that only the near cell is wanted).
-  {
-    streaming::SyntheticCellSource src(streamWorld());
-    streaming::StreamingConfig cfg = streamConfig(src.maxCellBytes(), 0.0f);
-    for (int mode = 0; mode < 2; ++mode) {
-      if (mode == 1) {
-        cfg.decodeRadius = 1.0f;
-        cfg.keepRadius = 2.0f;
-      }
-      streaming::StreamingManager m(src, cfg);
-      streaming::FrameInput in;
-      in.position = glm::vec3(1024.0f - 32.0f, 20.0f, 1024.0f + 32.0f);
-      for (int f = 0; f < 30; ++f) m.update(in);
-      const glm::ivec2 left(15, 16), right(16, 16);
-      double worst = 0.0;
-      for (int k = 0; k < 64; ++k) {
-        const float z = 1024.0f + float(k) + 0.5f;
-        for (float y : {1.0f, 4.0f, 8.0f}) {
-          const glm::vec3 n = glm::normalize(glm::vec3(std::sin(float(k)), 1.0f, std::cos(float(k))));
-          const glm::vec3 a = m.sample(glm::vec3(1024.0f - 1e-3f, y, z), n).irradiance;
-          const glm::vec3 b = m.sample(glm::vec3(1024.0f + 1e-3f, y, z), n).irradiance;
-          worst = std::max(worst, std::abs(lum(a) - lum(b)) / std::max(1e-9, 0.5 * (lum(a) + lum(b))));
-        }
-      }
-      const bool resident = m.isResident(right) && m.isResident(left);
-      (mode == 0 ? sum.seamResident : sum.seamFallback) = worst;
-      c.row("streaming", mode == 0 ? "neighbour_resident" : "neighbour_fallback", 0.0, 8.0,
-            resident ? "both" : "one", "-", 12.0, 0.0, "seam_max_rel_diff", worst);
-      spdlog::info("streaming seam, {}: largest relative jump across the border {:.4g} (both resident: {})",
-                   mode == 0 ? "neighbour resident" : "neighbour not wanted", worst, resident);
+}
+
+// Seams: jump of the sampled irradiance across the border x = 1024 at visible points, with the neighbour
+// resident, and with it not resident (the camera far enough that only the near cell is wanted).
+void streamingSeams(Ctx& c, StreamSummary& sum) {
+  streaming::SyntheticCellSource src(streamWorld());
+  streaming::StreamingConfig cfg = streamConfig(src.maxCellBytes(), 0.0f);
+  for (int mode = 0; mode < 2; ++mode) {
+    if (mode == 1) {
+      cfg.decodeRadius = 1.0f;
+      cfg.keepRadius = 2.0f;
     }
-  }
-  // Burst: 10x the normal request rate (a teleport to a random far position every frame), then a normal
-  // flight at 50 m/s; frames until the visible fallback fraction is < 1 % again.
-  {
-    streaming::SyntheticCellSource src(streamWorld());
-    streaming::StreamingConfig cfg = streamConfig(src.maxCellBytes(), 0.5f);
-    cfg.memoryBudgetBytes = 24 * src.maxCellBytes();
     streaming::StreamingManager m(src, cfg);
-    std::mt19937 rng(7);
-    std::uniform_real_distribution<float> u(100.0f, 1948.0f);
-    const int burst = c.quick ? 60 : 240;
-    glm::vec3 p(0.0f);
-    int frame = 0, recovered = -1;
-    auto visibleFallback = [&](glm::vec3 cam) {
-      int fb = 0, n = 0;
-      for (int j = 0; j < 6; ++j)
-        for (int i = -3; i < 3; ++i) {
-          const streaming::IrradianceSample s = m.sample(
-              cam + glm::vec3(10.0f * float(i), -cam.y, 10.0f + 10.0f * float(j)), glm::vec3(0, 1, 0));
-          sum.missing += s.missing;
-          fb += s.fallbackWeight > 0.01f;
-          ++n;
-        }
-      return double(fb) / double(n);
-    };
-    for (; frame < burst; ++frame) {
-      p = glm::vec3(u(rng), 20.0f, u(rng));
-      streaming::FrameInput in;
-      in.position = p;
-      in.direction = glm::vec3(0, 0, 1);
-      in.dtSeconds = 1.0f / 60.0f;
-      const streaming::FrameStats st = m.update(in);
-      sum.budgetHeld = sum.budgetHeld && st.bytesResident <= cfg.memoryBudgetBytes;
-      visibleFallback(p);
+    streaming::FrameInput in;
+    in.position = glm::vec3(1024.0f - 32.0f, 20.0f, 1024.0f + 32.0f);
+    for (int f = 0; f < 30; ++f) m.update(in);
+    const glm::ivec2 left(15, 16), right(16, 16);
+    double worst = 0.0;
+    for (int k = 0; k < 64; ++k) {
+      const float z = 1024.0f + float(k) + 0.5f;
+      for (float y : {1.0f, 4.0f, 8.0f}) {
+        const glm::vec3 n = glm::normalize(glm::vec3(std::sin(float(k)), 1.0f, std::cos(float(k))));
+        const glm::vec3 a = m.sample(glm::vec3(1024.0f - 1e-3f, y, z), n).irradiance;
+        const glm::vec3 b = m.sample(glm::vec3(1024.0f + 1e-3f, y, z), n).irradiance;
+        worst = std::max(worst, std::abs(lum(a) - lum(b)) / std::max(1e-9, 0.5 * (lum(a) + lum(b))));
+      }
     }
-    for (int f = 0; f < 600; ++f, ++frame) {
-      streaming::FrameInput in;
-      in.position = p;
-      in.direction = glm::vec3(0, 0, 1);
-      in.velocity = glm::vec3(0, 0, 50.0f);
-      in.dtSeconds = 1.0f / 60.0f;
-      const streaming::FrameStats st = m.update(in);
-      sum.budgetHeld = sum.budgetHeld && st.bytesResident <= cfg.memoryBudgetBytes;
-      const double fb = visibleFallback(p);
-      if (fb < 0.01 && recovered < 0) recovered = f;
-      if (fb >= 0.01) recovered = -1;  // must stay recovered
-      p += in.velocity * in.dtSeconds;
-      if (p.z > 1900.0f) p.z = 100.0f;
-    }
-    sum.burstRecoveryFrames = recovered;
-    c.row("streaming", "burst", 0.0, 8.0, "-", "-", 12.0, 0.0, "burst_frames", double(burst));
-    c.row("streaming", "burst", 0.0, 8.0, "-", "-", 12.0, 0.0, "frames_to_recovery", double(recovered));
-    c.row("streaming", "burst", 0.0, 8.0, "-", "-", 12.0, 0.0, "budget_held", sum.budgetHeld ? 1.0 : 0.0);
-    c.row("streaming", "burst", 0.0, 8.0, "-", "-", 12.0, 0.0, "missing_samples", double(sum.missing));
-    spdlog::info(
-        "burst: {} teleport frames, then recovery (fallback < 1 %) after {} frames; budget held {}, {} "
-        "missing samples",
-        burst, recovered, sum.budgetHeld, sum.missing);
+    const bool resident = m.isResident(right) && m.isResident(left);
+    (mode == 0 ? sum.seamResident : sum.seamFallback) = worst;
+    c.row("streaming", mode == 0 ? "neighbour_resident" : "neighbour_fallback", 0.0, 8.0,
+          resident ? "both" : "one", "-", 12.0, 0.0, "seam_max_rel_diff", worst);
+    spdlog::info("streaming seam, {}: largest relative jump across the border {:.4g} (both resident: {})",
+                 mode == 0 ? "neighbour resident" : "neighbour not wanted", worst, resident);
   }
+}
+
+// Burst: 10x the normal request rate (a teleport to a random far position every frame), then a normal
+// flight at 50 m/s; frames until the visible fallback fraction is < 1 % again.
+void streamingBurst(Ctx& c, StreamSummary& sum) {
+  streaming::SyntheticCellSource src(streamWorld());
+  streaming::StreamingConfig cfg = streamConfig(src.maxCellBytes(), 0.5f);
+  cfg.memoryBudgetBytes = 24 * src.maxCellBytes();
+  streaming::StreamingManager m(src, cfg);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(100.0f, 1948.0f);
+  const int burst = c.quick ? 60 : 240;
+  glm::vec3 p(0.0f);
+  int frame = 0, recovered = -1;
+  auto visibleFallback = [&](glm::vec3 cam) {
+    int fb = 0, n = 0;
+    for (int j = 0; j < 6; ++j)
+      for (int i = -3; i < 3; ++i) {
+        const streaming::IrradianceSample s =
+            m.sample(cam + glm::vec3(10.0f * float(i), -cam.y, 10.0f + 10.0f * float(j)), glm::vec3(0, 1, 0));
+        sum.missing += s.missing;
+        fb += s.fallbackWeight > 0.01f;
+        ++n;
+      }
+    return double(fb) / double(n);
+  };
+  for (; frame < burst; ++frame) {
+    p = glm::vec3(u(rng), 20.0f, u(rng));
+    streaming::FrameInput in;
+    in.position = p;
+    in.direction = glm::vec3(0, 0, 1);
+    in.dtSeconds = 1.0f / 60.0f;
+    const streaming::FrameStats st = m.update(in);
+    sum.budgetHeld = sum.budgetHeld && st.bytesResident <= cfg.memoryBudgetBytes;
+    visibleFallback(p);
+  }
+  for (int f = 0; f < 600; ++f, ++frame) {
+    streaming::FrameInput in;
+    in.position = p;
+    in.direction = glm::vec3(0, 0, 1);
+    in.velocity = glm::vec3(0, 0, 50.0f);
+    in.dtSeconds = 1.0f / 60.0f;
+    const streaming::FrameStats st = m.update(in);
+    sum.budgetHeld = sum.budgetHeld && st.bytesResident <= cfg.memoryBudgetBytes;
+    const double fb = visibleFallback(p);
+    if (fb < 0.01 && recovered < 0) recovered = f;
+    if (fb >= 0.01) recovered = -1;  // must stay recovered
+    p += in.velocity * in.dtSeconds;
+    if (p.z > 1900.0f) p.z = 100.0f;
+  }
+  sum.burstRecoveryFrames = recovered;
+  c.row("streaming", "burst", 0.0, 8.0, "-", "-", 12.0, 0.0, "burst_frames", double(burst));
+  c.row("streaming", "burst", 0.0, 8.0, "-", "-", 12.0, 0.0, "frames_to_recovery", double(recovered));
+  c.row("streaming", "burst", 0.0, 8.0, "-", "-", 12.0, 0.0, "budget_held", sum.budgetHeld ? 1.0 : 0.0);
+  c.row("streaming", "burst", 0.0, 8.0, "-", "-", 12.0, 0.0, "missing_samples", double(sum.missing));
+  spdlog::info(
+      "burst: {} teleport frames, then recovery (fallback < 1 %) after {} frames; budget held {}, {} "
+      "missing samples",
+      burst, recovered, sum.budgetHeld, sum.missing);
+}
+
+StreamSummary streamingSection(Ctx& c) {
+  StreamSummary sum;
+  streamingPops(c, sum);
+  streamingSeams(c, sum);
+  streamingBurst(c, sum);
   return sum;
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Command line and the run of the selected sections.
+
+struct Options {
+  std::string out = "out/bench/stability";
+  bool quick = false;
+  std::string sections = "streaming,leak,unseen,fallback,flicker";
+  std::vector<float> walls, spacings;
+  int leakSteps = 0;
+  bool want(const std::string& name) const {
+    return ("," + sections + ",").find("," + name + ",") != std::string::npos;
+  }
+};
+
+void addOptions(CLI::App& app, Options& opt) {
+  app.add_option("--out", opt.out, "Output directory");
+  app.add_flag("--quick", opt.quick, "Smaller sweeps (< 5 min on 2 cores)");
+  app.add_option("--sections", opt.sections,
+                 "Comma-separated sections to run (streaming,leak,unseen,fallback,flicker)");
+  app.add_option("--leak-walls", opt.walls,
+                 "Wall thicknesses of the leak sweep (m; default 0.05,0.1,0.2,0.5)")
+      ->delimiter(',');
+  app.add_option("--leak-spacings", opt.spacings,
+                 "Probe spacings of the leak sweep (m; default 0.5,1,2; --quick 1,2)")
+      ->delimiter(',');
+  app.add_option("--leak-steps", opt.leakSteps,
+                 "Generator training steps of the leak sweep (default 500; --quick 150)")
+      ->check(CLI::Range(1, 100000));
+}
+
+void runStreaming(Ctx& c, nlohmann::ordered_json& s) {
+  StreamSummary st = streamingSection(c);
+  s["seam_max_diff"] = st.seamResident;
+  s["seam_max_diff_neighbour_fallback"] = st.seamFallback;
+  s["pop_max_rel_change_fade"] = st.popFade;
+  s["pop_max_rel_change_no_fade"] = st.popNoFade;
+  s["burst_frames_to_recovery"] = st.burstRecoveryFrames;
+  s["burst_budget_held"] = st.budgetHeld;
+  s["burst_missing_samples"] = st.missing;
+}
+
+void runLeak(Ctx& c, const Options& opt, nlohmann::ordered_json& s) {
+  std::vector<float> walls = opt.walls, spacings = opt.spacings;
+  if (walls.empty()) walls = {0.05f, 0.1f, 0.2f, 0.5f};
+  if (spacings.empty())
+    spacings = opt.quick ? std::vector<float>{1.0f, 2.0f} : std::vector<float>{0.5f, 1.0f, 2.0f};
+  const LeakSummary l = leakSection(c, walls, spacings);
+  for (const auto& [m, v] : l.worst) s["leak_ratio_worst_" + m] = v;
+  for (const auto& [m, v] : l.worstOff) s["leak_ratio_worst_without_chebyshev_" + m] = v;
+}
+
+// The shared cell's scene: t = 0.2 m wall and the 1e-5 interior panel.
+LeakScene panelScene() {
+  const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
+  // Ceiling panel radiance giving the sealed room's probes ~1e-5 of the sunlit room's irradiance
+  // (measured: 1e-4 x E_sun gave a ratio of 6.4e3, so 6.4e-6 x E_sun gives ~1e5).
+  const float panel = float(6.4e-6 * lum(noon.sun.irradianceNormal()));
+  return makeLeakScene(0.2f, glm::vec3(panel));
+}
+
+// The shared cell's probes (1 m spacing, relocation on) and their captures at the 3 training keys.
+void prepareCell(Ctx& c, CellSetup& cs, const bake::EmbreeScene& scene) {
+  cs.grid = leakProbeGrid(cs.scene, 1.0f);
+  cs.placement = place(cs.scene, cs.grid, true);
+  for (int64_t i = 0; i < cs.grid.probeCount(); ++i)
+    if (cs.placement.active[size_t(i)]) {
+      cs.idx.push_back(i);
+      cs.positions.push_back(cs.grid.probePosition(cs.grid.probeCoord(i)) + cs.placement.offsets[size_t(i)]);
+    }
+  const bake::LightingKeySpec keys[] = {{8.0f, 0.0f}, {12.0f, 0.0f}, {17.5f, 0.0f}};
+  cs.train =
+      bake::captureTrainingSet(scene, cs.positions, cs.grid.origin, cs.grid.boxMax(), keys, c.capture());
+}
+
+void trainCellGenerator(Ctx& c, CellSetup& cs) {
+  const auto t0 = std::chrono::steady_clock::now();
+  cs.model = bake::trainGenerator(cs.train, generatorOptions(c.resolution, c.quick ? 300 : 1500));
+  spdlog::info("generator on keys 8, 12, 17.5 h: {} probes, {} steps, irradiance rel RMS {:.4f} in {:.1f} s",
+               cs.idx.size(), cs.model.report.steps, cs.model.report.irradianceRelativeRms, seconds(t0));
+  c.row("unseen", "generator", 0.2, 1.0, "trained", "-", -1.0, 0.0, "train_irr_rel_rms",
+        cs.model.report.irradianceRelativeRms);
+}
+
+// The sections on the shared cell: t = 0.2 m, 1 m spacing, relocation on, 1e-5 interior panel, generator on
+// 3 keys.
+void runCellSections(Ctx& c, const Options& opt, nlohmann::ordered_json& s) {
+  CellSetup cs;
+  cs.scene = panelScene();
+  const bake::EmbreeScene scene(cs.scene.mesh, "unseen-lighting scene");
+  prepareCell(c, cs, scene);
+  if (opt.want("unseen") || opt.want("flicker")) trainCellGenerator(c, cs);
+  if (opt.want("unseen")) {
+    const UnseenSummary un = unseenSection(c, cs, scene);
+    s["unseen_time_irr_rel_rms"] = un.betweenRelRms;  // times between the keys (10, 15 h)
+    for (const auto& [k, v] : un.generator) s["unseen_irr_rel_rms_" + k] = v;
+    for (const auto& [k, v] : un.vir) s["unseen_vir_relight_irr_rel_rms_" + k] = v;
+    s["train_irr_rel_rms"] = cs.model.report.irradianceRelativeRms;
+    s["nonfinite_decoded_values"] = un.nonFiniteValues;
+  }
+  if (opt.want("fallback")) fallbackSection(c, cs);
+  if (opt.want("flicker")) {
+    bake::ShadingRenderer renderer(c.gpu, cs.scene.mesh);
+    s["max_flicker"] = flickerSection(c, cs, scene, renderer);
+  }
+}
+
+void run(const Options& opt) {
+  const auto start = std::chrono::steady_clock::now();
+  bench::BenchOutput o(opt.out, opt.quick);
+  auto gpuCtx = gpu::createContext();
+  o.setDevice(gpuCtx->info.name);
+  o.setColumns({"section", "method", "wall_m", "spacing_m", "probe_setup", "chebyshev", "time_h", "overcast",
+                "metric", "value"});
+  Ctx c{o, *gpuCtx, opt.quick, 8, opt.quick ? 4 : 16, opt.leakSteps};
+  auto& s = o.summary();
+  // Keys of the bad-input and interruption parts (docs/ARCHITECTURE.md "Bad input and interruption") are
+  // measured by their own tests.
+  s["readers_inputs_tried"] = nullptr;
+  s["readers_crashes"] = nullptr;
+  s["readers_unclear_errors"] = nullptr;
+  s["resume_hash_equal"] = nullptr;
+  if (opt.want("streaming")) runStreaming(c, s);
+  if (opt.want("leak")) runLeak(c, opt, s);
+  if (opt.want("unseen") || opt.want("fallback") || opt.want("flicker")) runCellSections(c, opt, s);
+  s["seconds"] = seconds(start);
+  o.save();
+  std::filesystem::copy_file(std::filesystem::path(opt.out) / "results.csv",
+                             std::filesystem::path(opt.out) / "stability.csv",
+                             std::filesystem::copy_options::overwrite_existing);
 }
 
 }  // namespace
@@ -927,111 +1071,11 @@ StreamSummary streamingSection(Ctx& c) {
 int main(int argc, char** argv) {
   CLI::App app{
       "lfgi benchmark: failure modes (leaks, unseen lighting, generator fallback, flicker, streaming)"};
-  std::string out = "out/bench/stability";
-  bool quick = false;
-  app.add_option("--out", out, "Output directory");
-  app.add_flag("--quick", quick, "Smaller sweeps (< 5 min on 2 cores)");
-  std::string sections = "streaming,leak,unseen,fallback,flicker";
-  app.add_option("--sections", sections,
-                 "Comma-separated sections to run (streaming,leak,unseen,fallback,flicker)");
-  std::vector<float> walls, spacings;
-  app.add_option("--leak-walls", walls, "Wall thicknesses of the leak sweep (m; default 0.05,0.1,0.2,0.5)")
-      ->delimiter(',');
-  app.add_option("--leak-spacings", spacings,
-                 "Probe spacings of the leak sweep (m; default 0.5,1,2; --quick 1,2)")
-      ->delimiter(',');
-  int leakSteps = 0;
-  app.add_option("--leak-steps", leakSteps,
-                 "Generator training steps of the leak sweep (default 500; --quick 150)")
-      ->check(CLI::Range(1, 100000));
+  Options opt;
+  addOptions(app, opt);
   CLI11_PARSE(app, argc, argv);
   try {
-    const auto start = std::chrono::steady_clock::now();
-    bench::BenchOutput o(out, quick);
-    auto gpuCtx = gpu::createContext();
-    o.setDevice(gpuCtx->info.name);
-    o.setColumns({"section", "method", "wall_m", "spacing_m", "probe_setup", "chebyshev", "time_h",
-                  "overcast", "metric", "value"});
-    Ctx c{o, *gpuCtx, quick, 8, quick ? 4 : 16, leakSteps};
-    auto& s = o.summary();
-    // Keys of the bad-input and interruption parts (docs/ARCHITECTURE.md "Bad input and interruption") are
-    // measured by their own tests.
-    s["readers_inputs_tried"] = nullptr;
-    s["readers_crashes"] = nullptr;
-    s["readers_unclear_errors"] = nullptr;
-    s["resume_hash_equal"] = nullptr;
-
-    auto want = [&](const std::string& name) {
-      return ("," + sections + ",").find("," + name + ",") != std::string::npos;
-    };
-    if (want("streaming")) {
-      StreamSummary st = streamingSection(c);
-      s["seam_max_diff"] = st.seamResident;
-      s["seam_max_diff_neighbour_fallback"] = st.seamFallback;
-      s["pop_max_rel_change_fade"] = st.popFade;
-      s["pop_max_rel_change_no_fade"] = st.popNoFade;
-      s["burst_frames_to_recovery"] = st.burstRecoveryFrames;
-      s["burst_budget_held"] = st.budgetHeld;
-      s["burst_missing_samples"] = st.missing;
-    }
-
-    if (want("leak")) {
-      if (walls.empty()) walls = {0.05f, 0.1f, 0.2f, 0.5f};
-      if (spacings.empty())
-        spacings = quick ? std::vector<float>{1.0f, 2.0f} : std::vector<float>{0.5f, 1.0f, 2.0f};
-      const LeakSummary l = leakSection(c, walls, spacings);
-      for (const auto& [m, v] : l.worst) s["leak_ratio_worst_" + m] = v;
-      for (const auto& [m, v] : l.worstOff) s["leak_ratio_worst_without_chebyshev_" + m] = v;
-    }
-
-    if (want("unseen") || want("fallback") || want("flicker")) {
-      // The shared cell: t = 0.2 m, 1 m spacing, relocation on, 1e-5 interior panel, generator on 3 keys.
-      CellSetup cs;
-      const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
-      // Ceiling panel radiance giving the sealed room's probes ~1e-5 of the sunlit room's irradiance
-      // (measured: 1e-4 x E_sun gave a ratio of 6.4e3, so 6.4e-6 x E_sun gives ~1e5).
-      const float panel = float(6.4e-6 * lum(noon.sun.irradianceNormal()));
-      cs.scene = makeLeakScene(0.2f, glm::vec3(panel));
-      const bake::EmbreeScene scene(cs.scene.mesh, "unseen-lighting scene");
-      cs.grid = leakProbeGrid(cs.scene, 1.0f);
-      cs.placement = place(cs.scene, cs.grid, true);
-      for (int64_t i = 0; i < cs.grid.probeCount(); ++i)
-        if (cs.placement.active[size_t(i)]) {
-          cs.idx.push_back(i);
-          cs.positions.push_back(cs.grid.probePosition(cs.grid.probeCoord(i)) +
-                                 cs.placement.offsets[size_t(i)]);
-        }
-      const bake::LightingKeySpec keys[] = {{8.0f, 0.0f}, {12.0f, 0.0f}, {17.5f, 0.0f}};
-      cs.train =
-          bake::captureTrainingSet(scene, cs.positions, cs.grid.origin, cs.grid.boxMax(), keys, c.capture());
-      if (want("unseen") || want("flicker")) {
-        const auto t0 = std::chrono::steady_clock::now();
-        cs.model = bake::trainGenerator(cs.train, generatorOptions(c.resolution, quick ? 300 : 1500));
-        spdlog::info(
-            "generator on keys 8, 12, 17.5 h: {} probes, {} steps, irradiance rel RMS {:.4f} in {:.1f} s",
-            cs.idx.size(), cs.model.report.steps, cs.model.report.irradianceRelativeRms, seconds(t0));
-        c.row("unseen", "generator", 0.2, 1.0, "trained", "-", -1.0, 0.0, "train_irr_rel_rms",
-              cs.model.report.irradianceRelativeRms);
-      }
-      if (want("unseen")) {
-        const UnseenSummary un = unseenSection(c, cs, scene);
-        s["unseen_time_irr_rel_rms"] = un.betweenRelRms;  // times between the keys (10, 15 h)
-        for (const auto& [k, v] : un.generator) s["unseen_irr_rel_rms_" + k] = v;
-        for (const auto& [k, v] : un.vir) s["unseen_vir_relight_irr_rel_rms_" + k] = v;
-        s["train_irr_rel_rms"] = cs.model.report.irradianceRelativeRms;
-        s["nonfinite_decoded_values"] = un.nonFiniteValues;
-      }
-      if (want("fallback")) fallbackSection(c, cs);
-      if (want("flicker")) {
-        bake::ShadingRenderer renderer(*gpuCtx, cs.scene.mesh);
-        s["max_flicker"] = flickerSection(c, cs, scene, renderer);
-      }
-    }
-    s["seconds"] = seconds(start);
-    o.save();
-    std::filesystem::copy_file(std::filesystem::path(out) / "results.csv",
-                               std::filesystem::path(out) / "stability.csv",
-                               std::filesystem::copy_options::overwrite_existing);
+    run(opt);
   } catch (const Error& e) {
     spdlog::error("{}", e.what());
     return 1;

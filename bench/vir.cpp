@@ -225,509 +225,677 @@ void accuracyVsCapture(const gpu::ProbeAtlas& atlas, const bake::CaptureResult& 
   a.captureNormalMedianDeg = quantile(angle, 0.5);
 }
 
+// Command-line options; budgetS and accuracyProbes at 0 get the mode's defaults (setDefaults).
+struct Options {
+  std::string out = "out/bench/vir";
+  std::string cellArg = "2,1";
+  bool quick = false;
+  double budgetS = 0.0;
+  size_t accuracyProbes = 0;
+  float lodTexels = gpu::VirOptions{}.lodTexels;
+  float lodElongation = gpu::VirOptions{}.lodElongation;
+  int lodBlockProbes = gpu::VirOptions{}.lodBlockProbes;
+  float lodOcclusionRange = gpu::VirOptions{}.lodOcclusionRange;
+  float fillNearMiss = gpu::VirOptions{}.fillNearMiss;
+  std::string methodsArg = "all";
+  bool lodStats = false;
+  float statCone = gpu::VirLodBuildOptions{}.coherentConeDeg;
+  bool keepBuried = false;
+  int repeat = 1;
+};
+
+void addOptions(CLI::App& app, Options& opt) {
+  app.add_option("--out", opt.out, "Output directory");
+  app.add_flag("--quick", opt.quick,
+               "Probe counts up to 1024 and a 12 s budget per configuration (lavapipe: minutes)");
+  app.add_option("--cell", opt.cellArg, "Cell X,Z of the default world (2,1: the arcade block)");
+  app.add_option("--budget-s", opt.budgetS,
+                 "Skip a configuration projected to take longer (default 12 quick, 90 full)");
+  app.add_option("--accuracy-probes", opt.accuracyProbes,
+                 "Probes compared with Embree (default 8 quick, 16 full)");
+  app.add_option("--lod-elongation", opt.lodElongation,
+                 "vir_lod: VirOptions::lodElongation (1: width test only)");
+  app.add_option("--lod-texels", opt.lodTexels, "vir_lod: VirOptions::lodTexels");
+  app.add_option("--lod-block-probes", opt.lodBlockProbes, "vir_lod: VirOptions::lodBlockProbes");
+  app.add_option("--lod-occlusion-range", opt.lodOcclusionRange,
+                 "vir_lod: VirOptions::lodOcclusionRange (m; 0: off)");
+  app.add_option("--fill-near-miss", opt.fillNearMiss,
+                 "VirOptions::fillNearMiss for every VIR method (disc radii; 0: fill every enclosed hole)");
+  app.add_option("--lod-stats-cone", opt.statCone, "--lod-stats: VirLodBuildOptions::coherentConeDeg");
+  app.add_flag("--keep-buried", opt.keepBuried,
+               "Keep the cell's buried triangles and surfels (worlds::CellBuildOptions::dropBuried = false)");
+  app.add_flag("--lod-stats", opt.lodStats,
+               "Print the surfel LOD tree's statistics and one probe's cut, then exit");
+  app.add_option("--methods", opt.methodsArg,
+                 "Comma-separated subset of vir_lod,vir_lod_relight,vir,cubemap (default all; the "
+                 "summary's ratios need vir_lod and cubemap)");
+  app.add_option("--repeat", opt.repeat,
+                 "Run each configuration this many times and keep the fastest (device time; shared machines "
+                 "are noisy)")
+      ->check(CLI::Range(1, 20));
+}
+
+// Fills the mode's defaults and parses --cell into cx, cz.
+void setDefaults(Options& opt, int& cx, int& cz) {
+  if (opt.budgetS <= 0.0) opt.budgetS = opt.quick ? 12.0 : 90.0;
+  if (opt.accuracyProbes == 0) opt.accuracyProbes = opt.quick ? 8 : 16;
+  if (std::sscanf(opt.cellArg.c_str(), "%d,%d", &cx, &cz) != 2)
+    fail("--cell '{}': expected X,Z", opt.cellArg);
+}
+
+// The benchmark's cell (surfels for VIR, triangles for the baseline), its probe list and the sweep's axes.
+struct Cell {
+  int cx = 0, cz = 0;
+  worlds::BuiltCell built;
+  gpu::CubemapScene scene;
+  std::vector<glm::vec3> active;
+  std::vector<int> resolutions;
+  std::vector<size_t> counts;
+  std::vector<glm::vec3> probes;
+};
+
+// Builds cell (cx, cz) of the default world; clamps opt.accuracyProbes to its probes.
+Cell loadCell(Options& opt, int cx, int cz, const gpu::Context& ctx) {
+  const worlds::SyntheticWorld world(worlds::WorldParams::smallDefault(1));
+  if (!world.contains({cx, cz})) fail("--cell {},{} outside the default world", cx, cz);
+  worlds::CellBuildOptions buildOptions;
+  buildOptions.dropBuried = !opt.keepBuried;
+  Cell cell{.cx = cx, .cz = cz, .built = worlds::buildCell(world, {cx, cz}, buildOptions)};
+  const worlds::BuiltCell& built = cell.built;
+  cell.scene = toCubemapScene(built.mesh);
+  std::vector<glm::vec3>& active = cell.active;
+  for (int64_t i = 0; i < built.probes.grid.probeCount(); ++i)
+    if (!(built.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid))
+      active.push_back(built.probes.position(i));
+  if (active.empty()) fail("cell {},{} has no active probes", cx, cz);
+  cell.resolutions = {8, 16, 32, 64};
+  cell.counts = opt.quick ? std::vector<size_t>{64, 256, 1024} : std::vector<size_t>{64, 256, 1024, 4096};
+  std::vector<glm::vec3>& probes = cell.probes;
+  probes.resize(cell.counts.back());
+  for (size_t i = 0; i < probes.size(); ++i) probes[i] = active[i % active.size()];
+  opt.accuracyProbes = std::min({opt.accuracyProbes, active.size(), cell.counts.front()});
+  spdlog::info(
+      "vir bench on {} ({}): cell {},{}: {} surfels, {} triangles, {} active probes; budget {} s/config",
+      ctx.info.name, opt.quick ? "quick" : "full", cx, cz, built.surfels.size(), cell.scene.triangleCount(),
+      active.size(), opt.budgetS);
+  return cell;
+}
+
+// --lod-stats: the tree's diagnostics, per depth-from-leaves level how many nodes may be splatted, and
+// one probe's cut at N = 8 and 16 (CPU replay of vir_lod_cut.comp, block = the probe).
+void printLodStats(const Options& opt, const Cell& cell) {
+  gpu::VirLodBuildOptions bo;
+  bo.coherentConeDeg = opt.statCone;
+  const gpu::VirLodTree tree = gpu::buildVirLodTree(cell.built.surfels, bo);
+  std::vector<int> height(tree.nodes.size(), 0);
+  std::map<int, std::array<double, 3>> byHeight;  // nodes, coherent, sum footprint radius
+  for (uint32_t i = 0; i < tree.nodes.size(); ++i) {
+    for (uint32_t c = 0; c < tree.links[i].childCount; ++c)
+      height[i] = std::max(height[i], height[tree.children[tree.links[i].firstChild + c]] + 1);
+    auto& h = byHeight[height[i]];
+    h[0] += 1;
+    h[1] += (tree.links[i].flags & LFGI_VIR_LOD_COHERENT) ? 1 : 0;
+    h[2] += tree.nodes[i].positionRadius.w * 1.5;
+  }
+  for (const auto& [hgt, h] : byHeight)
+    spdlog::info("height {}: {} nodes, {:.1f} % coherent, mean footprint radius {:.2f} m", hgt, h[0],
+                 100.0 * h[1] / h[0], h[2] / h[0]);
+  const glm::vec3 eye = cell.active[cell.active.size() / 2];
+  for (int n : {8, 16}) {
+    gpu::VirOptions so;
+    so.resolution = n;
+    so.maxRange = 1000.0f;
+    so.lodTexels = opt.lodTexels;
+    so.lodElongation = opt.lodElongation;
+    const shared::VirLodParams lp = gpu::virLodClassifyParams(so);
+    size_t leaves = 0, inner = 0, leavesUnderIncoherent = 0;
+    // Why each cut node's parent was refined (incoherent, too thick, else too wide: the footprint
+    // test), and the node's width in texels (the classify's r N / d): sub-texel nodes rarely cover a
+    // texel centre.
+    std::array<size_t, 3> parentWhy{};
+    std::array<size_t, 4> width{};  // < 0.5, < 1, < 2, >= 2 texels
+    for (const uint32_t i : gpu::virLodCut(tree, gpu::virLodBlock(std::span(&eye, 1)), lp)) {
+      const shared::Surfel& node = tree.nodes[i];
+      const float d = glm::length(glm::vec3(node.positionRadius) - eye);
+      const float w = node.positionRadius.w * lp.footprintScale * float(n) / std::max(d, 1e-6f);
+      ++width[w < 0.5f ? 0 : w < 1.0f ? 1 : w < 2.0f ? 2 : 3];
+      if (const uint32_t par = tree.up[i].x; par != ~0u) {
+        const shared::Surfel& pn = tree.nodes[par];
+        const float pd = glm::length(glm::vec3(pn.positionRadius) - eye);
+        ++parentWhy[!(tree.links[par].flags & LFGI_VIR_LOD_COHERENT) ? 0
+                    : pn.emission.w > lp.depthTolerance * pd         ? 2
+                                                                     : 1];
+      }
+      if (i >= tree.leafCount) {
+        ++inner;
+        continue;
+      }
+      ++leaves;
+      leavesUnderIncoherent +=
+          (tree.up[i].x != ~0u && !(tree.links[tree.up[i].x].flags & LFGI_VIR_LOD_COHERENT));
+    }
+    spdlog::info("N={} cut for one probe: {} leaves ({} with an incoherent parent), {} merged nodes", n,
+                 leaves, leavesUnderIncoherent, inner);
+    spdlog::info(
+        "N={} cut nodes by width: {} < 0.5 texel, {} < 1, {} < 2, {} >= 2; parent refined as incoherent "
+        "{}, too wide {}, too thick {}",
+        n, width[0], width[1], width[2], width[3], parentWhy[0], parentWhy[1], parentWhy[2]);
+  }
+}
+
+worlds::SkyModel benchSky() {
+  worlds::SkyState skyState;
+  skyState.timeOfDayHours = 15.5f;
+  return worlds::makeSky(skyState);
+}
+
+// What every configuration shares: the Embree scene and sky of the accuracy references, the two passes
+// with their options, and the LOD tree's build figures from the warm-up.
+struct Passes {
+  Passes(gpu::Context& ctx, const worlds::TriangleMesh& mesh)
+      : embree(mesh, "vir benchmark cell"), sky(benchSky()), vir(ctx), cubemap(ctx) {}
+  bake::EmbreeScene embree;
+  const worlds::SkyModel sky;
+  gpu::VirPass vir;
+  gpu::CubemapRaster cubemap;
+  gpu::VirOptions vo, vlod;
+  gpu::CubemapRasterOptions co;
+  std::vector<glm::vec4> relightIrradiance;
+  double lodBuildMs = 0.0;
+  uint64_t lodNodes = 0;
+};
+
+// Sets the methods' options and runs each pass once.
+void warmUp(Passes& p, const Options& opt, const Cell& cell) {
+  const worlds::BuiltCell& built = cell.built;
+  const std::vector<glm::vec3>& probes = cell.probes;
+  gpu::VirOptions& vo = p.vo;
+  gpu::VirOptions& vlod = p.vlod;
+  vo.maxRange = 1000.0f;  // the whole cell, as the baseline renders it
+  vo.fillNearMiss = opt.fillNearMiss;
+  vlod = vo;
+  vlod.lod = true;
+  vlod.lodTexels = opt.lodTexels;
+  vlod.lodElongation = opt.lodElongation;
+  vlod.lodBlockProbes = opt.lodBlockProbes;
+  vlod.lodOcclusionRange = opt.lodOcclusionRange;
+  vlod.reuseSplat = false;  // vir_lod measures the splat; vir_lod_relight reuses it
+  vo.lod = false;
+  vo.reuseSplat = false;
+  // vir_lod_relight: the same LOD splat's winners kept (VirOptions::reuseSplat), new surfel irradiance:
+  // what relighting a resident cell (time of day, weather, bounces) costs per frame.
+  std::vector<glm::vec4>& relightIrradiance = p.relightIrradiance;
+  relightIrradiance.resize(built.surfels.size());
+  for (size_t i = 0; i < relightIrradiance.size(); ++i)
+    relightIrradiance[i] = glm::vec4(1.0f + float(i % 7), 2.0f, 1.0f + float(i % 3), 0.0f);
+  {  // warm-up: lavapipe compiles each pipeline at its first use
+    vo.resolution = p.co.resolution = 8;
+    p.vir.run(built.surfels, std::span(probes).first(1), vo);
+    vlod.resolution = 8;
+    const gpu::ProbeAtlas first = p.vir.run(built.surfels, std::span(probes).first(1), vlod);
+    p.lodBuildMs = first.lodBuildMs;
+    p.lodNodes = first.lodNodes;
+    spdlog::info("surfel LOD tree: {} nodes for {} surfels, built + uploaded in {:.0f} ms (once per cell)",
+                 p.lodNodes, built.surfels.size(), p.lodBuildMs);
+    p.cubemap.run(cell.scene, std::span(probes).first(1), p.co);
+  }
+}
+
+void setColumns(BenchOutput& o) {
+  o.setColumns({"method",
+                "resolution",
+                "probes",
+                "surfels",
+                "triangles",
+                "gpu_ms",
+                "ms_per_probe",
+                "probes_per_s",
+                "surfel_probes_per_s",
+                "splat_or_raster_ms",
+                "resolve_or_resample_ms",
+                "wall_ms",
+                "atomics_per_s",
+                "dist_median_rel_error",
+                "dist_p90_rel_error",
+                "dist_frac_off_5pct",
+                "normal_median_deg",
+                "normal_p90_deg",
+                "hole_fraction",
+                "dist_median_rel_error_vs_capture",
+                "normal_median_deg_vs_capture",
+                "splat_pairs_per_s",
+                "lod_nodes",
+                "lod_build_ms",
+                "splat_pairs_per_probe",
+                "texel_tests_per_probe",
+                "atomics_per_probe",
+                "window_pair_fraction",
+                "sky_covered_fraction",
+                "sky_filled_fraction",
+                "albedo_mean_abs_error",
+                "albedo_frac_off_0_05"});
+}
+
+struct Measured {
+  double probesPerS = 0.0, msPerProbe = 0.0;
+  size_t probes = 0;
+  Accuracy acc;
+  double atomicsPerS = 0.0, splatPairsPerS = 0.0;
+};
+
+// The sweep's results the summary reads, and the device figures it reports beside them.
+struct Results {
+  nlohmann::ordered_json skipped = nlohmann::ordered_json::array();
+  std::map<std::pair<std::string, int>, Measured> best;  // (method, N) -> largest probe count measured
+  std::map<std::tuple<std::string, int, size_t>, double> perCount;  // (method, N, probes) -> probes/s
+  double ceiling = 0.0;
+  bool cpuDevice = false;
+};
+
+std::vector<std::string> selectMethods(const std::string& methodsArg) {
+  std::vector<std::string> methods;
+  for (const std::string m : {"vir_lod", "vir_lod_relight", "vir", "cubemap"})
+    if (methodsArg.find(m + ",") != std::string::npos || methodsArg.ends_with(m) || methodsArg == "all")
+      methods.push_back(m);
+  return methods;
+}
+
+// The accuracy references at one N for the accuracy probes.
+struct Reference {
+  std::vector<std::vector<std::optional<bake::RayHit>>> ref;  // Embree hits along the texel-centre rays
+  double atomicsPerProbe = 0.0;                               // vir's splat, CPU-replayed
+  bake::CaptureOptions copt;
+  bake::CaptureResult capture;
+};
+
+// Needs passes.vo at resolution n.
+Reference makeReference(const Passes& passes, const Cell& cell, size_t accuracyProbes, int n) {
+  const std::vector<glm::vec3>& probes = cell.probes;
+  Reference r;
+  // Reference rays for the accuracy probes at this N.
+  std::vector<std::vector<std::optional<bake::RayHit>>>& ref = r.ref;
+  ref.resize(accuracyProbes);
+  for (size_t p = 0; p < accuracyProbes; ++p)
+    for (uint32_t j = 0; j < uint32_t(n); ++j)
+      for (uint32_t i = 0; i < uint32_t(n); ++i)
+        ref[p].push_back(
+            passes.embree.intersect(probes[p], shared::octTexelDirection(glm::uvec2(i, j), uint32_t(n))));
+  uint64_t atomicsSubset = 0;
+  for (size_t p = 0; p < accuracyProbes; ++p)
+    atomicsSubset += splatAtomics(cell.built.surfels, probes[p], passes.vo);
+  r.atomicsPerProbe = double(atomicsSubset) / double(accuracyProbes);
+  // Embree capture of the accuracy probes at low spp, direct only: its distance and normal maps are
+  // texel means, so it measures texel-mean vs point-sample differences as well as method error.
+  bake::CaptureOptions& copt = r.copt;
+  copt.resolution = n;
+  copt.irradianceResolution = 4;
+  copt.samplesPerTexel = 4;
+  copt.maxBounces = 0;
+  r.capture = bake::captureProbes(passes.embree, passes.sky, std::span(probes).first(accuracyProbes), copt);
+  return r;
+}
+
+// One (method, N, probe count) configuration of the sweep.
+struct Config {
+  const std::string& method;
+  int n = 0;
+  size_t count = 0;
+};
+
+// One timed run of the method: its atlas, splat (or raster) and resolve device ms, wall ms.
+struct Run {
+  gpu::ProbeAtlas atlas;
+  double splat = 0.0, resolve = 0.0, wallMs = 0.0;
+};
+
+Run runOnce(Passes& passes, const Cell& cell, const Config& cfg, std::span<const glm::vec3> ps) {
+  const std::string& method = cfg.method;
+  const worlds::BuiltCell& built = cell.built;
+  Run r;
+  auto t0 = std::chrono::steady_clock::now();
+  if (method == "vir_lod") {
+    r.atlas = passes.vir.run(built.surfels, ps, passes.vlod);
+  } else if (method == "vir_lod_relight") {
+    gpu::VirOptions reuse = passes.vlod;
+    reuse.reuseSplat = true;
+    passes.vir.run(built.surfels, ps, reuse);  // the splat to keep (untimed)
+    t0 = std::chrono::steady_clock::now();
+    r.atlas = passes.vir.run(built.surfels, ps, reuse, passes.relightIrradiance);
+    if (!r.atlas.splatReused)
+      fail("vir_lod_relight N={} probes={}: the splat was not reused", cfg.n, cfg.count);
+  } else if (method == "vir") {
+    r.atlas = passes.vir.run(built.surfels, ps, passes.vo);
+  } else {
+    gpu::CubemapCapture c = passes.cubemap.run(cell.scene, ps, passes.co);
+    r.splat = c.rasterMs;
+    r.resolve = c.copyMs + c.resampleMs;
+    r.atlas = std::move(c.atlas);
+  }
+  if (method != "cubemap") {
+    r.splat = r.atlas.splatMs;
+    r.resolve = r.atlas.resolveMs + r.atlas.fillMs;
+  }
+  r.wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+// True (logged and listed in results.skipped) when the time projected from the previous probe count at
+// the same N exceeds the budget, or the maps would exceed 2 GB.
+bool skipConfig(const Config& cfg, double lastMsPerProbe, double budgetS, Results& results) {
+  const std::string& method = cfg.method;
+  const int n = cfg.n;
+  const size_t count = cfg.count;
+  const double projectedS = lastMsPerProbe * double(count) * 1e-3;
+  const double texelBytes = double(count) * n * n * 64.0;
+  if (projectedS > budgetS || texelBytes > 2.0e9) {
+    spdlog::info("skip {} N={} probes={}: projected {:.0f} s (budget {} s), {:.1f} GB of maps", method, n,
+                 count, projectedS, budgetS, texelBytes * 1e-9);
+    results.skipped.push_back(
+        {{"method", method}, {"resolution", n}, {"probes", count}, {"projected_s", projectedS}});
+    return true;
+  }
+  return false;
+}
+
+// vir_lod's per-probe cut and splat counters and its stage times.
+void logLodCounters(const gpu::ProbeAtlas& atlas, int n, size_t count, const gpu::VirOptions& vlod) {
+  const auto perProbe = [&](uint64_t total) { return double(total) / double(count); };
+  spdlog::info(
+      "vir_lod N={} probes={}: per probe {:.0f} cut pairs ({:.0f} dropped as occluded, {:.1f} "
+      "nodes per block culled), {:.0f} texel tests, {:.0f} atomics; "
+      "{:.1f} % of pairs through the wrapped window; device ms: node radiance {:.1f}, cut + "
+      "splat {:.1f}, resolve {:.1f}, fill {:.1f}",
+      n, count, perProbe(atlas.splatPairs), perProbe(atlas.occludedPairs),
+      double(atlas.occludedNodes) * double(vlod.lodBlockProbes) / double(count),
+      perProbe(atlas.splatTexelTests), perProbe(atlas.splatAtomics),
+      atlas.splatPairs ? 100.0 * double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0,
+      atlas.lodRadianceMs, atlas.splatMs, atlas.resolveMs, atlas.fillMs);
+}
+
+void logConfig(const Config& cfg, const Run& fastest, const Measured& m, const Accuracy& acc) {
+  const gpu::ProbeAtlas& atlas = fastest.atlas;
+  spdlog::info(
+      "{} N={} probes={}: {:.1f} ms device, {:.1f} ms wall ({:.3f} ms/probe, {:.0f} probes/s); dist "
+      "median {:.2e} p90 {:.4f} off>5% {:.4f}, normal median {:.2f} p90 {:.2f} deg, holes {:.4f}, "
+      "sky texels "
+      "covered {:.4f} filled {:.4f}, albedo mean abs {:.4f} off>0.05 {:.4f}{}",
+      cfg.method, cfg.n, cfg.count, atlas.gpuMs, fastest.wallMs, m.msPerProbe, m.probesPerS,
+      acc.distMedianRel, acc.distP90Rel, acc.fracOff5pct, acc.normalMedianDeg, acc.normalP90Deg,
+      acc.holeFractionOfHits, acc.skyCoveredFraction, acc.skyFilledFraction, acc.albedoMeanAbs,
+      acc.albedoFracOff, m.atomicsPerS > 0 ? fmt::format(", {:.1f} M atomics/s", m.atomicsPerS * 1e-6) : "");
+}
+
+void addConfigRow(BenchOutput& o, const Config& cfg, const Cell& cell, const Passes& passes,
+                  const Run& fastest, const Measured& m, const Accuracy& acc) {
+  const std::string& method = cfg.method;
+  const size_t count = cfg.count;
+  const gpu::ProbeAtlas& atlas = fastest.atlas;
+  const auto perProbe = [&](uint64_t total) { return double(total) / double(count); };
+  o.addRow({method,
+            std::to_string(cfg.n),
+            std::to_string(count),
+            std::to_string(cell.built.surfels.size()),
+            std::to_string(cell.scene.triangleCount()),
+            bench::num(atlas.gpuMs),
+            bench::num(m.msPerProbe),
+            bench::num(m.probesPerS),
+            bench::num(m.probesPerS * double(cell.built.surfels.size())),
+            bench::num(fastest.splat),
+            bench::num(fastest.resolve),
+            bench::num(fastest.wallMs),
+            bench::num(m.atomicsPerS),
+            bench::num(acc.distMedianRel),
+            bench::num(acc.distP90Rel),
+            bench::num(acc.fracOff5pct),
+            bench::num(acc.normalMedianDeg),
+            bench::num(acc.normalP90Deg),
+            bench::num(acc.holeFractionOfHits),
+            bench::num(acc.captureDistMedianRel),
+            bench::num(acc.captureNormalMedianDeg),
+            method == "cubemap" ? "0" : bench::num(m.splatPairsPerS),
+            method.starts_with("vir_lod") ? std::to_string(passes.lodNodes) : "0",
+            method.starts_with("vir_lod") ? bench::num(passes.lodBuildMs) : "0",
+            bench::num(perProbe(atlas.splatPairs)),
+            bench::num(perProbe(atlas.splatTexelTests)),
+            bench::num(perProbe(atlas.splatAtomics)),
+            bench::num(atlas.splatPairs ? double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0),
+            bench::num(acc.skyCoveredFraction),
+            bench::num(acc.skyFilledFraction),
+            bench::num(acc.albedoMeanAbs),
+            bench::num(acc.albedoFracOff)});
+}
+
+// Times one configuration (the fastest of --repeat runs); the method's accuracy is taken at its first
+// measured probe count (`acc`), lastMsPerProbe feeds the next count's projection.
+void measureConfig(Passes& passes, const Cell& cell, const Options& opt, const Reference& reference,
+                   const Config& cfg, std::optional<Accuracy>& acc, double& lastMsPerProbe, BenchOutput& o,
+                   Results& results) {
+  const std::string& method = cfg.method;
+  const int n = cfg.n;
+  const size_t count = cfg.count;
+  const std::span<const glm::vec3> ps = std::span(cell.probes).first(count);
+  Run fastest = runOnce(passes, cell, cfg, ps);
+  for (int rep = 1; rep < opt.repeat; ++rep) {  // --repeat: keep the fastest (device time)
+    Run r = runOnce(passes, cell, cfg, ps);
+    if (r.atlas.gpuMs < fastest.atlas.gpuMs) fastest = std::move(r);
+  }
+  const gpu::ProbeAtlas& atlas = fastest.atlas;
+  if (!acc) {
+    acc = accuracy(atlas, reference.ref, opt.accuracyProbes, cell.built.mesh);
+    accuracyVsCapture(atlas, reference.capture, reference.copt.maxDistance, *acc);
+  }
+  Measured m;
+  m.probes = count;
+  m.msPerProbe = lastMsPerProbe = atlas.gpuMs / double(count);
+  m.probesPerS = double(count) / (atlas.gpuMs * 1e-3);
+  m.acc = *acc;
+  // Over VIR's whole device time, not the splat's stamps: on lavapipe the splat's work shows up in
+  // later timestamp intervals (its own interval reads ~0), so only the total is trustworthy there.
+  const bool relit = method == "vir_lod_relight";  // splat counters are the kept splat's
+  m.atomicsPerS = method == "vir"       ? reference.atomicsPerProbe * double(count) / (atlas.gpuMs * 1e-3)
+                  : method == "vir_lod" ? double(atlas.splatAtomics) / (atlas.gpuMs * 1e-3)
+                                        : 0.0;
+  m.splatPairsPerS = relit ? 0.0 : double(atlas.splatPairs) / (atlas.gpuMs * 1e-3);
+  results.best[{method, n}] = m;
+  if (method == "vir_lod") logLodCounters(atlas, n, count, passes.vlod);
+  logConfig(cfg, fastest, m, *acc);
+  addConfigRow(o, cfg, cell, passes, fastest, m, *acc);
+  results.perCount[{method, n, count}] = m.probesPerS;
+}
+
+// Every selected method at every N and probe count, each count's time projected from the previous one.
+void runSweep(Passes& passes, const Cell& cell, const Options& opt, BenchOutput& o, Results& results) {
+  const std::vector<std::string> methods = selectMethods(opt.methodsArg);
+  Progress progress("vir bench configurations", cell.resolutions.size() * cell.counts.size() * methods.size(),
+                    "configs");
+  size_t done = 0;
+  for (int n : cell.resolutions) {
+    passes.vo.resolution = passes.co.resolution = passes.vlod.resolution = n;
+    const Reference reference = makeReference(passes, cell, opt.accuracyProbes, n);
+    for (const std::string& method : methods) {
+      double lastMsPerProbe = 0.0;
+      std::optional<Accuracy> acc;
+      for (size_t count : cell.counts) {
+        if (InterruptGuard::interrupted()) fail("interrupted");
+        progress.update(++done);
+        const Config cfg{method, n, count};
+        if (skipConfig(cfg, lastMsPerProbe, opt.budgetS, results)) continue;
+        measureConfig(passes, cell, opt, reference, cfg, acc, lastMsPerProbe, o, results);
+      }
+    }
+  }
+  progress.finish();
+}
+
+using Best = std::map<std::pair<std::string, int>, Measured>;
+
+// The headline keys: N = 16, vir_lod vs cubemap (v16, c16), then the full splat's vir_full_* and the
+// relight figures where measured.
+void writeHeadline(nlohmann::ordered_json& s, const Results& results, Best::const_iterator v16,
+                   Best::const_iterator c16, const Options& opt, const Cell& cell, const Passes& passes) {
+  const Best& best = results.best;
+  const double ceiling = results.ceiling;
+  const auto f16 = best.find({"vir", 16});
+  s["vir_over_cubemap_probes_per_s"] = v16->second.probesPerS / c16->second.probesPerS;
+  s["vir_probes_per_s"] = v16->second.probesPerS;
+  s["cubemap_probes_per_s"] = c16->second.probesPerS;
+  s["hole_fraction"] = v16->second.acc.holeFractionOfHits;
+  s["distance_median_rel_error"] = v16->second.acc.distMedianRel;
+  s["normal_median_deg"] = v16->second.acc.normalMedianDeg;
+  s["atomics_fraction_of_ceiling"] = ceiling > 0.0 ? v16->second.atomicsPerS / ceiling : 0.0;
+  s["headline_resolution"] = 16;
+  s["vir_probes"] = v16->second.probes;
+  s["cubemap_probes"] = c16->second.probes;
+  s["cubemap_distance_median_rel_error"] = c16->second.acc.distMedianRel;
+  s["cubemap_normal_median_deg"] = c16->second.acc.normalMedianDeg;
+  s["cubemap_hole_fraction"] = c16->second.acc.holeFractionOfHits;
+  s["sky_covered_fraction"] = v16->second.acc.skyCoveredFraction;
+  s["sky_filled_fraction"] = v16->second.acc.skyFilledFraction;
+  s["cubemap_sky_covered_fraction"] = c16->second.acc.skyCoveredFraction;
+  s["distance_p90_rel_error"] = v16->second.acc.distP90Rel;
+  s["cubemap_distance_p90_rel_error"] = c16->second.acc.distP90Rel;
+  s["distance_frac_off_5pct"] = v16->second.acc.fracOff5pct;
+  s["distance_median_rel_error_vs_capture"] = v16->second.acc.captureDistMedianRel;
+  s["cubemap_distance_median_rel_error_vs_capture"] = c16->second.acc.captureDistMedianRel;
+  s["normal_median_deg_vs_capture"] = v16->second.acc.captureNormalMedianDeg;
+  s["cubemap_normal_median_deg_vs_capture"] = c16->second.acc.captureNormalMedianDeg;
+  s["cubemap_distance_frac_off_5pct"] = c16->second.acc.fracOff5pct;
+  s["albedo_frac_off_0_05"] = v16->second.acc.albedoFracOff;
+  s["cubemap_albedo_frac_off_0_05"] = c16->second.acc.albedoFracOff;
+  s["vir_atomics_per_s"] = v16->second.atomicsPerS;
+  s["vir_splat_pairs_per_s"] = v16->second.splatPairsPerS;
+  s["vir_surfel_probes_per_s"] = v16->second.probesPerS * double(cell.built.surfels.size());
+  s["lod_texels"] = opt.lodTexels;
+  s["lod_elongation"] = opt.lodElongation;
+  s["lod_occlusion_range_m"] = opt.lodOcclusionRange;
+  s["fill_near_miss"] = opt.fillNearMiss;
+  s["lod_block_probes"] = opt.lodBlockProbes;
+  s["repeat"] = opt.repeat;
+  s["lod_nodes"] = passes.lodNodes;
+  s["lod_build_ms"] = passes.lodBuildMs;
+  const auto r16 = best.find({"vir_lod_relight", 16});
+  if (r16 != best.end()) {
+    // Relighting keeps the winners, so it is not a generation rate: reported beside, not as the ratio.
+    s["relight_probes_per_s"] = r16->second.probesPerS;
+    s["relight_probes"] = r16->second.probes;
+    s["relight_over_vir_lod"] = r16->second.probesPerS / v16->second.probesPerS;
+    s["relight_over_cubemap_probes_per_s"] = r16->second.probesPerS / c16->second.probesPerS;
+  }
+  if (f16 != best.end()) {
+    s["vir_full_over_cubemap_probes_per_s"] = f16->second.probesPerS / c16->second.probesPerS;
+    s["vir_full_probes_per_s"] = f16->second.probesPerS;
+    s["vir_full_distance_p90_rel_error"] = f16->second.acc.distP90Rel;
+    s["vir_full_atomics_fraction_of_ceiling"] = ceiling > 0.0 ? f16->second.atomicsPerS / ceiling : 0.0;
+  }
+  s["atomics64_ceiling_per_s"] = ceiling;
+}
+
+// ratio_by_resolution (each method at its largest measured count per N) and
+// ratio_by_resolution_and_probes (every (N, probes) both vir_lod and cubemap measured).
+void writeByResolution(nlohmann::ordered_json& s, const Results& results, const Cell& cell) {
+  const Best& best = results.best;
+  const auto& perCount = results.perCount;
+  const double ceiling = results.ceiling;
+  nlohmann::ordered_json table = nlohmann::ordered_json::array();
+  nlohmann::ordered_json byRes = nlohmann::ordered_json::object();
+  for (int n : cell.resolutions) {
+    const auto v = best.find({"vir_lod", n}), c = best.find({"cubemap", n}), f = best.find({"vir", n});
+    if (v != best.end() && c != best.end()) {
+      byRes[std::to_string(n)] = {
+          {"ratio", v->second.probesPerS / c->second.probesPerS},
+          {"vir_probes_per_s", v->second.probesPerS},
+          {"cubemap_probes_per_s", c->second.probesPerS},
+          {"vir_probes", v->second.probes},
+          {"cubemap_probes", c->second.probes},
+          {"vir_dist_p90_rel_error", v->second.acc.distP90Rel},
+          {"cubemap_dist_p90_rel_error", c->second.acc.distP90Rel},
+          {"vir_hole_fraction", v->second.acc.holeFractionOfHits},
+          {"vir_atomics_fraction_of_ceiling", ceiling > 0.0 ? v->second.atomicsPerS / ceiling : 0.0}};
+      if (f != best.end())
+        byRes[std::to_string(n)]["vir_full_ratio"] = f->second.probesPerS / c->second.probesPerS;
+      const auto r = best.find({"vir_lod_relight", n});
+      if (r != best.end()) {
+        byRes[std::to_string(n)]["relight_probes_per_s"] = r->second.probesPerS;
+        byRes[std::to_string(n)]["relight_over_cubemap"] = r->second.probesPerS / c->second.probesPerS;
+      }
+    }
+    for (size_t count : cell.counts) {
+      const auto vc = perCount.find({"vir_lod", n, count}), cc = perCount.find({"cubemap", n, count});
+      if (vc != perCount.end() && cc != perCount.end())
+        table.push_back({{"resolution", n},
+                         {"probes", count},
+                         {"vir_probes_per_s", vc->second},
+                         {"cubemap_probes_per_s", cc->second},
+                         {"ratio", vc->second / cc->second}});
+    }
+  }
+  s["ratio_by_resolution_and_probes"] = table;
+  s["ratio_by_resolution"] = byRes;
+}
+
+// summary.json; false (no summary) when N = 16 was not measured for both vir_lod and cubemap.
+bool writeSummary(nlohmann::ordered_json& s, const Results& results, const Options& opt, const Cell& cell,
+                  const Passes& passes) {
+  const Best& best = results.best;
+  const auto v16 = best.find({"vir_lod", 16}), c16 = best.find({"cubemap", 16});
+  if (v16 == best.end() || c16 == best.end()) {
+    spdlog::warn("N = 16 was not measured for both vir_lod and cubemap: no summary");
+    return false;
+  }
+  writeHeadline(s, results, v16, c16, opt, cell, passes);
+  writeByResolution(s, results, cell);
+  s["cell"] = {cell.cx, cell.cz};
+  s["surfels"] = cell.built.surfels.size();
+  s["triangles"] = cell.scene.triangleCount();
+  s["buried_dropped"] = {{"triangles", cell.built.stats.trianglesBuried},
+                         {"surfels", cell.built.stats.surfelsBuried}};
+  s["accuracy_probes"] = opt.accuracyProbes;
+  s["accuracy_reference"] = "Embree closest hit along each texel-centre ray (deterministic)";
+  s["budget_s_per_config"] = opt.budgetS;
+  s["cpu_device"] = results.cpuDevice;
+  s["skipped"] = results.skipped;
+  return true;
+}
+
+void logHeadline(nlohmann::ordered_json& s, const Results& results) {
+  const auto v16 = results.best.find({"vir_lod", 16}), c16 = results.best.find({"cubemap", 16});
+  spdlog::info("VIR / cubemap at N=16: {:.1f}x ({:.0f} vs {:.0f} probes/s); {} configurations skipped",
+               s["vir_over_cubemap_probes_per_s"].get<double>(), v16->second.probesPerS,
+               c16->second.probesPerS, results.skipped.size());
+}
+
 }  // namespace
 }  // namespace lfgi::bench
 
 int main(int argc, char** argv) {
   using namespace lfgi;
   CLI::App app{"lfgi benchmark: VIR vs cubemap rasterization (probe generation)"};
-  std::string out = "out/bench/vir";
-  std::string cellArg = "2,1";
-  bool quick = false;
-  double budgetS = 0.0;
-  size_t accuracyProbes = 0;
-  app.add_option("--out", out, "Output directory");
-  app.add_flag("--quick", quick,
-               "Probe counts up to 1024 and a 12 s budget per configuration (lavapipe: minutes)");
-  app.add_option("--cell", cellArg, "Cell X,Z of the default world (2,1: the arcade block)");
-  app.add_option("--budget-s", budgetS,
-                 "Skip a configuration projected to take longer (default 12 quick, 90 full)");
-  app.add_option("--accuracy-probes", accuracyProbes,
-                 "Probes compared with Embree (default 8 quick, 16 full)");
-  float lodTexels = gpu::VirOptions{}.lodTexels;
-  float lodElongation = gpu::VirOptions{}.lodElongation;
-  app.add_option("--lod-elongation", lodElongation,
-                 "vir_lod: VirOptions::lodElongation (1: width test only)");
-  int lodBlockProbes = gpu::VirOptions{}.lodBlockProbes;
-  app.add_option("--lod-texels", lodTexels, "vir_lod: VirOptions::lodTexels");
-  app.add_option("--lod-block-probes", lodBlockProbes, "vir_lod: VirOptions::lodBlockProbes");
-  float lodOcclusionRange = gpu::VirOptions{}.lodOcclusionRange;
-  app.add_option("--lod-occlusion-range", lodOcclusionRange,
-                 "vir_lod: VirOptions::lodOcclusionRange (m; 0: off)");
-  float fillNearMiss = gpu::VirOptions{}.fillNearMiss;
-  app.add_option("--fill-near-miss", fillNearMiss,
-                 "VirOptions::fillNearMiss for every VIR method (disc radii; 0: fill every enclosed hole)");
-  std::string methodsArg = "all";
-  bool lodStats = false;
-  float statCone = gpu::VirLodBuildOptions{}.coherentConeDeg;
-  app.add_option("--lod-stats-cone", statCone, "--lod-stats: VirLodBuildOptions::coherentConeDeg");
-  bool keepBuried = false;
-  app.add_flag("--keep-buried", keepBuried,
-               "Keep the cell's buried triangles and surfels (worlds::CellBuildOptions::dropBuried = false)");
-  app.add_flag("--lod-stats", lodStats,
-               "Print the surfel LOD tree's statistics and one probe's cut, then exit");
-  app.add_option("--methods", methodsArg,
-                 "Comma-separated subset of vir_lod,vir_lod_relight,vir,cubemap (default all; the "
-                 "summary's ratios need vir_lod and cubemap)");
-  int repeat = 1;
-  app.add_option("--repeat", repeat,
-                 "Run each configuration this many times and keep the fastest (device time; shared machines "
-                 "are noisy)")
-      ->check(CLI::Range(1, 20));
-  double lodBuildMs = 0.0;
-  uint64_t lodNodes = 0;
+  bench::Options opt;
+  bench::addOptions(app, opt);
   CLI11_PARSE(app, argc, argv);
   try {
-    if (budgetS <= 0.0) budgetS = quick ? 12.0 : 90.0;
-    if (accuracyProbes == 0) accuracyProbes = quick ? 8 : 16;
     int cx = 0, cz = 0;
-    if (std::sscanf(cellArg.c_str(), "%d,%d", &cx, &cz) != 2) fail("--cell '{}': expected X,Z", cellArg);
-    bench::BenchOutput o(out, quick);
+    bench::setDefaults(opt, cx, cz);
+    bench::BenchOutput o(opt.out, opt.quick);
     auto ctx = gpu::createContext();
     o.setDevice(ctx->info.name);
-    const bool cpuDevice = ctx->info.type == "cpu";
-
-    const worlds::SyntheticWorld world(worlds::WorldParams::smallDefault(1));
-    if (!world.contains({cx, cz})) fail("--cell {},{} outside the default world", cx, cz);
-    worlds::CellBuildOptions buildOptions;
-    buildOptions.dropBuried = !keepBuried;
-    const worlds::BuiltCell built = worlds::buildCell(world, {cx, cz}, buildOptions);
-    const gpu::CubemapScene scene = bench::toCubemapScene(built.mesh);
-    std::vector<glm::vec3> active;
-    for (int64_t i = 0; i < built.probes.grid.probeCount(); ++i)
-      if (!(built.probes.flags[size_t(i)] & worlds::kProbeDisabledSolid))
-        active.push_back(built.probes.position(i));
-    if (active.empty()) fail("cell {},{} has no active probes", cx, cz);
-    const std::vector<int> resolutions = {8, 16, 32, 64};
-    const std::vector<size_t> counts =
-        quick ? std::vector<size_t>{64, 256, 1024} : std::vector<size_t>{64, 256, 1024, 4096};
-    std::vector<glm::vec3> probes(counts.back());
-    for (size_t i = 0; i < probes.size(); ++i) probes[i] = active[i % active.size()];
-    accuracyProbes = std::min({accuracyProbes, active.size(), counts.front()});
-    spdlog::info(
-        "vir bench on {} ({}): cell {},{}: {} surfels, {} triangles, {} active probes; budget {} s/config",
-        ctx->info.name, quick ? "quick" : "full", cx, cz, built.surfels.size(), scene.triangleCount(),
-        active.size(), budgetS);
-
-    if (lodStats) {  // tree diagnostics: per depth-from-leaves level, how many nodes may be splatted
-      gpu::VirLodBuildOptions bo;
-      bo.coherentConeDeg = statCone;
-      const gpu::VirLodTree tree = gpu::buildVirLodTree(built.surfels, bo);
-      std::vector<int> height(tree.nodes.size(), 0);
-      std::map<int, std::array<double, 3>> byHeight;  // nodes, coherent, sum footprint radius
-      for (uint32_t i = 0; i < tree.nodes.size(); ++i) {
-        for (uint32_t c = 0; c < tree.links[i].childCount; ++c)
-          height[i] = std::max(height[i], height[tree.children[tree.links[i].firstChild + c]] + 1);
-        auto& h = byHeight[height[i]];
-        h[0] += 1;
-        h[1] += (tree.links[i].flags & LFGI_VIR_LOD_COHERENT) ? 1 : 0;
-        h[2] += tree.nodes[i].positionRadius.w * 1.5;
-      }
-      for (const auto& [hgt, h] : byHeight)
-        spdlog::info("height {}: {} nodes, {:.1f} % coherent, mean footprint radius {:.2f} m", hgt, h[0],
-                     100.0 * h[1] / h[0], h[2] / h[0]);
-      // One probe's cut at N = 8 and 16 (CPU replay of vir_lod_cut.comp, block = the probe).
-      const glm::vec3 eye = active[active.size() / 2];
-      for (int n : {8, 16}) {
-        gpu::VirOptions so;
-        so.resolution = n;
-        so.maxRange = 1000.0f;
-        so.lodTexels = lodTexels;
-        so.lodElongation = lodElongation;
-        const shared::VirLodParams lp = gpu::virLodClassifyParams(so);
-        size_t leaves = 0, inner = 0, leavesUnderIncoherent = 0;
-        // Why each cut node's parent was refined (incoherent, too thick, else too wide: the footprint
-        // test), and the node's width in texels (the classify's r N / d): sub-texel nodes rarely cover a
-        // texel centre.
-        std::array<size_t, 3> parentWhy{};
-        std::array<size_t, 4> width{};  // < 0.5, < 1, < 2, >= 2 texels
-        for (const uint32_t i : gpu::virLodCut(tree, gpu::virLodBlock(std::span(&eye, 1)), lp)) {
-          const shared::Surfel& node = tree.nodes[i];
-          const float d = glm::length(glm::vec3(node.positionRadius) - eye);
-          const float w = node.positionRadius.w * lp.footprintScale * float(n) / std::max(d, 1e-6f);
-          ++width[w < 0.5f ? 0 : w < 1.0f ? 1 : w < 2.0f ? 2 : 3];
-          if (const uint32_t par = tree.up[i].x; par != ~0u) {
-            const shared::Surfel& pn = tree.nodes[par];
-            const float pd = glm::length(glm::vec3(pn.positionRadius) - eye);
-            ++parentWhy[!(tree.links[par].flags & LFGI_VIR_LOD_COHERENT) ? 0
-                        : pn.emission.w > lp.depthTolerance * pd         ? 2
-                                                                         : 1];
-          }
-          if (i >= tree.leafCount) {
-            ++inner;
-            continue;
-          }
-          ++leaves;
-          leavesUnderIncoherent +=
-              (tree.up[i].x != ~0u && !(tree.links[tree.up[i].x].flags & LFGI_VIR_LOD_COHERENT));
-        }
-        spdlog::info("N={} cut for one probe: {} leaves ({} with an incoherent parent), {} merged nodes", n,
-                     leaves, leavesUnderIncoherent, inner);
-        spdlog::info(
-            "N={} cut nodes by width: {} < 0.5 texel, {} < 1, {} < 2, {} >= 2; parent refined as incoherent "
-            "{}, too wide {}, too thick {}",
-            n, width[0], width[1], width[2], width[3], parentWhy[0], parentWhy[1], parentWhy[2]);
-      }
+    bench::Results results;
+    results.cpuDevice = ctx->info.type == "cpu";
+    const bench::Cell cell = bench::loadCell(opt, cx, cz, *ctx);
+    if (opt.lodStats) {
+      bench::printLodStats(opt, cell);
       return 0;
     }
-    const double ceiling = bench::atomicCeilingPerSecond(*ctx);
-    spdlog::info("atomicMin64 ceiling: {:.1f} M/s", ceiling * 1e-6);
-
-    bake::EmbreeScene embree(built.mesh, "vir benchmark cell");
-    worlds::SkyState skyState;
-    skyState.timeOfDayHours = 15.5f;
-    const worlds::SkyModel sky = worlds::makeSky(skyState);
-    gpu::VirPass vir(*ctx);
-    gpu::CubemapRaster cubemap(*ctx);
-    gpu::VirOptions vo;
-    vo.maxRange = 1000.0f;  // the whole cell, as the baseline renders it
-    vo.fillNearMiss = fillNearMiss;
-    gpu::VirOptions vlod = vo;
-    vlod.lod = true;
-    vlod.lodTexels = lodTexels;
-    vlod.lodElongation = lodElongation;
-    vlod.lodBlockProbes = lodBlockProbes;
-    vlod.lodOcclusionRange = lodOcclusionRange;
-    vlod.reuseSplat = false;  // vir_lod measures the splat; vir_lod_relight reuses it
-    vo.lod = false;
-    vo.reuseSplat = false;
-    // vir_lod_relight: the same LOD splat's winners kept (VirOptions::reuseSplat), new surfel irradiance:
-    // what relighting a resident cell (time of day, weather, bounces) costs per frame.
-    std::vector<glm::vec4> relightIrradiance(built.surfels.size());
-    for (size_t i = 0; i < relightIrradiance.size(); ++i)
-      relightIrradiance[i] = glm::vec4(1.0f + float(i % 7), 2.0f, 1.0f + float(i % 3), 0.0f);
-    gpu::CubemapRasterOptions co;
-    {  // warm-up: lavapipe compiles each pipeline at its first use
-      vo.resolution = co.resolution = 8;
-      vir.run(built.surfels, std::span(probes).first(1), vo);
-      vlod.resolution = 8;
-      const gpu::ProbeAtlas first = vir.run(built.surfels, std::span(probes).first(1), vlod);
-      lodBuildMs = first.lodBuildMs;
-      lodNodes = first.lodNodes;
-      spdlog::info("surfel LOD tree: {} nodes for {} surfels, built + uploaded in {:.0f} ms (once per cell)",
-                   lodNodes, built.surfels.size(), lodBuildMs);
-      cubemap.run(scene, std::span(probes).first(1), co);
-    }
-
-    o.setColumns({"method",
-                  "resolution",
-                  "probes",
-                  "surfels",
-                  "triangles",
-                  "gpu_ms",
-                  "ms_per_probe",
-                  "probes_per_s",
-                  "surfel_probes_per_s",
-                  "splat_or_raster_ms",
-                  "resolve_or_resample_ms",
-                  "wall_ms",
-                  "atomics_per_s",
-                  "dist_median_rel_error",
-                  "dist_p90_rel_error",
-                  "dist_frac_off_5pct",
-                  "normal_median_deg",
-                  "normal_p90_deg",
-                  "hole_fraction",
-                  "dist_median_rel_error_vs_capture",
-                  "normal_median_deg_vs_capture",
-                  "splat_pairs_per_s",
-                  "lod_nodes",
-                  "lod_build_ms",
-                  "splat_pairs_per_probe",
-                  "texel_tests_per_probe",
-                  "atomics_per_probe",
-                  "window_pair_fraction",
-                  "sky_covered_fraction",
-                  "sky_filled_fraction",
-                  "albedo_mean_abs_error",
-                  "albedo_frac_off_0_05"});
-    nlohmann::ordered_json skipped = nlohmann::ordered_json::array();
-    struct Measured {
-      double probesPerS = 0.0, msPerProbe = 0.0;
-      size_t probes = 0;
-      bench::Accuracy acc;
-      double atomicsPerS = 0.0, splatPairsPerS = 0.0;
-    };
-    nlohmann::ordered_json table =
-        nlohmann::ordered_json::array();                   // every (N, probes) both methods measured
-    std::map<std::pair<std::string, int>, Measured> best;  // (method, N) -> largest probe count measured
-    std::map<std::tuple<std::string, int, size_t>, double> perCount;  // (method, N, probes) -> probes/s
-    InterruptGuard guard;
-    std::vector<std::string> methods;
-    for (const std::string m : {"vir_lod", "vir_lod_relight", "vir", "cubemap"})
-      if (methodsArg.find(m + ",") != std::string::npos || methodsArg.ends_with(m) || methodsArg == "all")
-        methods.push_back(m);
-    Progress progress("vir bench configurations", resolutions.size() * counts.size() * methods.size(),
-                      "configs");
-    size_t done = 0;
-    for (int n : resolutions) {
-      vo.resolution = co.resolution = vlod.resolution = n;
-      // Reference rays for the accuracy probes at this N.
-      std::vector<std::vector<std::optional<bake::RayHit>>> ref(accuracyProbes);
-      for (size_t p = 0; p < accuracyProbes; ++p)
-        for (uint32_t j = 0; j < uint32_t(n); ++j)
-          for (uint32_t i = 0; i < uint32_t(n); ++i)
-            ref[p].push_back(
-                embree.intersect(probes[p], shared::octTexelDirection(glm::uvec2(i, j), uint32_t(n))));
-      uint64_t atomicsSubset = 0;
-      for (size_t p = 0; p < accuracyProbes; ++p)
-        atomicsSubset += bench::splatAtomics(built.surfels, probes[p], vo);
-      const double atomicsPerProbe = double(atomicsSubset) / double(accuracyProbes);
-      // Embree capture of the accuracy probes at low spp, direct only: its distance and normal maps are
-      // texel means, so it measures texel-mean vs point-sample differences as well as method error.
-      bake::CaptureOptions copt;
-      copt.resolution = n;
-      copt.irradianceResolution = 4;
-      copt.samplesPerTexel = 4;
-      copt.maxBounces = 0;
-      const bake::CaptureResult capture =
-          bake::captureProbes(embree, sky, std::span(probes).first(accuracyProbes), copt);
-
-      for (const std::string& method : methods) {
-        double lastMsPerProbe = 0.0;
-        std::optional<bench::Accuracy> acc;
-        for (size_t count : counts) {
-          if (InterruptGuard::interrupted()) fail("interrupted");
-          progress.update(++done);
-          const double projectedS = lastMsPerProbe * double(count) * 1e-3;
-          const double texelBytes = double(count) * n * n * 64.0;
-          if (projectedS > budgetS || texelBytes > 2.0e9) {
-            spdlog::info("skip {} N={} probes={}: projected {:.0f} s (budget {} s), {:.1f} GB of maps",
-                         method, n, count, projectedS, budgetS, texelBytes * 1e-9);
-            skipped.push_back(
-                {{"method", method}, {"resolution", n}, {"probes", count}, {"projected_s", projectedS}});
-            continue;
-          }
-          const std::span<const glm::vec3> ps = std::span(probes).first(count);
-          // One timed run of the method: its atlas, splat (or raster) and resolve device ms, wall ms.
-          struct Run {
-            gpu::ProbeAtlas atlas;
-            double splat = 0.0, resolve = 0.0, wallMs = 0.0;
-          };
-          const auto runOnce = [&] {
-            Run r;
-            auto t0 = std::chrono::steady_clock::now();
-            if (method == "vir_lod") {
-              r.atlas = vir.run(built.surfels, ps, vlod);
-            } else if (method == "vir_lod_relight") {
-              gpu::VirOptions reuse = vlod;
-              reuse.reuseSplat = true;
-              vir.run(built.surfels, ps, reuse);  // the splat to keep (untimed)
-              t0 = std::chrono::steady_clock::now();
-              r.atlas = vir.run(built.surfels, ps, reuse, relightIrradiance);
-              if (!r.atlas.splatReused)
-                fail("vir_lod_relight N={} probes={}: the splat was not reused", n, count);
-            } else if (method == "vir") {
-              r.atlas = vir.run(built.surfels, ps, vo);
-            } else {
-              gpu::CubemapCapture c = cubemap.run(scene, ps, co);
-              r.splat = c.rasterMs;
-              r.resolve = c.copyMs + c.resampleMs;
-              r.atlas = std::move(c.atlas);
-            }
-            if (method != "cubemap") {
-              r.splat = r.atlas.splatMs;
-              r.resolve = r.atlas.resolveMs + r.atlas.fillMs;
-            }
-            r.wallMs =
-                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-            return r;
-          };
-          Run fastest = runOnce();
-          for (int rep = 1; rep < repeat; ++rep) {  // --repeat: keep the fastest (device time)
-            Run r = runOnce();
-            if (r.atlas.gpuMs < fastest.atlas.gpuMs) fastest = std::move(r);
-          }
-          const gpu::ProbeAtlas& atlas = fastest.atlas;
-          const double splat = fastest.splat, resolve = fastest.resolve, wallMs = fastest.wallMs;
-          if (!acc) {
-            acc = bench::accuracy(atlas, ref, accuracyProbes, built.mesh);
-            bench::accuracyVsCapture(atlas, capture, copt.maxDistance, *acc);
-          }
-          Measured m;
-          m.probes = count;
-          m.msPerProbe = lastMsPerProbe = atlas.gpuMs / double(count);
-          m.probesPerS = double(count) / (atlas.gpuMs * 1e-3);
-          m.acc = *acc;
-          // Over VIR's whole device time, not the splat's stamps: on lavapipe the splat's work shows up in
-          // later timestamp intervals (its own interval reads ~0), so only the total is trustworthy there.
-          const bool relit = method == "vir_lod_relight";  // splat counters are the kept splat's
-          m.atomicsPerS = method == "vir"       ? atomicsPerProbe * double(count) / (atlas.gpuMs * 1e-3)
-                          : method == "vir_lod" ? double(atlas.splatAtomics) / (atlas.gpuMs * 1e-3)
-                                                : 0.0;
-          m.splatPairsPerS = relit ? 0.0 : double(atlas.splatPairs) / (atlas.gpuMs * 1e-3);
-          best[{method, n}] = m;
-          const auto perProbe = [&](uint64_t total) { return double(total) / double(count); };
-          if (method == "vir_lod")
-            spdlog::info(
-                "vir_lod N={} probes={}: per probe {:.0f} cut pairs ({:.0f} dropped as occluded, {:.1f} "
-                "nodes per block culled), {:.0f} texel tests, {:.0f} atomics; "
-                "{:.1f} % of pairs through the wrapped window; device ms: node radiance {:.1f}, cut + "
-                "splat {:.1f}, resolve {:.1f}, fill {:.1f}",
-                n, count, perProbe(atlas.splatPairs), perProbe(atlas.occludedPairs),
-                double(atlas.occludedNodes) * double(vlod.lodBlockProbes) / double(count),
-                perProbe(atlas.splatTexelTests), perProbe(atlas.splatAtomics),
-                atlas.splatPairs ? 100.0 * double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0,
-                atlas.lodRadianceMs, atlas.splatMs, atlas.resolveMs, atlas.fillMs);
-          spdlog::info(
-              "{} N={} probes={}: {:.1f} ms device, {:.1f} ms wall ({:.3f} ms/probe, {:.0f} probes/s); dist "
-              "median {:.2e} p90 {:.4f} off>5% {:.4f}, normal median {:.2f} p90 {:.2f} deg, holes {:.4f}, "
-              "sky texels "
-              "covered {:.4f} filled {:.4f}, albedo mean abs {:.4f} off>0.05 {:.4f}{}",
-              method, n, count, atlas.gpuMs, wallMs, m.msPerProbe, m.probesPerS, acc->distMedianRel,
-              acc->distP90Rel, acc->fracOff5pct, acc->normalMedianDeg, acc->normalP90Deg,
-              acc->holeFractionOfHits, acc->skyCoveredFraction, acc->skyFilledFraction, acc->albedoMeanAbs,
-              acc->albedoFracOff,
-              m.atomicsPerS > 0 ? fmt::format(", {:.1f} M atomics/s", m.atomicsPerS * 1e-6) : "");
-          o.addRow(
-              {method,
-               std::to_string(n),
-               std::to_string(count),
-               std::to_string(built.surfels.size()),
-               std::to_string(scene.triangleCount()),
-               bench::num(atlas.gpuMs),
-               bench::num(m.msPerProbe),
-               bench::num(m.probesPerS),
-               bench::num(m.probesPerS * double(built.surfels.size())),
-               bench::num(splat),
-               bench::num(resolve),
-               bench::num(wallMs),
-               bench::num(m.atomicsPerS),
-               bench::num(acc->distMedianRel),
-               bench::num(acc->distP90Rel),
-               bench::num(acc->fracOff5pct),
-               bench::num(acc->normalMedianDeg),
-               bench::num(acc->normalP90Deg),
-               bench::num(acc->holeFractionOfHits),
-               bench::num(acc->captureDistMedianRel),
-               bench::num(acc->captureNormalMedianDeg),
-               method == "cubemap" ? "0" : bench::num(m.splatPairsPerS),
-               method.starts_with("vir_lod") ? std::to_string(lodNodes) : "0",
-               method.starts_with("vir_lod") ? bench::num(lodBuildMs) : "0",
-               bench::num(perProbe(atlas.splatPairs)),
-               bench::num(perProbe(atlas.splatTexelTests)),
-               bench::num(perProbe(atlas.splatAtomics)),
-               bench::num(atlas.splatPairs ? double(atlas.splatWindowPairs) / double(atlas.splatPairs) : 0.0),
-               bench::num(acc->skyCoveredFraction),
-               bench::num(acc->skyFilledFraction),
-               bench::num(acc->albedoMeanAbs),
-               bench::num(acc->albedoFracOff)});
-          perCount[{method, n, count}] = m.probesPerS;
-        }
-      }
-    }
-    progress.finish();
-
-    // Headline: N = 16 (the default resolution), VirPass's default (LOD) path; each method at its largest
-    // measured probe count. The full splat's figures follow as vir_full_*.
-    auto& s = o.summary();
-    const auto v16 = best.find({"vir_lod", 16}), c16 = best.find({"cubemap", 16}),
-               f16 = best.find({"vir", 16});
-    if (v16 == best.end() || c16 == best.end()) {
-      spdlog::warn("N = 16 was not measured for both vir_lod and cubemap: no summary");
-      o.save();
-      return 0;
-    }
-    s["vir_over_cubemap_probes_per_s"] = v16->second.probesPerS / c16->second.probesPerS;
-    s["vir_probes_per_s"] = v16->second.probesPerS;
-    s["cubemap_probes_per_s"] = c16->second.probesPerS;
-    s["hole_fraction"] = v16->second.acc.holeFractionOfHits;
-    s["distance_median_rel_error"] = v16->second.acc.distMedianRel;
-    s["normal_median_deg"] = v16->second.acc.normalMedianDeg;
-    s["atomics_fraction_of_ceiling"] = ceiling > 0.0 ? v16->second.atomicsPerS / ceiling : 0.0;
-    s["headline_resolution"] = 16;
-    s["vir_probes"] = v16->second.probes;
-    s["cubemap_probes"] = c16->second.probes;
-    s["cubemap_distance_median_rel_error"] = c16->second.acc.distMedianRel;
-    s["cubemap_normal_median_deg"] = c16->second.acc.normalMedianDeg;
-    s["cubemap_hole_fraction"] = c16->second.acc.holeFractionOfHits;
-    s["sky_covered_fraction"] = v16->second.acc.skyCoveredFraction;
-    s["sky_filled_fraction"] = v16->second.acc.skyFilledFraction;
-    s["cubemap_sky_covered_fraction"] = c16->second.acc.skyCoveredFraction;
-    s["distance_p90_rel_error"] = v16->second.acc.distP90Rel;
-    s["cubemap_distance_p90_rel_error"] = c16->second.acc.distP90Rel;
-    s["distance_frac_off_5pct"] = v16->second.acc.fracOff5pct;
-    s["distance_median_rel_error_vs_capture"] = v16->second.acc.captureDistMedianRel;
-    s["cubemap_distance_median_rel_error_vs_capture"] = c16->second.acc.captureDistMedianRel;
-    s["normal_median_deg_vs_capture"] = v16->second.acc.captureNormalMedianDeg;
-    s["cubemap_normal_median_deg_vs_capture"] = c16->second.acc.captureNormalMedianDeg;
-    s["cubemap_distance_frac_off_5pct"] = c16->second.acc.fracOff5pct;
-    s["albedo_frac_off_0_05"] = v16->second.acc.albedoFracOff;
-    s["cubemap_albedo_frac_off_0_05"] = c16->second.acc.albedoFracOff;
-    s["vir_atomics_per_s"] = v16->second.atomicsPerS;
-    s["vir_splat_pairs_per_s"] = v16->second.splatPairsPerS;
-    s["vir_surfel_probes_per_s"] = v16->second.probesPerS * double(built.surfels.size());
-    s["lod_texels"] = lodTexels;
-    s["lod_elongation"] = lodElongation;
-    s["lod_occlusion_range_m"] = lodOcclusionRange;
-    s["fill_near_miss"] = fillNearMiss;
-    s["lod_block_probes"] = lodBlockProbes;
-    s["repeat"] = repeat;
-    s["lod_nodes"] = lodNodes;
-    s["lod_build_ms"] = lodBuildMs;
-    const auto r16 = best.find({"vir_lod_relight", 16});
-    if (r16 != best.end()) {
-      // Relighting keeps the winners, so it is not a generation rate: reported beside, not as the ratio.
-      s["relight_probes_per_s"] = r16->second.probesPerS;
-      s["relight_probes"] = r16->second.probes;
-      s["relight_over_vir_lod"] = r16->second.probesPerS / v16->second.probesPerS;
-      s["relight_over_cubemap_probes_per_s"] = r16->second.probesPerS / c16->second.probesPerS;
-    }
-    if (f16 != best.end()) {
-      s["vir_full_over_cubemap_probes_per_s"] = f16->second.probesPerS / c16->second.probesPerS;
-      s["vir_full_probes_per_s"] = f16->second.probesPerS;
-      s["vir_full_distance_p90_rel_error"] = f16->second.acc.distP90Rel;
-      s["vir_full_atomics_fraction_of_ceiling"] = ceiling > 0.0 ? f16->second.atomicsPerS / ceiling : 0.0;
-    }
-    s["atomics64_ceiling_per_s"] = ceiling;
-    nlohmann::ordered_json byRes = nlohmann::ordered_json::object();
-    for (int n : resolutions) {
-      const auto v = best.find({"vir_lod", n}), c = best.find({"cubemap", n}), f = best.find({"vir", n});
-      if (v != best.end() && c != best.end()) {
-        byRes[std::to_string(n)] = {
-            {"ratio", v->second.probesPerS / c->second.probesPerS},
-            {"vir_probes_per_s", v->second.probesPerS},
-            {"cubemap_probes_per_s", c->second.probesPerS},
-            {"vir_probes", v->second.probes},
-            {"cubemap_probes", c->second.probes},
-            {"vir_dist_p90_rel_error", v->second.acc.distP90Rel},
-            {"cubemap_dist_p90_rel_error", c->second.acc.distP90Rel},
-            {"vir_hole_fraction", v->second.acc.holeFractionOfHits},
-            {"vir_atomics_fraction_of_ceiling", ceiling > 0.0 ? v->second.atomicsPerS / ceiling : 0.0}};
-        if (f != best.end())
-          byRes[std::to_string(n)]["vir_full_ratio"] = f->second.probesPerS / c->second.probesPerS;
-        const auto r = best.find({"vir_lod_relight", n});
-        if (r != best.end()) {
-          byRes[std::to_string(n)]["relight_probes_per_s"] = r->second.probesPerS;
-          byRes[std::to_string(n)]["relight_over_cubemap"] = r->second.probesPerS / c->second.probesPerS;
-        }
-      }
-      for (size_t count : counts) {
-        const auto vc = perCount.find({"vir_lod", n, count}), cc = perCount.find({"cubemap", n, count});
-        if (vc != perCount.end() && cc != perCount.end())
-          table.push_back({{"resolution", n},
-                           {"probes", count},
-                           {"vir_probes_per_s", vc->second},
-                           {"cubemap_probes_per_s", cc->second},
-                           {"ratio", vc->second / cc->second}});
-      }
-    }
-    s["ratio_by_resolution_and_probes"] = table;
-    s["ratio_by_resolution"] = byRes;
-    s["cell"] = {cx, cz};
-    s["surfels"] = built.surfels.size();
-    s["triangles"] = scene.triangleCount();
-    s["buried_dropped"] = {{"triangles", built.stats.trianglesBuried},
-                           {"surfels", built.stats.surfelsBuried}};
-    s["accuracy_probes"] = accuracyProbes;
-    s["accuracy_reference"] = "Embree closest hit along each texel-centre ray (deterministic)";
-    s["budget_s_per_config"] = budgetS;
-    s["cpu_device"] = cpuDevice;
-    s["skipped"] = skipped;
+    results.ceiling = bench::atomicCeilingPerSecond(*ctx);
+    spdlog::info("atomicMin64 ceiling: {:.1f} M/s", results.ceiling * 1e-6);
+    bench::Passes passes(*ctx, cell.built.mesh);
+    bench::warmUp(passes, opt, cell);
+    bench::setColumns(o);
+    InterruptGuard guard;  // alive through the summary: a signal after the sweep still lets it be saved
+    bench::runSweep(passes, cell, opt, o, results);
+    const bool headline = bench::writeSummary(o.summary(), results, opt, cell, passes);
     o.save();
-    spdlog::info("VIR / cubemap at N=16: {:.1f}x ({:.0f} vs {:.0f} probes/s); {} configurations skipped",
-                 s["vir_over_cubemap_probes_per_s"].get<double>(), v16->second.probesPerS,
-                 c16->second.probesPerS, skipped.size());
+    if (headline) bench::logHeadline(o.summary(), results);
   } catch (const Error& e) {
     spdlog::error("{}", e.what());
     return 1;
