@@ -85,12 +85,18 @@ struct RenderState {
   worlds::SkyModel sky;
   bake::CaptureOptions co;
   std::unique_ptr<gpu::Context> ctx;
+  std::unique_ptr<gpu::VirFieldRelighter> relighter;  // built on first use, for every cell of the view
   bake::VirProbeOptions vo;
   worlds::TriangleMesh mesh;
   std::vector<ProbeField> fields;
   std::vector<gpu::ShadingCellInput> cellInputs;  // world cells: every cell's state (full / fallback-only)
   std::string what;
 };
+
+gpu::VirFieldRelighter& relighter(RenderState& st) {
+  if (!st.relighter) st.relighter = std::make_unique<gpu::VirFieldRelighter>(*st.ctx);
+  return *st.relighter;
+}
 
 // The 3 x 3 world cells around --cell and what each contributes to the view.
 struct WorldProbes {
@@ -200,7 +206,7 @@ void shadeSceneProbes(RenderState& st) {
                  preset.name, mesh.triangleCount(), surfels.size(), spacing, grid.dims.x, grid.dims.y,
                  grid.dims.z, st.vo.resolution, st.vo.resolution);
     bake::VirProbeStats vs;
-    st.fields.push_back(bake::virProbeField(*st.ctx, surfels, grid, {}, {}, st.sky, st.vo, &vs));
+    st.fields.push_back(bake::virProbeField(relighter(st), surfels, grid, {}, {}, st.sky, st.vo, &vs));
     reportVir(st, vs, preset.name);
   } else {
     const bake::EmbreeScene scene(mesh, preset.name);
@@ -316,7 +322,8 @@ void decodeCellFiles(RenderState& st, const bake::EmbreeScene& scene, WorldProbe
     // Visibility from the cell's geometry, as the streaming manager's loads make it
     // (docs/ARCHITECTURE.md, "Where visibility comes from").
     bake::VirProbeStats ms;
-    bake::regenerateVirMoments(*st.ctx, w.surfels, built[k].probes.offsets, decoded, st.vo.maxRange, &ms);
+    bake::regenerateVirMoments(relighter(st), w.surfels, built[k].probes.offsets, decoded, st.vo.maxRange,
+                               &ms);
     spdlog::info("cell {},{}: VIR distance moments of {} probes from {} surfels, {:.0f} ms", cf.cellX,
                  cf.cellZ, ms.probes, ms.surfels, 1e3 * ms.seconds);
     st.fields.push_back(std::move(decoded));
@@ -325,7 +332,7 @@ void decodeCellFiles(RenderState& st, const bake::EmbreeScene& scene, WorldProbe
 }
 
 // Each cell's fallback from a sparse set of its own probes (fallbackProbeMask), by the same source.
-void shadeCellFallbacks(const RenderState& st, const bake::EmbreeScene& scene, WorldProbes& w) {
+void shadeCellFallbacks(RenderState& st, const bake::EmbreeScene& scene, WorldProbes& w) {
   for (size_t k = 0; k < w.built.size(); ++k) {
     const worlds::BuiltCell& b = w.built[k];
     std::vector<uint8_t> disabled(b.probes.flags.size());
@@ -344,7 +351,8 @@ void shadeCellFallbacks(const RenderState& st, const bake::EmbreeScene& scene, W
                  st.opt.probes);
     const ProbeField f =
         st.opt.probes == "vir"
-            ? bake::virProbeField(*st.ctx, w.surfels, b.probes.grid, b.probes.offsets, mask, st.sky, st.vo)
+            ? bake::virProbeField(relighter(st), w.surfels, b.probes.grid, b.probes.offsets, mask, st.sky,
+                                  st.vo)
             : bake::captureGridField(scene, st.sky, b.probes.grid, b.probes.offsets, mask, st.co, false);
     w.fallbacks[k] = bake::fieldFallback(f);
   }
@@ -366,8 +374,8 @@ void shadeActiveProbes(RenderState& st, const bake::EmbreeScene& scene, WorldPro
     if (opt.probes == "vir") {
       spdlog::info("cell {},{}: VIR of {} of {} probes", b.layout.cell.x, b.layout.cell.z, n, active.size());
       bake::VirProbeStats vs;
-      st.fields.push_back(bake::virProbeField(*st.ctx, w.surfels, b.probes.grid, b.probes.offsets, active,
-                                              st.sky, st.vo, &vs));
+      st.fields.push_back(bake::virProbeField(relighter(st), w.surfels, b.probes.grid, b.probes.offsets,
+                                              active, st.sky, st.vo, &vs));
       w.fieldCell.push_back(k);
       reportVir(st, vs, fmt::format("cell {},{}", b.layout.cell.x, b.layout.cell.z));
       continue;

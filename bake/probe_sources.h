@@ -27,6 +27,7 @@
 #include "core/probe_field.h"
 #include "core/shared_model.h"
 #include "gpu/context.h"
+#include "gpu/vir_probe_field.h"
 #include "worlds/mesh.h"
 #include "worlds/sky.h"
 #include "worlds/surfels.h"
@@ -59,6 +60,12 @@ ProbeField virProbeField(gpu::Context& ctx, std::span<const worlds::Surfel> surf
                          std::span<const glm::vec3> offsets, std::span<const uint8_t> active,
                          const worlds::SkyModel& sky, const VirProbeOptions& options,
                          VirProbeStats* stats = nullptr);
+// The same with the caller's relighter: its pipelines are built once for every field a caller makes
+// (a render's 3 x 3 cells), and it holds the last call's GPU buffers until the next.
+ProbeField virProbeField(gpu::VirFieldRelighter& relighter, std::span<const worlds::Surfel> surfels,
+                         const ProbeGrid& grid, std::span<const glm::vec3> offsets,
+                         std::span<const uint8_t> active, const worlds::SkyModel& sky,
+                         const VirProbeOptions& options, VirProbeStats* stats = nullptr);
 
 // Visibility from geometry (docs/ARCHITECTURE.md, "Where visibility comes from"): the distance moments of
 // field's active probes (probe i at its lattice point + offsets[i] when offsets is non-empty) replaced by
@@ -67,6 +74,9 @@ ProbeField virProbeField(gpu::Context& ctx, std::span<const worlds::Surfel> surf
 // loads (streaming::VirRelightSource) do to a decoded field. stats: that frame's. Throws as
 // virProbeField does.
 void regenerateVirMoments(gpu::Context& ctx, std::span<const worlds::Surfel> surfels,
+                          std::span<const glm::vec3> offsets, ProbeField& field, float maxRange = 64.0f,
+                          VirProbeStats* stats = nullptr);
+void regenerateVirMoments(gpu::VirFieldRelighter& relighter, std::span<const worlds::Surfel> surfels,
                           std::span<const glm::vec3> offsets, ProbeField& field, float maxRange = 64.0f,
                           VirProbeStats* stats = nullptr);
 
