@@ -38,11 +38,13 @@
 #include "bake/generator_training.h"
 #include "bake/probe_capture.h"
 #include "bench/bench_output.h"
+#include "core/byte_stream.h"
 #include "core/cell_file.h"
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/generator_cpu.h"
 #include "core/half.h"
+#include "core/hash.h"
 #include "core/metrics.h"
 #include "core/octahedral.h"
 #include "core/probe_codecs.h"
@@ -106,26 +108,20 @@ struct Captured {
   std::vector<float> radiance, irradiance;
 };
 
-uint64_t fnv(uint64_t h, const void* p, size_t n) {
-  const auto* b = static_cast<const unsigned char*>(p);
-  for (size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ull;
-  return h;
-}
-
 constexpr char kCacheMagic[8] = {'L', 'F', 'G', 'I', 'C', 'C', 'A', '1'};
 
 // Cache key: everything the capture depends on (options, sky time, probe positions, mesh content).
 uint64_t captureKey(const SceneSpec& s, const bake::CaptureOptions& co, float timeOfDay) {
-  uint64_t h = 1469598103934665603ull;
-  h = fnv(h, s.name.data(), s.name.size());
+  uint64_t h = kFnv1aOffset;
+  h = fnv1a(h, s.name.data(), s.name.size());
   const int opts[5] = {co.resolution, co.irradianceResolution, co.samplesPerTexel, co.maxBounces,
                        co.rouletteAfter};
-  h = fnv(h, opts, sizeof opts);
-  h = fnv(h, &co.seed, sizeof co.seed);
-  h = fnv(h, &timeOfDay, sizeof timeOfDay);
-  h = fnv(h, s.positions.data(), s.positions.size() * sizeof(glm::vec3));
+  h = fnv1a(h, opts, sizeof opts);
+  h = fnv1a(h, &co.seed, sizeof co.seed);
+  h = fnv1a(h, &timeOfDay, sizeof timeOfDay);
+  h = fnv1a(h, s.positions.data(), s.positions.size() * sizeof(glm::vec3));
   const uint64_t mesh = s.mesh.contentHash();
-  return fnv(h, &mesh, sizeof mesh);
+  return fnv1a(h, &mesh, sizeof mesh);
 }
 
 std::optional<Captured> readCache(const fs::path& file, size_t probes, int n, int m) {
@@ -432,53 +428,25 @@ bake::SharedTrainingOptions sharedOptions(const GeneratorArch& arch, int steps, 
 // written yet, bench/OVERVIEW.md): "LFSA", u8 version, u64 shared model hash, u32 probes, u8 latent dim,
 // u8 latent bits, f32 exposure, f32 range, latent scales (dim f32), packed latent codes, u8 adapter stages,
 // u32 adapter channels, 2 f32 adapter scales, int8 adapter codes.
-class ByteWriter {
- public:
-  template <typename T>
-  void put(T v) {
-    const auto* b = reinterpret_cast<const std::byte*>(&v);
-    bytes.insert(bytes.end(), b, b + sizeof(T));
-  }
-  std::vector<std::byte> bytes;
-};
-class ByteReader {
- public:
-  explicit ByteReader(std::span<const std::byte> b) : b_(b) {}
-  template <typename T>
-  T get() {
-    if (pos_ + sizeof(T) > b_.size())
-      fail("shared_adapter cell: truncated at byte {} of {}", pos_, b_.size());
-    T v;
-    std::memcpy(&v, b_.data() + pos_, sizeof(T));
-    pos_ += sizeof(T);
-    return v;
-  }
-  bool done() const { return pos_ == b_.size(); }
-
- private:
-  std::span<const std::byte> b_;
-  size_t pos_ = 0;
-};
-
 void putCodes(ByteWriter& w, const std::vector<int8_t>& codes, int bits) {
   if (bits == 8) {
-    for (int8_t c : codes) w.put(c);
+    for (int8_t c : codes) w.i8(c);
     return;
   }
   for (size_t i = 0; i < codes.size(); i += 2) {  // 4-bit two's complement, low nibble first
     const uint8_t lo = uint8_t(codes[i]) & 0xf,
                   hi = i + 1 < codes.size() ? uint8_t(uint8_t(codes[i + 1]) & 0xf) : 0;
-    w.put(uint8_t(lo | (hi << 4)));
+    w.u8(uint8_t(lo | (hi << 4)));
   }
 }
 std::vector<int8_t> getCodes(ByteReader& r, size_t n, int bits) {
   std::vector<int8_t> codes(n);
   if (bits == 8) {
-    for (int8_t& c : codes) c = r.get<int8_t>();
+    for (int8_t& c : codes) c = r.i8("codes");
     return codes;
   }
   for (size_t i = 0; i < n; i += 2) {
-    const uint8_t b = r.get<uint8_t>();
+    const uint8_t b = r.u8("codes");
     auto nib = [](int v) { return int8_t(v >= 8 ? v - 16 : v); };
     codes[i] = nib(b & 0xf);
     if (i + 1 < n) codes[i + 1] = nib(b >> 4);
@@ -522,53 +490,52 @@ class SharedAdapterCodec final : public ProbeCodec {
     const QuantizedLatents q = quantizeLatents(a.latents, model_.weights.arch.latentDim, bits_);
     const QuantizedAdapter qa = quantizeAdapter(a.adapter, 8);
     ByteWriter w;
-    for (char c : {'L', 'F', 'S', 'A'}) w.put(c);
-    w.put(uint8_t(1));
-    w.put(model_.hash);
-    w.put(uint32_t(q.count));
-    w.put(uint8_t(q.dim));
-    w.put(uint8_t(q.bits));
-    w.put(a.scale.exposure);
-    w.put(a.scale.range);
-    for (float v : q.scales) w.put(v);
+    w.raw("LFSA", 4);
+    w.u8(1);
+    w.u64(model_.hash);
+    w.u32(uint32_t(q.count));
+    w.u8(uint8_t(q.dim));
+    w.u8(uint8_t(q.bits));
+    w.f32(a.scale.exposure);
+    w.f32(a.scale.range);
+    for (float v : q.scales) w.f32(v);
     putCodes(w, q.codes, q.bits);
-    w.put(uint8_t(qa.stages));
-    w.put(uint32_t(qa.channels));
-    for (float v : qa.scales) w.put(v);
+    w.u8(uint8_t(qa.stages));
+    w.u32(uint32_t(qa.channels));
+    for (float v : qa.scales) w.f32(v);
     putCodes(w, qa.codes, qa.bits);
     return w.bytes;
   }
 
   void decode(std::span<const std::byte> bytes, ProbeField& out) const override {
-    ByteReader r(bytes);
-    if (r.get<char>() != 'L' || r.get<char>() != 'F' || r.get<char>() != 'S' || r.get<char>() != 'A' ||
-        r.get<uint8_t>() != 1)
+    ByteReader r{bytes, "shared_adapter"};
+    if (std::memcmp(r.take(4, "magic"), "LFSA", 4) != 0 || r.u8("version") != 1)
       fail("shared_adapter cell: bad magic or version");
-    const uint64_t hash = r.get<uint64_t>();
+    const uint64_t hash = r.u64("model hash");
     if (hash != model_.hash)
       fail("shared_adapter cell: refers to shared model {:016x}, this world's is {:016x}", hash, model_.hash);
     QuantizedLatents q;
-    q.count = r.get<uint32_t>();
-    q.dim = r.get<uint8_t>();
-    q.bits = r.get<uint8_t>();
+    q.count = r.u32("latent count");
+    q.dim = r.u8("latent dim");
+    q.bits = r.u8("latent bits");
     if (q.count != out.probeCount() || q.dim != model_.weights.arch.latentDim || (q.bits != 8 && q.bits != 4))
       fail("shared_adapter cell: {} latents of {} x {} bits for {} probes of a z{} model", q.count, q.dim,
            q.bits, out.probeCount(), model_.weights.arch.latentDim);
     GeneratorOutputScale scale;
-    scale.exposure = r.get<float>();
-    scale.range = r.get<float>();
-    for (int i = 0; i < q.dim; ++i) q.scales.push_back(r.get<float>());
+    scale.exposure = r.f32("exposure");
+    scale.range = r.f32("range");
+    for (int i = 0; i < q.dim; ++i) q.scales.push_back(r.f32("latent scale"));
     q.codes = getCodes(r, size_t(q.count) * size_t(q.dim), q.bits);
     QuantizedAdapter qa;
-    qa.stages = r.get<uint8_t>();
-    qa.channels = r.get<uint32_t>();
+    qa.stages = r.u8("adapter stages");
+    qa.channels = r.u32("adapter channels");
     if (qa.channels != int64_t(adapterChannels(model_.weights.arch, qa.stages)))
       fail("shared_adapter cell: adapter of {} channels for {} stages", qa.channels, qa.stages);
     if (qa.channels > 0) {
-      qa.scales = {r.get<float>(), r.get<float>()};
+      qa.scales = {r.f32("adapter scale"), r.f32("adapter scale")};
       qa.codes = getCodes(r, size_t(2 * qa.channels), 8);
     }
-    if (!r.done()) fail("shared_adapter cell: trailing bytes");
+    r.expectEnd();
     q.validate("shared_adapter cell latents");
     GeneratorCpu decoder(applyAdapter(model_.weights, dequantizeAdapter(qa)));
     const std::vector<float> latents = dequantizeLatents(q);
@@ -622,14 +589,14 @@ SharedModel makeSharedModel(const std::vector<bake::GeneratorTrainingSet>& sets,
                             const std::vector<std::string>& names, const GeneratorArch& arch, int steps,
                             const fs::path& cacheDir) {
   const bake::SharedTrainingOptions o = sharedOptions(arch, steps, 0);
-  uint64_t key = 1469598103934665603ull;
+  uint64_t key = kFnv1aOffset;
   for (const auto& set : sets) {
     const uint64_t h = set.contentHash();
-    key = fnv(key, &h, sizeof h);
+    key = fnv1a(key, &h, sizeof h);
   }
   const int ints[5] = {arch.latentDim, int(arch.convChannels.size()), arch.convChannels[0], steps,
                        o.adapterStages};
-  key = fnv(key, ints, sizeof ints);
+  key = fnv1a(key, ints, sizeof ints);
   const fs::path file = cacheDir / fmt::format("shared_generator_{:016x}.bin", key);
   SharedModel m;
   m.cells = names;
@@ -737,373 +704,444 @@ std::string cpuName() {
   return "cpu";
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"lfgi benchmark: probe codecs, rate-distortion-speed"};
+struct Args {
   std::string out = "out/bench/codec", cacheDir = "out/cache/codec",
               scenesDir = worlds::defaultScenesDir().string();
-  bool quick = false;
-  int spp = 0, threads = 0;
-  app.add_option("--out", out, "Output directory");
-  app.add_option("--cache", cacheDir, "Capture cache directory")->capture_default_str();
-  app.add_option("--scenes-dir", scenesDir, "Folder of the scene presets")->capture_default_str();
-  app.add_option("--spp", spp, "Capture samples per texel (default 16 quick, 64 full)");
-  app.add_option("--threads", threads, "Capture threads (0 = all)");
-  app.add_flag("--quick", quick, "Fewer probes, fewer codec settings, lower capture samples");
-  bool noGan = false;
-  app.add_flag("--no-gan", noGan, "Skip the generative codec (it trains a model per scene: minutes)");
-  bool noShared = false;
-  int sharedSteps = 0, fitSteps = 0;
-  app.add_flag("--no-shared", noShared, "Skip the world-shared generator + per-cell adapter rows");
-  app.add_option("--shared-steps", sharedSteps,
-                 "Pre-training steps of the shared generator (default 1000 quick, 3000 full)");
-  app.add_option("--fit-steps", fitSteps,
-                 "Steps of each held-out cell's latent + adapter fit (default 400 quick, 800 full)");
+  bool quick = false, noGan = false, noShared = false;
+  int spp = 0, threads = 0, sharedSteps = 0, fitSteps = 0;
   std::string sunMode = "separate";
-  app.add_option("--sun", sunMode,
+};
+
+void addOptions(CLI::App& app, Args& a) {
+  app.add_option("--out", a.out, "Output directory");
+  app.add_option("--cache", a.cacheDir, "Capture cache directory")->capture_default_str();
+  app.add_option("--scenes-dir", a.scenesDir, "Folder of the scene presets")->capture_default_str();
+  app.add_option("--spp", a.spp, "Capture samples per texel (default 16 quick, 64 full)");
+  app.add_option("--threads", a.threads, "Capture threads (0 = all)");
+  app.add_flag("--quick", a.quick, "Fewer probes, fewer codec settings, lower capture samples");
+  app.add_flag("--no-gan", a.noGan, "Skip the generative codec (it trains a model per scene: minutes)");
+  app.add_flag("--no-shared", a.noShared, "Skip the world-shared generator + per-cell adapter rows");
+  app.add_option("--shared-steps", a.sharedSteps,
+                 "Pre-training steps of the shared generator (default 1000 quick, 3000 full)");
+  app.add_option("--fit-steps", a.fitSteps,
+                 "Steps of each held-out cell's latent + adapter fit (default 400 quick, 800 full)");
+  app.add_option("--sun", a.sunMode,
                  "separate: probes store radiance without the sun disc plus a visibility bit; "
                  "in-map: the sun stays in its radiance texel")
       ->check(CLI::IsMember({"separate", "in-map"}))
       ->capture_default_str();
+}
+
+constexpr float kTimeOfDay = 15.5f;
+
+// What every scene shares: the capture settings, the sky and the default world the cells come from.
+struct Setup {
+  bake::CaptureOptions co;
+  worlds::SkyModel sky;
+  size_t cellProbes = 0;
+  worlds::SyntheticWorld world{worlds::WorldParams::smallDefault(1)};
+};
+
+Setup makeSetup(const Args& a) {
+  Setup s;
+  s.co.resolution = 16;
+  s.co.irradianceResolution = 8;
+  s.co.samplesPerTexel = a.spp > 0 ? a.spp : (a.quick ? 16 : 64);
+  s.co.maxBounces = a.quick ? 4 : 8;
+  worlds::SkyState st;
+  st.timeOfDayHours = kTimeOfDay;
+  s.sky = worlds::makeSky(st);
+  s.cellProbes = a.quick ? 48 : 160;
+  return s;
+}
+
+// Scenes: the two test scenes and 9 cells of the default world's showcase district (synthetic_world.h):
+// fields, suburbs, a park and the four city block types (leak test, arcade, courtyard, towers).
+std::vector<std::function<SceneSpec()>> sceneSpecs(const Args& a, const Setup& setup) {
+  const std::vector<worlds::CellCoord> cells = {{0, 0}, {1, 0}, {3, 1}, {1, 1}, {2, 1},
+                                                {1, 2}, {2, 2}, {3, 2}, {0, 3}};
+  std::vector<std::function<SceneSpec()>> specs;
+  const std::string scenesDir = a.scenesDir;
+  const bool quick = a.quick;
+  specs.push_back([=] { return presetScene("cornell", scenesDir, quick ? glm::ivec3(3) : glm::ivec3(5)); });
+  specs.push_back(
+      [=] { return presetScene("sponza", scenesDir, quick ? glm::ivec3(6, 3, 4) : glm::ivec3(12, 5, 8)); });
+  const worlds::SyntheticWorld& world = setup.world;
+  const size_t cellProbes = setup.cellProbes;
+  for (const worlds::CellCoord c : cells)
+    specs.push_back([&world, c, cellProbes] { return worldCell(world, c, cellProbes); });
+  return specs;
+}
+
+struct SharedSetup {
+  std::optional<SharedModel> model;
+  size_t worldProbes = 0;  // active probes of the default world
+};
+
+// World-shared generator: pre-trained on the first cell of each kind (field, suburb, city, park) of
+// another world (seed 2), so every measured scene is held out; stored once per world.
+SharedSetup makeShared(const Args& a, const Setup& setup) {
+  SharedSetup out;
+  if (a.noShared) return out;
+  const worlds::SyntheticWorld pretrainWorld(worlds::WorldParams::smallDefault(2));
+  std::vector<bake::GeneratorTrainingSet> sets;
+  std::vector<std::string> names, kindsUsed;
+  for (int z = 0; z < pretrainWorld.cellsX() && sets.size() < 4; ++z)
+    for (int x = 0; x < pretrainWorld.cellsX() && sets.size() < 4; ++x) {
+      const worlds::CellCoord c{x, z};
+      const std::string kind(worlds::cellKindName(pretrainWorld.cellKind(c)));
+      if (std::find(kindsUsed.begin(), kindsUsed.end(), kind) != kindsUsed.end()) continue;
+      SceneSpec spec = worldCell(pretrainWorld, c, setup.cellProbes);
+      spec.name = "seed2_" + spec.name;
+      names.push_back(spec.name);
+      Captured cap = capture(spec, setup.co, setup.sky, kTimeOfDay, a.cacheDir);
+      if (a.sunMode == "separate") splitSun(cap, setup.sky.sun);
+      sets.push_back(trainingSetOf(fieldOf(cap), kTimeOfDay));
+      kindsUsed.push_back(kind);
+    }
+  GeneratorArch arch;
+  arch.latentDim = 8;
+  arch.convChannels = {32, 16, kGeneratorChannels};
+  out.model = makeSharedModel(sets, names, arch, a.sharedSteps > 0 ? a.sharedSteps : (a.quick ? 1000 : 3000),
+                              a.cacheDir);
+  const worlds::SyntheticWorld& world = setup.world;
+  for (int z = 0; z < world.cellsX(); ++z)
+    for (int x = 0; x < world.cellsX(); ++x)
+      out.worldProbes += worlds::buildCell(world, {x, z}).stats.probesActive;
+  spdlog::info("shared generator: {} B (int8) on {}; default world {} active probes", out.model->bytes,
+               fmt::join(names, ", "), out.worldProbes);
+  return out;
+}
+
+// One scene's captured field, its sun split off (--sun separate) and the references a codec row compares
+// against.
+struct SceneField {
+  std::string name, kind;
+  Captured cap;
+  std::vector<uint8_t> sunVisible;
+  ProbeField field;
+  ProbeField floatIrr;  // irradiance of the uncompressed float radiance: the reference of the codec's loss
+  float peak = 0;
+};
+
+SceneField captureScene(SceneSpec spec, const Args& a, const Setup& setup) {
+  SceneField s;
+  s.name = spec.name;
+  s.kind = spec.kind;
+  s.cap = capture(spec, setup.co, setup.sky, kTimeOfDay, a.cacheDir);
+  if (a.sunMode == "separate") s.sunVisible = splitSun(s.cap, setup.sky.sun);
+  s.field = fieldOf(s.cap);
+  s.floatIrr = s.field;
+  deriveIrradiance(s.floatIrr);
+  addSunIrradiance(s.floatIrr, s.sunVisible, setup.sky.sun);
+  if (!s.sunVisible.empty())
+    spdlog::info("{}: sun separate, visible from {} of {} probes", s.name,
+                 std::count(s.sunVisible.begin(), s.sunVisible.end(), uint8_t(1)), s.cap.positions.size());
+  s.peak = *std::max_element(s.cap.radiance.begin(), s.cap.radiance.end());
+  return s;
+}
+
+// One codec on one scene: encode, decode (best of repeats), errors and bytes per probe.
+Result measureCodec(const ProbeCodec& codec, const SceneField& s, const Setup& setup,
+                    const SharedSetup& shared, double worldKm2) {
+  std::vector<std::byte> bytes;
+  const double enc = bestSeconds([&] { bytes = codec.encode(s.field); }, 0.05);
+  ProbeField dec = s.field;
+  dec.radiance.clear();
+  const double decS = bestSeconds([&] { codec.decode(bytes, dec); }, 0.05);
+  if (!codec.decodesIrradiance()) deriveIrradiance(dec);
+  addSunIrradiance(dec, s.sunVisible, setup.sky.sun);
+  const size_t P = s.cap.positions.size();
+  const size_t sunBytes = s.sunVisible.empty() ? 0 : (P + 7) / 8;
+  Result r;
+  r.scene = s.name;
+  r.kind = s.kind;
+  r.codec = codec.name();
+  r.family = familyOf(r.codec);
+  r.setting = codec.setting();
+  r.probes = P;
+  r.bytes = double(bytes.size() + sunBytes) / double(P);
+  r.irr = relativeRms(dec.irradiance, s.cap.irradiance);
+  r.irrCodec = relativeRms(dec.irradiance, s.floatIrr.irradiance);
+  r.rad = relativeRms(dec.radiance, s.cap.radiance);
+  r.psnr = psnr(dec.radiance, s.cap.radiance, double(s.peak));
+  r.encUs = enc * 1e6 / double(P);
+  if (const auto* sa = dynamic_cast<const SharedAdapterCodec*>(&codec))
+    r.encUs = sa->lastFitSeconds() * 1e6 / double(P);
+  r.decUs = decS * 1e6 / double(P);
+  r.direct = codec.decodesIrradiance();
+  r.encodeSPerScene = r.encUs * double(P) * 1e-6;
+  r.bytesWorld = r.bytes16km2 = r.bytes;
+  if (shared.model && r.codec == "shared_adapter") {
+    r.bytesWorld += double(shared.model->bytes) / double(shared.worldProbes);
+    r.bytes16km2 += double(shared.model->bytes) / (double(shared.worldProbes) * 16.0 / worldKm2);
+  }
+  spdlog::info(
+      "{:<22} {:<15} {:<16} {:>9.1f} B/probe  irr {:7.4f} (codec {:7.4f})  rad {:7.4f}  {:6.1f} dB  "
+      "enc {:9.1f} us  dec {:7.2f} us",
+      s.name, r.codec, r.setting, r.bytes, r.irr, r.irrCodec, r.rad, r.psnr, r.encUs, r.decUs);
+  return r;
+}
+
+// Pooled rows per codec setting: scene "all" over every scene, scene "kind" per scene kind, "cells" over
+// the default world's cells.
+std::vector<Result> pool(const std::vector<Result>& results, const std::string& scene,
+                         const std::string& kind) {
+  std::map<std::pair<std::string, std::string>, std::vector<const Result*>> byCodec;
+  for (const Result& r : results)
+    if (kind == "all" || r.kind == kind || (kind == "cells" && r.scene.rfind("cell_", 0) == 0))
+      byCodec[{r.codec, r.setting}].push_back(&r);
+  std::vector<Result> pooled;
+  for (const auto& [key, rs] : byCodec) {
+    Result a = *rs[0];
+    a.scene = scene;
+    a.kind = kind;
+    double bytes = 0, enc = 0, dec = 0, bytesWorld = 0, bytes16 = 0;
+    size_t probes = 0;
+    a.irr = a.irrCodec = a.rad = a.psnr = a.encodeSPerScene = 0;
+    for (const Result* r : rs) {
+      bytes += r->bytes * double(r->probes);
+      bytesWorld += r->bytesWorld * double(r->probes);
+      bytes16 += r->bytes16km2 * double(r->probes);
+      a.encodeSPerScene += r->encodeSPerScene / double(rs.size());
+      enc += r->encUs * double(r->probes);
+      dec += r->decUs * double(r->probes);
+      probes += r->probes;
+      a.irr += r->irr / double(rs.size());
+      a.irrCodec += r->irrCodec / double(rs.size());
+      a.rad += r->rad / double(rs.size());
+      a.psnr += r->psnr / double(rs.size());
+    }
+    a.probes = probes;
+    a.bytes = bytes / double(probes);
+    a.bytesWorld = bytesWorld / double(probes);
+    a.bytes16km2 = bytes16 / double(probes);
+    a.encUs = enc / double(probes);
+    a.decUs = dec / double(probes);
+    pooled.push_back(a);
+  }
+  std::sort(pooled.begin(), pooled.end(), [](const Result& a, const Result& b) { return a.bytes < b.bytes; });
+  return pooled;
+}
+
+// The CSV: every scene's rows, then the pooled ones per kind, over all scenes and over the cells.
+void writeRows(bench::BenchOutput& o, const std::vector<Result>& results, const std::vector<Result>& all,
+               const std::vector<Result>& cellRows) {
+  std::vector<std::string> kinds;
+  for (const Result& r : results)
+    if (std::find(kinds.begin(), kinds.end(), r.kind) == kinds.end()) kinds.push_back(r.kind);
+  o.setColumns({"scene", "kind", "codec", "family", "setting", "probes", "bytes_per_probe", "irr_rel_rms",
+                "rad_rel_rms", "rad_psnr_db", "encode_us_per_probe", "decode_us_per_probe", "irr_direct",
+                "irr_codec_rel_rms", "bytes_per_probe_shared_256m", "bytes_per_probe_shared_16km2",
+                "encode_s_per_scene"});
+  auto add = [&](const Result& r) {
+    o.addRow({r.scene, r.kind, r.codec, r.family, r.setting, std::to_string(r.probes), bench::num(r.bytes),
+              bench::num(r.irr), bench::num(r.rad), bench::num(r.psnr), bench::num(r.encUs),
+              bench::num(r.decUs), r.direct ? "1" : "0", bench::num(r.irrCodec), bench::num(r.bytesWorld),
+              bench::num(r.bytes16km2), bench::num(r.encodeSPerScene)});
+  };
+  for (const Result& r : results) add(r);
+  for (const std::string& k : kinds)
+    for (const Result& r : pool(results, "kind", k)) add(r);
+  for (const Result& r : all) add(r);
+  // The synthetic cells of the default world only (every one held out from the shared generator's
+  // pre-training): scene "cells", kind "cells".
+  for (const Result& r : cellRows) add(r);
+}
+
+// The SH rows of `rows`, fewest bytes first.
+std::vector<const Result*> shCurve(const std::vector<Result>& rows) {
+  std::vector<const Result*> sh;
+  for (const Result& r : rows)
+    if (r.family == "sh") sh.push_back(&r);
+  std::sort(sh.begin(), sh.end(), [](const Result* a, const Result* b) { return a->bytes < b->bytes; });
+  return sh;
+}
+
+// SH bytes at a given irradiance error: log-log interpolation between the two SH orders (L1, L2, L4, L7
+// rows) whose errors bracket it; nullopt outside [error of the most accurate order, error of SH L1] (no
+// extrapolation).
+std::optional<double> shBytesAt(const std::vector<const Result*>& shRows, double err) {
+  for (size_t i = 0; i + 1 < shRows.size(); ++i) {
+    const Result &a = *shRows[i], &b = *shRows[i + 1];
+    if (err <= a.irr && err >= b.irr && a.irr > b.irr) {
+      const double t = (std::log(err) - std::log(a.irr)) / (std::log(b.irr) - std::log(a.irr));
+      return std::exp(std::log(a.bytes) + t * (std::log(b.bytes) - std::log(a.bytes)));
+    }
+  }
+  return std::nullopt;
+}
+
+nlohmann::ordered_json shCurveRatio(const std::vector<const Result*>& shRows, const Result& r, double bytes) {
+  const std::optional<double> b = shBytesAt(shRows, r.irr);
+  return b ? nlohmann::ordered_json(*b / bytes) : nlohmann::ordered_json();
+}
+
+// One shared_adapter row of the summary's shared_generator block, against the SH curve and SH L2 of the
+// same pooled rows.
+nlohmann::ordered_json sharedRow(const Result& r, const Result& sh2, const std::vector<const Result*>& shRows,
+                                 bool withCodecError) {
+  nlohmann::ordered_json j = {{"bytes_per_probe_cell_only", r.bytes},
+                              {"bytes_per_probe_shared_256m", r.bytesWorld},
+                              {"bytes_per_probe_shared_16km2", r.bytes16km2},
+                              {"irr_rel_rms", r.irr}};
+  if (withCodecError) j["irr_codec_rel_rms"] = r.irrCodec;
+  j["fit_s_per_scene"] = r.encodeSPerScene;
+  j["bytes_ratio_vs_sh_l2_at_equal_error_256m"] =
+      r.irr <= sh2.irr ? nlohmann::ordered_json(sh2.bytes / r.bytesWorld) : nlohmann::ordered_json();
+  j["bytes_ratio_vs_sh_curve_at_codec_error_256m"] = shCurveRatio(shRows, r, r.bytesWorld);
+  j["bytes_ratio_vs_sh_curve_at_codec_error_16km2"] = shCurveRatio(shRows, r, r.bytes16km2);
+  j["bytes_ratio_vs_sh_curve_at_codec_error_cell_only"] = shCurveRatio(shRows, r, r.bytes);
+  return j;
+}
+
+nlohmann::ordered_json ganRow(const Result& r) {
+  return {{"bytes_per_probe", r.bytes}, {"irr_rel_rms", r.irr}, {"encode_s_per_scene", r.encodeSPerScene}};
+}
+
+// The summary's shared_generator block: the model, then its rows over all scenes and over the cells.
+nlohmann::ordered_json sharedSummary(const SharedSetup& shared, const Args& a, double worldKm2,
+                                     const std::vector<Result>& all, const Result& sh2,
+                                     const std::vector<Result>& cellRows) {
+  const SharedModel& m = *shared.model;
+  nlohmann::ordered_json j;
+  j["model"] = "z8 C32-16, FiLM on the linear layer, int8 weights";
+  j["model_bytes"] = m.bytes;
+  j["pretrain_cells"] = m.cells;
+  j["pretrain_steps"] = m.steps;
+  j["pretrain_seconds"] = m.pretrainSeconds;  // 0: read from the cache
+  j["pretrain_irr_rel_rms"] = m.pretrainIrrRelRms;
+  j["fit_steps"] = a.fitSteps > 0 ? a.fitSteps : (a.quick ? 400 : 800);
+  j["world_probes_256m"] = shared.worldProbes;
+  j["world_probes_16km2"] = double(shared.worldProbes) * 16.0 / worldKm2;
+  // The cells block: against the SH curve over the synthetic cells only (the "cells" rows).
+  const std::vector<const Result*> cellSh = shCurve(cellRows);
+  const Result* cellSh2 = nullptr;
+  for (const Result& r : cellRows)
+    if (r.codec == "sh_l2") cellSh2 = &r;
+  for (const Result& r : cellRows) {
+    if (r.family == "sh") j["cells"]["sh"][r.codec] = {{"bytes_per_probe", r.bytes}, {"irr_rel_rms", r.irr}};
+    if (r.family == "gan") j["cells"]["per_cell_gan"][r.setting] = ganRow(r);
+    if (r.family != "shared_adapter" || !cellSh2) continue;
+    j["cells"]["rows"][r.setting] = sharedRow(r, *cellSh2, cellSh, false);
+  }
+  const std::vector<const Result*> allSh = shCurve(all);
+  for (const Result& r : all) {
+    if (r.family == "gan") j["per_cell_gan"][r.setting] = ganRow(r);
+    if (r.family != "shared_adapter") continue;
+    j["rows"][r.setting] = sharedRow(r, sh2, allSh, true);
+  }
+  return j;
+}
+
+// Headline (BENCHMARKS.md keys), from the "all" rows.
+void writeSummary(bench::BenchOutput& o, const Args& a, const Setup& setup, size_t sceneCount,
+                  const SharedSetup& shared, double worldKm2, const std::vector<Result>& all,
+                  const std::vector<Result>& cellRows) {
+  const Result* sh2 = nullptr;
+  for (const Result& r : all)
+    if (r.codec == "sh_l2") sh2 = &r;
+  if (!sh2) fail("no sh_l2 row");
+  // Cheapest baseline row at least as accurate (irradiance) as SH L2.
+  const Result* baseline = nullptr;
+  for (const Result& r : all) {
+    if (r.codec == "reference_fp32" || r.codec == "sh_l2" || r.family == "gan" ||
+        r.family == "shared_adapter")
+      continue;
+    if (r.irr <= sh2->irr && (!baseline || r.bytes < baseline->bytes)) baseline = &r;
+  }
+  auto& s = o.summary();
+  const nlohmann::ordered_json null;
+  // Headline codec: the cheapest row of the generative families (per-cell gan, shared_adapter with the
+  // shared weights spread over the default world) at SH L2's irradiance error or better, else the most
+  // accurate of them (codec_reached_sh_l2_error false).
+  const Result* gan = nullptr;
+  bool haveGan = false;
+  for (const Result& r : all) {
+    if (r.family != "gan" && r.family != "shared_adapter") continue;
+    haveGan = true;
+    if (r.irr <= sh2->irr && (!gan || r.bytesWorld < gan->bytesWorld)) gan = &r;
+  }
+  const bool ganAtShL2 = gan != nullptr;
+  if (!gan)
+    for (const Result& r : all)
+      if ((r.family == "gan" || r.family == "shared_adapter") && (!gan || r.irr < gan->irr)) gan = &r;
+  s["codec_bytes_per_probe"] = gan ? nlohmann::ordered_json(gan->bytesWorld) : null;
+  s["sh_l2_bytes_per_probe"] = sh2->bytes;
+  // Equal error = at SH L2's error: SH L2 bytes / codec bytes, only for a codec at least as accurate.
+  s["bytes_ratio_vs_sh_l2_at_equal_error"] =
+      ganAtShL2 ? nlohmann::ordered_json(sh2->bytes / gan->bytesWorld) : null;
+  s["codec_irr_rel_rms"] = gan ? nlohmann::ordered_json(gan->irr) : null;
+  s["sh_l2_irr_rel_rms"] = sh2->irr;
+  if (gan) {
+    s["codec_family"] = gan->family;
+    s["bytes_ratio_vs_sh_curve_at_codec_error"] = shCurveRatio(shCurve(all), *gan, gan->bytesWorld);
+  }
+  if (shared.model) s["shared_generator"] = sharedSummary(shared, a, worldKm2, all, *sh2, cellRows);
+  s["gpu_decode_probes_per_s"] = null;  // GPU decode: the generator helper's gpu/ kernels
+  s["gpu_decode_fraction_of_gemm_ceiling"] = null;
+  s["cpu_decode_probes_per_s"] = gan ? nlohmann::ordered_json(1e6 / gan->decUs) : null;
+  s["cpu_decode_fraction_of_sgemm"] = null;
+  s["cells_without_network"] = null;
+  s["gan_in_run"] = haveGan;
+  s["gan_reached_sh_l2_error"] = ganAtShL2;
+  s["codec_reached_sh_l2_error"] = ganAtShL2;
+  if (gan) s["gan_setting"] = gan->setting;
+  if (baseline) {
+    s["best_baseline_at_sh_l2_error"] =
+        baseline->codec + (baseline->setting.empty() ? "" : " " + baseline->setting);
+    s["best_baseline_bytes_per_probe"] = baseline->bytes;
+    s["best_baseline_irr_rel_rms"] = baseline->irr;
+    s["best_baseline_bytes_ratio_vs_sh_l2"] = sh2->bytes / baseline->bytes;
+  }
+  for (const Result& r : all)
+    if (r.codec == "reference_fp32") s["irr_rel_rms_floor_fp32_radiance"] = r.irr;
+  s["scenes"] = sceneCount;
+  s["probes"] = all.empty() ? 0 : all[0].probes;
+  s["sun"] = a.sunMode;
+  s["resolution"] = setup.co.resolution;
+  s["samples_per_texel"] = setup.co.samplesPerTexel;
+}
+
+void run(const Args& a) {
+  InterruptGuard guard;
+  bench::BenchOutput o(a.out, a.quick);
+  o.setDevice(fmt::format("{} (codecs on 1 thread)", cpuName()));
+  std::optional<tbb::global_control> limit;
+  if (a.threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(a.threads));
+  const Setup setup = makeSetup(a);
+  const std::vector<std::function<SceneSpec()>> specs = sceneSpecs(a, setup);
+  openblas_set_num_threads(1);
+  const SharedSetup shared = makeShared(a, setup);
+  const worlds::SyntheticWorld& world = setup.world;
+  const double worldKm2 = std::pow(double(world.cellsX()) * world.cellSizeM() * 1e-3, 2.0);
+  const int sharedFitSteps = a.fitSteps > 0 ? a.fitSteps : (a.quick ? 400 : 800);
+  const auto codecs =
+      makeBenchCodecs(a.quick, a.noGan, kTimeOfDay, shared.model ? &*shared.model : nullptr, sharedFitSteps);
+  std::vector<Result> results;
+  for (const auto& make : specs) {
+    const SceneField scene = captureScene(make(), a, setup);
+    for (const auto& codec : codecs) {
+      if (InterruptGuard::interrupted()) fail("interrupted");
+      results.push_back(measureCodec(*codec, scene, setup, shared, worldKm2));
+    }
+  }
+  const std::vector<Result> all = pool(results, "all", "all");
+  const std::vector<Result> cellRows = pool(results, "cells", "cells");
+  writeRows(o, results, all, cellRows);
+  writeSummary(o, a, setup, specs.size(), shared, worldKm2, all, cellRows);
+  o.save();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"lfgi benchmark: probe codecs, rate-distortion-speed"};
+  Args a;
+  addOptions(app, a);
   CLI11_PARSE(app, argc, argv);
   try {
-    InterruptGuard guard;
-    bench::BenchOutput o(out, quick);
-    o.setDevice(fmt::format("{} (codecs on 1 thread)", cpuName()));
-    std::optional<tbb::global_control> limit;
-    if (threads > 0) limit.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
-
-    bake::CaptureOptions co;
-    co.resolution = 16;
-    co.irradianceResolution = 8;
-    co.samplesPerTexel = spp > 0 ? spp : (quick ? 16 : 64);
-    co.maxBounces = quick ? 4 : 8;
-    const float timeOfDay = 15.5f;
-    worlds::SkyState st;
-    st.timeOfDayHours = timeOfDay;
-    const worlds::SkyModel sky = worlds::makeSky(st);
-
-    // Scenes: the two test scenes and 9 cells of the default world's showcase district (synthetic_world.h):
-    // fields, suburbs, a park and the four city block types (leak test, arcade, courtyard, towers).
-    const size_t cellProbes = quick ? 48 : 160;
-    const worlds::SyntheticWorld world(worlds::WorldParams::smallDefault(1));
-    const std::vector<worlds::CellCoord> cells = {{0, 0}, {1, 0}, {3, 1}, {1, 1}, {2, 1},
-                                                  {1, 2}, {2, 2}, {3, 2}, {0, 3}};
-    std::vector<std::function<SceneSpec()>> specs;
-    specs.push_back([&] { return presetScene("cornell", scenesDir, quick ? glm::ivec3(3) : glm::ivec3(5)); });
-    specs.push_back(
-        [&] { return presetScene("sponza", scenesDir, quick ? glm::ivec3(6, 3, 4) : glm::ivec3(12, 5, 8)); });
-    for (const worlds::CellCoord c : cells)
-      specs.push_back([&world, c, cellProbes] { return worldCell(world, c, cellProbes); });
-
-    openblas_set_num_threads(1);
-    // World-shared generator: pre-trained on the first cell of each kind (field, suburb, city, park) of
-    // another world (seed 2), so every measured scene is held out; stored once per world.
-    std::optional<SharedModel> shared;
-    size_t worldProbes = 0;
-    if (!noShared) {
-      const worlds::SyntheticWorld pretrainWorld(worlds::WorldParams::smallDefault(2));
-      std::vector<bake::GeneratorTrainingSet> sets;
-      std::vector<std::string> names, kindsUsed;
-      for (int z = 0; z < pretrainWorld.cellsX() && sets.size() < 4; ++z)
-        for (int x = 0; x < pretrainWorld.cellsX() && sets.size() < 4; ++x) {
-          const worlds::CellCoord c{x, z};
-          const std::string kind(worlds::cellKindName(pretrainWorld.cellKind(c)));
-          if (std::find(kindsUsed.begin(), kindsUsed.end(), kind) != kindsUsed.end()) continue;
-          SceneSpec spec = worldCell(pretrainWorld, c, cellProbes);
-          spec.name = "seed2_" + spec.name;
-          names.push_back(spec.name);
-          Captured cap = capture(spec, co, sky, timeOfDay, cacheDir);
-          if (sunMode == "separate") splitSun(cap, sky.sun);
-          sets.push_back(trainingSetOf(fieldOf(cap), timeOfDay));
-          kindsUsed.push_back(kind);
-        }
-      GeneratorArch arch;
-      arch.latentDim = 8;
-      arch.convChannels = {32, 16, kGeneratorChannels};
-      shared =
-          makeSharedModel(sets, names, arch, sharedSteps > 0 ? sharedSteps : (quick ? 1000 : 3000), cacheDir);
-      for (int z = 0; z < world.cellsX(); ++z)
-        for (int x = 0; x < world.cellsX(); ++x)
-          worldProbes += worlds::buildCell(world, {x, z}).stats.probesActive;
-      spdlog::info("shared generator: {} B (int8) on {}; default world {} active probes", shared->bytes,
-                   fmt::join(names, ", "), worldProbes);
-    }
-    const double worldKm2 = std::pow(double(world.cellsX()) * world.cellSizeM() * 1e-3, 2.0);
-    const int sharedFitSteps = fitSteps > 0 ? fitSteps : (quick ? 400 : 800);
-    const auto codecs = makeBenchCodecs(quick, noGan, timeOfDay, shared ? &*shared : nullptr, sharedFitSteps);
-    std::vector<Result> results;
-    for (auto& make : specs) {
-      SceneSpec spec = make();
-      const std::string sceneName = spec.name, kind = spec.kind;
-      Captured cap = capture(spec, co, sky, timeOfDay, cacheDir);
-      std::vector<uint8_t> sunVisible;
-      if (sunMode == "separate") sunVisible = splitSun(cap, sky.sun);
-      const ProbeField field = fieldOf(cap);
-      // Irradiance of the uncompressed float radiance: the reference for the codec's own loss.
-      ProbeField floatIrr = field;
-      deriveIrradiance(floatIrr);
-      addSunIrradiance(floatIrr, sunVisible, sky.sun);
-      const size_t P = cap.positions.size();
-      const size_t sunBytes = sunVisible.empty() ? 0 : (P + 7) / 8;
-      if (!sunVisible.empty())
-        spdlog::info("{}: sun separate, visible from {} of {} probes", sceneName,
-                     std::count(sunVisible.begin(), sunVisible.end(), uint8_t(1)), P);
-      const float peak = *std::max_element(cap.radiance.begin(), cap.radiance.end());
-      for (const auto& codec : codecs) {
-        if (InterruptGuard::interrupted()) fail("interrupted");
-        std::vector<std::byte> bytes;
-        const double enc = bestSeconds([&] { bytes = codec->encode(field); }, 0.05);
-        ProbeField dec = field;
-        dec.radiance.clear();
-        const double decS = bestSeconds([&] { codec->decode(bytes, dec); }, 0.05);
-        if (!codec->decodesIrradiance()) deriveIrradiance(dec);
-        addSunIrradiance(dec, sunVisible, sky.sun);
-        Result r;
-        r.scene = sceneName;
-        r.kind = kind;
-        r.codec = codec->name();
-        r.family = familyOf(r.codec);
-        r.setting = codec->setting();
-        r.probes = P;
-        r.bytes = double(bytes.size() + sunBytes) / double(P);
-        r.irr = relativeRms(dec.irradiance, cap.irradiance);
-        r.irrCodec = relativeRms(dec.irradiance, floatIrr.irradiance);
-        r.rad = relativeRms(dec.radiance, cap.radiance);
-        r.psnr = psnr(dec.radiance, cap.radiance, double(peak));
-        r.encUs = enc * 1e6 / double(P);
-        if (const auto* sa = dynamic_cast<const SharedAdapterCodec*>(codec.get()))
-          r.encUs = sa->lastFitSeconds() * 1e6 / double(P);
-        r.decUs = decS * 1e6 / double(P);
-        r.direct = codec->decodesIrradiance();
-        r.encodeSPerScene = r.encUs * double(P) * 1e-6;
-        r.bytesWorld = r.bytes16km2 = r.bytes;
-        if (shared && r.codec == "shared_adapter") {
-          r.bytesWorld += double(shared->bytes) / double(worldProbes);
-          r.bytes16km2 += double(shared->bytes) / (double(worldProbes) * 16.0 / worldKm2);
-        }
-        spdlog::info(
-            "{:<22} {:<15} {:<16} {:>9.1f} B/probe  irr {:7.4f} (codec {:7.4f})  rad {:7.4f}  {:6.1f} dB  "
-            "enc {:9.1f} us  dec {:7.2f} us",
-            sceneName, r.codec, r.setting, r.bytes, r.irr, r.irrCodec, r.rad, r.psnr, r.encUs, r.decUs);
-        results.push_back(r);
-      }
-    }
-
-    // Pooled rows per codec setting: scene "all" over every scene, scene "kind" per scene kind.
-    auto pool = [&](const std::string& scene, const std::string& kind) {
-      std::map<std::pair<std::string, std::string>, std::vector<const Result*>> byCodec;
-      for (const Result& r : results)
-        if (kind == "all" || r.kind == kind || (kind == "cells" && r.scene.rfind("cell_", 0) == 0))
-          byCodec[{r.codec, r.setting}].push_back(&r);
-      std::vector<Result> pooled;
-      for (const auto& [key, rs] : byCodec) {
-        Result a = *rs[0];
-        a.scene = scene;
-        a.kind = kind;
-        double bytes = 0, enc = 0, dec = 0, bytesWorld = 0, bytes16 = 0;
-        size_t probes = 0;
-        a.irr = a.irrCodec = a.rad = a.psnr = a.encodeSPerScene = 0;
-        for (const Result* r : rs) {
-          bytes += r->bytes * double(r->probes);
-          bytesWorld += r->bytesWorld * double(r->probes);
-          bytes16 += r->bytes16km2 * double(r->probes);
-          a.encodeSPerScene += r->encodeSPerScene / double(rs.size());
-          enc += r->encUs * double(r->probes);
-          dec += r->decUs * double(r->probes);
-          probes += r->probes;
-          a.irr += r->irr / double(rs.size());
-          a.irrCodec += r->irrCodec / double(rs.size());
-          a.rad += r->rad / double(rs.size());
-          a.psnr += r->psnr / double(rs.size());
-        }
-        a.probes = probes;
-        a.bytes = bytes / double(probes);
-        a.bytesWorld = bytesWorld / double(probes);
-        a.bytes16km2 = bytes16 / double(probes);
-        a.encUs = enc / double(probes);
-        a.decUs = dec / double(probes);
-        pooled.push_back(a);
-      }
-      std::sort(pooled.begin(), pooled.end(),
-                [](const Result& a, const Result& b) { return a.bytes < b.bytes; });
-      return pooled;
-    };
-    const std::vector<Result> all = pool("all", "all");
-    std::vector<std::string> kinds;
-    for (const Result& r : results)
-      if (std::find(kinds.begin(), kinds.end(), r.kind) == kinds.end()) kinds.push_back(r.kind);
-
-    o.setColumns({"scene", "kind", "codec", "family", "setting", "probes", "bytes_per_probe", "irr_rel_rms",
-                  "rad_rel_rms", "rad_psnr_db", "encode_us_per_probe", "decode_us_per_probe", "irr_direct",
-                  "irr_codec_rel_rms", "bytes_per_probe_shared_256m", "bytes_per_probe_shared_16km2",
-                  "encode_s_per_scene"});
-    auto add = [&](const Result& r) {
-      o.addRow({r.scene, r.kind, r.codec, r.family, r.setting, std::to_string(r.probes), bench::num(r.bytes),
-                bench::num(r.irr), bench::num(r.rad), bench::num(r.psnr), bench::num(r.encUs),
-                bench::num(r.decUs), r.direct ? "1" : "0", bench::num(r.irrCodec), bench::num(r.bytesWorld),
-                bench::num(r.bytes16km2), bench::num(r.encodeSPerScene)});
-    };
-    for (const Result& r : results) add(r);
-    for (const std::string& k : kinds)
-      for (const Result& r : pool("kind", k)) add(r);
-    for (const Result& r : all) add(r);
-    // The synthetic cells of the default world only (every one held out from the shared generator's
-    // pre-training): scene "cells", kind "cells".
-    const std::vector<Result> cellRows = pool("cells", "cells");
-    for (const Result& r : cellRows) add(r);
-
-    // Headline (BENCHMARKS.md keys), from the "all" rows.
-    const Result* sh2 = nullptr;
-    for (const Result& r : all)
-      if (r.codec == "sh_l2") sh2 = &r;
-    if (!sh2) fail("no sh_l2 row");
-    // Cheapest row of a family that is at least as accurate (irradiance) as SH L2.
-    auto cheapestAtShL2 = [&](const std::string& family, bool anyFamily) -> const Result* {
-      const Result* best = nullptr;
-      for (const Result& r : all) {
-        if ((!anyFamily && r.family != family) || r.codec == "reference_fp32" || r.codec == "sh_l2") continue;
-        if (anyFamily && (r.family == "gan" || r.family == "shared_adapter")) continue;  // baselines only
-        if (r.irr <= sh2->irr && (!best || r.bytes < best->bytes)) best = &r;
-      }
-      return best;
-    };
-    auto& s = o.summary();
-    const nlohmann::ordered_json null;
-    // SH bytes at a given irradiance error: log-log interpolation between the two SH orders (L1, L2, L4,
-    // L7 "all" rows) whose errors bracket it; nullopt outside [error of the most accurate order, error of
-    // SH L1] (no extrapolation).
-    std::vector<const Result*> shRows;
-    for (const Result& r : all)
-      if (r.family == "sh") shRows.push_back(&r);
-    std::sort(shRows.begin(), shRows.end(),
-              [](const Result* a, const Result* b) { return a->bytes < b->bytes; });
-    auto shBytesAt = [&](double err) -> std::optional<double> {
-      for (size_t i = 0; i + 1 < shRows.size(); ++i) {
-        const Result &a = *shRows[i], &b = *shRows[i + 1];
-        if (err <= a.irr && err >= b.irr && a.irr > b.irr) {
-          const double t = (std::log(err) - std::log(a.irr)) / (std::log(b.irr) - std::log(a.irr));
-          return std::exp(std::log(a.bytes) + t * (std::log(b.bytes) - std::log(a.bytes)));
-        }
-      }
-      return std::nullopt;
-    };
-    // Headline codec: the cheapest row of the generative families (per-cell gan, shared_adapter with the
-    // shared weights spread over the default world) at SH L2's irradiance error or better, else the most
-    // accurate of them (codec_reached_sh_l2_error false).
-    const Result* gan = nullptr;
-    bool haveGan = false;
-    for (const Result& r : all) {
-      if (r.family != "gan" && r.family != "shared_adapter") continue;
-      haveGan = true;
-      if (r.irr <= sh2->irr && (!gan || r.bytesWorld < gan->bytesWorld)) gan = &r;
-    }
-    const bool ganAtShL2 = gan != nullptr;
-    if (!gan)
-      for (const Result& r : all)
-        if ((r.family == "gan" || r.family == "shared_adapter") && (!gan || r.irr < gan->irr)) gan = &r;
-    s["codec_bytes_per_probe"] = gan ? nlohmann::ordered_json(gan->bytesWorld) : null;
-    s["sh_l2_bytes_per_probe"] = sh2->bytes;
-    // Equal error = at SH L2's error: SH L2 bytes / codec bytes, only for a codec at least as accurate.
-    s["bytes_ratio_vs_sh_l2_at_equal_error"] =
-        ganAtShL2 ? nlohmann::ordered_json(sh2->bytes / gan->bytesWorld) : null;
-    s["codec_irr_rel_rms"] = gan ? nlohmann::ordered_json(gan->irr) : null;
-    s["sh_l2_irr_rel_rms"] = sh2->irr;
-    auto shCurveRatio = [&](const Result& r, double bytes) {
-      const std::optional<double> b = shBytesAt(r.irr);
-      return b ? nlohmann::ordered_json(*b / bytes) : null;
-    };
-    if (gan) {
-      s["codec_family"] = gan->family;
-      s["bytes_ratio_vs_sh_curve_at_codec_error"] = shCurveRatio(*gan, gan->bytesWorld);
-    }
-    if (shared) {
-      nlohmann::ordered_json j;
-      j["model"] = "z8 C32-16, FiLM on the linear layer, int8 weights";
-      j["model_bytes"] = shared->bytes;
-      j["pretrain_cells"] = shared->cells;
-      j["pretrain_steps"] = shared->steps;
-      j["pretrain_seconds"] = shared->pretrainSeconds;  // 0: read from the cache
-      j["pretrain_irr_rel_rms"] = shared->pretrainIrrRelRms;
-      j["fit_steps"] = sharedFitSteps;
-      j["world_probes_256m"] = worldProbes;
-      j["world_probes_16km2"] = double(worldProbes) * 16.0 / worldKm2;
-      // SH curve over the synthetic cells only (the "cells" rows), for the cells block below.
-      std::vector<const Result*> allShRows = shRows;
-      shRows.clear();
-      for (const Result& r : cellRows)
-        if (r.family == "sh") shRows.push_back(&r);
-      std::sort(shRows.begin(), shRows.end(),
-                [](const Result* a, const Result* b) { return a->bytes < b->bytes; });
-      const Result* cellSh2 = nullptr;
-      for (const Result& r : cellRows)
-        if (r.codec == "sh_l2") cellSh2 = &r;
-      for (const Result& r : cellRows) {
-        if (r.family == "sh")
-          j["cells"]["sh"][r.codec] = {{"bytes_per_probe", r.bytes}, {"irr_rel_rms", r.irr}};
-        if (r.family == "gan")
-          j["cells"]["per_cell_gan"][r.setting] = {{"bytes_per_probe", r.bytes},
-                                                   {"irr_rel_rms", r.irr},
-                                                   {"encode_s_per_scene", r.encodeSPerScene}};
-        if (r.family != "shared_adapter" || !cellSh2) continue;
-        j["cells"]["rows"][r.setting] = {
-            {"bytes_per_probe_cell_only", r.bytes},
-            {"bytes_per_probe_shared_256m", r.bytesWorld},
-            {"bytes_per_probe_shared_16km2", r.bytes16km2},
-            {"irr_rel_rms", r.irr},
-            {"fit_s_per_scene", r.encodeSPerScene},
-            {"bytes_ratio_vs_sh_l2_at_equal_error_256m",
-             r.irr <= cellSh2->irr ? nlohmann::ordered_json(cellSh2->bytes / r.bytesWorld) : null},
-            {"bytes_ratio_vs_sh_curve_at_codec_error_256m", shCurveRatio(r, r.bytesWorld)},
-            {"bytes_ratio_vs_sh_curve_at_codec_error_16km2", shCurveRatio(r, r.bytes16km2)},
-            {"bytes_ratio_vs_sh_curve_at_codec_error_cell_only", shCurveRatio(r, r.bytes)}};
-      }
-      shRows = allShRows;
-      for (const Result& r : all) {
-        if (r.family == "gan")
-          j["per_cell_gan"][r.setting] = {{"bytes_per_probe", r.bytes},
-                                          {"irr_rel_rms", r.irr},
-                                          {"encode_s_per_scene", r.encodeSPerScene}};
-        if (r.family != "shared_adapter") continue;
-        j["rows"][r.setting] = {
-            {"bytes_per_probe_cell_only", r.bytes},
-            {"bytes_per_probe_shared_256m", r.bytesWorld},
-            {"bytes_per_probe_shared_16km2", r.bytes16km2},
-            {"irr_rel_rms", r.irr},
-            {"irr_codec_rel_rms", r.irrCodec},
-            {"fit_s_per_scene", r.encodeSPerScene},
-            {"bytes_ratio_vs_sh_l2_at_equal_error_256m",
-             r.irr <= sh2->irr ? nlohmann::ordered_json(sh2->bytes / r.bytesWorld) : null},
-            {"bytes_ratio_vs_sh_curve_at_codec_error_256m", shCurveRatio(r, r.bytesWorld)},
-            {"bytes_ratio_vs_sh_curve_at_codec_error_16km2", shCurveRatio(r, r.bytes16km2)},
-            {"bytes_ratio_vs_sh_curve_at_codec_error_cell_only", shCurveRatio(r, r.bytes)}};
-      }
-      s["shared_generator"] = j;
-    }
-    s["gpu_decode_probes_per_s"] = null;  // GPU decode: the generator helper's gpu/ kernels
-    s["gpu_decode_fraction_of_gemm_ceiling"] = null;
-    s["cpu_decode_probes_per_s"] = gan ? nlohmann::ordered_json(1e6 / gan->decUs) : null;
-    s["cpu_decode_fraction_of_sgemm"] = null;
-    s["cells_without_network"] = null;
-    s["gan_in_run"] = haveGan;
-    s["gan_reached_sh_l2_error"] = ganAtShL2;
-    s["codec_reached_sh_l2_error"] = ganAtShL2;
-    if (gan) s["gan_setting"] = gan->setting;
-    if (const Result* b = cheapestAtShL2("", true)) {
-      s["best_baseline_at_sh_l2_error"] = b->codec + (b->setting.empty() ? "" : " " + b->setting);
-      s["best_baseline_bytes_per_probe"] = b->bytes;
-      s["best_baseline_irr_rel_rms"] = b->irr;
-      s["best_baseline_bytes_ratio_vs_sh_l2"] = sh2->bytes / b->bytes;
-    }
-    for (const Result& r : all)
-      if (r.codec == "reference_fp32") s["irr_rel_rms_floor_fp32_radiance"] = r.irr;
-    s["scenes"] = specs.size();
-    s["probes"] = all.empty() ? 0 : all[0].probes;
-    s["sun"] = sunMode;
-    s["resolution"] = co.resolution;
-    s["samples_per_texel"] = co.samplesPerTexel;
-    o.save();
+    run(a);
   } catch (const Error& e) {
     spdlog::error("{}", e.what());
     return 1;
