@@ -732,6 +732,11 @@ void addOptions(CLI::App& app, Args& a) {
       ->capture_default_str();
 }
 
+// Steps of each held-out cell's latent + adapter fit.
+int sharedFitSteps(const Args& a) {
+  return a.fitSteps > 0 ? a.fitSteps : (a.quick ? 400 : 800);
+}
+
 constexpr float kTimeOfDay = 15.5f;
 
 // What every scene shares: the capture settings, the sky and the default world the cells come from.
@@ -1011,7 +1016,7 @@ nlohmann::ordered_json sharedSummary(const SharedSetup& shared, const Args& a, d
   j["pretrain_steps"] = m.steps;
   j["pretrain_seconds"] = m.pretrainSeconds;  // 0: read from the cache
   j["pretrain_irr_rel_rms"] = m.pretrainIrrRelRms;
-  j["fit_steps"] = a.fitSteps > 0 ? a.fitSteps : (a.quick ? 400 : 800);
+  j["fit_steps"] = sharedFitSteps(a);
   j["world_probes_256m"] = shared.worldProbes;
   j["world_probes_16km2"] = double(shared.worldProbes) * 16.0 / worldKm2;
   // The cells block: against the SH curve over the synthetic cells only (the "cells" rows).
@@ -1115,9 +1120,8 @@ void run(const Args& a) {
   const SharedSetup shared = makeShared(a, setup);
   const worlds::SyntheticWorld& world = setup.world;
   const double worldKm2 = std::pow(double(world.cellsX()) * world.cellSizeM() * 1e-3, 2.0);
-  const int sharedFitSteps = a.fitSteps > 0 ? a.fitSteps : (a.quick ? 400 : 800);
-  const auto codecs =
-      makeBenchCodecs(a.quick, a.noGan, kTimeOfDay, shared.model ? &*shared.model : nullptr, sharedFitSteps);
+  const auto codecs = makeBenchCodecs(a.quick, a.noGan, kTimeOfDay, shared.model ? &*shared.model : nullptr,
+                                      sharedFitSteps(a));
   std::vector<Result> results;
   for (const auto& make : specs) {
     const SceneField scene = captureScene(make(), a, setup);

@@ -9,6 +9,18 @@
 
 namespace lfgi {
 
+namespace {
+
+// The value stored at p (unaligned).
+template <typename T>
+T load(const std::byte* p) {
+  T v;
+  std::memcpy(&v, p, sizeof(T));
+  return v;
+}
+
+}  // namespace
+
 void ByteWriter::u8(uint8_t v) {
   bytes.push_back(std::byte(v));
 }
@@ -52,24 +64,16 @@ uint8_t ByteReader::u8(const char* what) {
   return uint8_t(*take(1, what));
 }
 uint16_t ByteReader::u16(const char* what) {
-  uint16_t v;
-  std::memcpy(&v, take(2, what), 2);
-  return v;
+  return load<uint16_t>(take(sizeof(uint16_t), what));
 }
 uint32_t ByteReader::u32(const char* what) {
-  uint32_t v;
-  std::memcpy(&v, take(4, what), 4);
-  return v;
+  return load<uint32_t>(take(sizeof(uint32_t), what));
 }
 uint64_t ByteReader::u64(const char* what) {
-  uint64_t v;
-  std::memcpy(&v, take(8, what), 8);
-  return v;
+  return load<uint64_t>(take(sizeof(uint64_t), what));
 }
 float ByteReader::f32(const char* what) {
-  float v;
-  std::memcpy(&v, take(4, what), 4);
-  return v;
+  return load<float>(take(sizeof(float), what));
 }
 void ByteReader::halves(std::span<float> out, const char* what) {
   const float scale = f32(what);
@@ -77,9 +81,7 @@ void ByteReader::halves(std::span<float> out, const char* what) {
     fail("{} decode: {} scale {} is not a positive number", codec, what, scale);
   const std::byte* p = take(2 * out.size(), what);
   for (size_t i = 0; i < out.size(); ++i) {
-    uint16_t h;
-    std::memcpy(&h, p + 2 * i, 2);
-    const float v = halfToFloat(h);
+    const float v = halfToFloat(load<uint16_t>(p + 2 * i));
     // A corrupt payload may hold Inf/NaN halves, which encode never writes.
     if (!std::isfinite(v)) fail("{} decode: {} value {} at index {} is not finite", codec, what, v, i);
     out[i] = v * scale;
