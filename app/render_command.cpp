@@ -266,7 +266,7 @@ void selectActiveProbes(const RenderState& st, const bake::EmbreeScene& scene, W
 
 // --probes codec: every cell whose file exists (the centre's must); all fields share one map size: the
 // first network model's, else --resolution (SH L1 cells take any size).
-void decodeCellFiles(RenderState& st, const bake::EmbreeScene& scene, WorldProbes& w) {
+void decodeCellFiles(RenderState& st, WorldProbes& w) {
   const RenderCommandOptions& opt = st.opt;
   const std::vector<worlds::BuiltCell>& built = w.built;
   const worlds::CellCoord c = w.c;
@@ -311,8 +311,8 @@ void decodeCellFiles(RenderState& st, const bake::EmbreeScene& scene, WorldProbe
     // A shared-model cell: the world's shared model beside its cells/ directory, read once.
     if (cf.generator && cf.generator->shared && !shared)
       shared = loadSharedModel(sharedModelPath(paths[j].parent_path().parent_path()));
-    ProbeField decoded = bake::codecProbeField(cf, paths[j].string(), scene, st.sky, res, 8, 1.0e4f,
-                                               shared ? &*shared : nullptr);
+    ProbeField decoded =
+        bake::codecProbeField(cf, paths[j].string(), st.sky, res, 8, 1.0e4f, shared ? &*shared : nullptr);
     const size_t k = files[j].first;
     if (w.wantFallbacks) w.fallbacks[k] = bake::fieldFallback(decoded);
     spdlog::info("cell {},{}: decoded {} probes from {} ({}){}", cf.cellX, cf.cellZ, cf.activeProbeCount(),
@@ -324,6 +324,7 @@ void decodeCellFiles(RenderState& st, const bake::EmbreeScene& scene, WorldProbe
     bake::VirProbeStats ms;
     bake::regenerateVirMoments(relighter(st), w.surfels, built[k].probes.offsets, decoded, st.vo.maxRange,
                                &ms);
+    decoded.offsets = built[k].probes.offsets;  // the probes sit where they were baked and their moments seen
     spdlog::info("cell {},{}: VIR distance moments of {} probes from {} surfels, {:.0f} ms", cf.cellX,
                  cf.cellZ, ms.probes, ms.surfels, 1e3 * ms.seconds);
     st.fields.push_back(std::move(decoded));
@@ -435,7 +436,7 @@ void shadeWorldProbes(RenderState& st) {
   w.wantFallbacks = opt.neighboursFallback || opt.cellFade != 1.0f;
   w.fallbacks.resize(w.built.size());
   if (opt.probes == "codec")
-    decodeCellFiles(st, scene, w);
+    decodeCellFiles(st, w);
   else if (w.wantFallbacks)
     shadeCellFallbacks(st, scene, w);
   shadeActiveProbes(st, scene, w);

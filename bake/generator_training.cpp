@@ -167,6 +167,7 @@ struct Data {
   GeneratorOutputScale scale;
   torch::Tensor target;           // [S][11][n][n] encoded
   torch::Tensor irradiance;       // [S][3][m*m] of the captured radiance
+  torch::Tensor irradianceDen;    // [S]: the per-sample irradiance loss's denominator (generator_training.h)
   torch::Tensor kernel;           // [n*n][m*m]
   torch::Tensor radianceWeight;   // [n][n], solid angle normalised to mean 1
   torch::Tensor cond;             // [K][condDim]
@@ -229,6 +230,10 @@ Data makeData(const GeneratorTrainingSet& set, const GeneratorTrainingOptions& o
   const std::vector<double> k = irradianceKernel(d.n, d.m);
   d.kernel = torch::from_blob(const_cast<double*>(k.data()), {T, M}, torch::kFloat64).to(torch::kFloat32);
   d.irradiance = torch::matmul(fromVector(radiance, {d.S, 3, T}), d.kernel);
+  // Per key (a night key is held to its own light, not the day's): |E_s|^2 + f^2 mean over the key's probes.
+  const torch::Tensor e2 = d.irradiance.pow(2).sum({1, 2}).reshape({d.K, d.P});
+  const double floor = double(o.loss.irradianceFloor);
+  d.irradianceDen = (e2 + floor * floor * e2.mean(1, true)).reshape({d.S}).clamp_min(1e-30);
   const std::vector<double> omega = octTexelSolidAngles(d.n);
   std::vector<float> w(omega.size());
   for (size_t t = 0; t < w.size(); ++t) w[t] = float(omega[t] * double(T) / (4.0 * std::numbers::pi));
@@ -257,9 +262,9 @@ uint64_t fingerprint(const GeneratorTrainingSet& set, const GeneratorTrainingOpt
   for (int c : a.convChannels) h = fnv1aValue(h, c);
   h = fnv1aValue(h, uint8_t(a.latentSource));
   h = fnv1aValue(h, a.fourierOctaves);
-  for (float v :
-       {o.learningRate, o.latentLearningRate, o.loss.radiance, o.loss.irradiance, o.loss.distance,
-        o.loss.normal, o.loss.albedo, o.loss.latent, o.loss.adversarial, d.scale.exposure, d.scale.range})
+  for (float v : {o.learningRate, o.latentLearningRate, o.loss.radiance, o.loss.irradiance, o.loss.distance,
+                  o.loss.normal, o.loss.albedo, o.loss.latent, o.loss.adversarial, o.loss.irradianceFloor,
+                  d.scale.exposure, d.scale.range})
     h = fnv1aValue(h, v);
   for (int v : {o.maxSteps, o.discriminatorWidth, o.batchSize, int(o.adversarial), o.latentQuantBits})
     h = fnv1aValue(h, v);
@@ -338,9 +343,8 @@ torch::Tensor reconstructionLoss(const torch::Tensor& y, const torch::Tensor& id
                         w.distance * diff2.narrow(1, 3, 2).mean() + w.normal * diff2.narrow(1, 5, 3).mean() +
                         w.albedo * diff2.narrow(1, 8, 3).mean();
   if (w.irradiance > 0.0f) {
-    torch::Tensor eRef = d.irradiance.index_select(0, idx);
-    total = total + w.irradiance * (predictedIrradiance(y, d) - eRef).pow(2).sum() /
-                        eRef.pow(2).sum().clamp_min(1e-30);
+    torch::Tensor err2 = (predictedIrradiance(y, d) - d.irradiance.index_select(0, idx)).pow(2).sum({1, 2});
+    total = total + w.irradiance * (err2 / d.irradianceDen.index_select(0, idx)).mean();
   }
   return total;
 }
@@ -499,6 +503,9 @@ void GeneratorTrainingOptions::validate() const {
     fail("GeneratorTrainingOptions.discriminatorWidth = {}: need >= 1", discriminatorWidth);
   if (!(exposure >= 0.0f) || !(range >= 0.0f))
     fail("GeneratorTrainingOptions: exposure and range must be >= 0");
+  if (!(loss.irradianceFloor >= 0.0f) || !std::isfinite(loss.irradianceFloor))
+    fail("GeneratorTrainingOptions.loss.irradianceFloor = {}: need a finite value >= 0",
+         loss.irradianceFloor);
   if (checkpointEvery < 1) fail("GeneratorTrainingOptions.checkpointEvery = {}: need >= 1", checkpointEvery);
   if (latentQuantBits != 0 && latentQuantBits != 4 && latentQuantBits != 8)
     fail("GeneratorTrainingOptions.latentQuantBits = {}: 0 (off), 4 or 8", latentQuantBits);
@@ -520,11 +527,13 @@ GeneratorTrainingSet captureTrainingSet(const EmbreeScene& scene, std::span<cons
     }
     set.positions01.push_back(q);
   }
+  CaptureOptions co = capture;
+  co.primaryDiscs = false;  // the codec carries what shading reads (header)
   for (const LightingKeySpec& k : keys) {
     worlds::SkyState s = sky;
     s.timeOfDayHours = k.timeOfDayHours;
     s.overcast = k.weather;
-    CaptureResult r = captureProbes(scene, worlds::makeSky(s), positions, capture, showProgress);
+    CaptureResult r = captureProbes(scene, worlds::makeSky(s), positions, co, showProgress);
     if (r.probesDone != positions.size())
       fail("captureTrainingSet: capture interrupted after {} of {} probes", r.probesDone, positions.size());
     set.keys.push_back(LightingKey{k.timeOfDayHours, k.weather, std::move(r.probes)});

@@ -12,8 +12,10 @@
 // Loss per sample (means over texels; weights in TrainingLossWeights):
 //   radiance   solid-angle weighted squared error of log1p(L / exposure) (relative error in log space,
 //              weighted as the sphere integral of irradiance weighs it)
-//   irradiance sum over the batch of |E(decoded) - E(target)|^2 / sum |E(target)|^2, E = the irradiance
-//              operator below applied to exposure * expm1(clamp(y, 0, 20)): the stop metric, optimised
+//   irradiance mean over the batch's samples s of |E_s(decoded) - E_s|^2 / (|E_s|^2 + f^2 mean |E|^2), E
+//              = the irradiance operator below applied to exposure * expm1(clamp(y, 0, 20)), f =
+//              irradianceFloor, the mean over the probes of the sample's key: relative per probe, so a
+//              dark room's probes (what keeps its light from leaking) weigh as much as a sunlit one's
 //   distance, normal, albedo   squared error of the encoded channels
 //   latent     lambda * mean z^2 (Stored only)
 //   adversarial (option) non-saturating DCGAN loss of a small conditional discriminator (strided
@@ -26,7 +28,8 @@
 // sum |E|^2) over every probe, key, irradiance texel and channel, where E(normal) = sum_texels L
 // max(0, normal . w) Omega (exact texel solid angles, normals = the irradianceResolution map's texel
 // centres) is applied to both the decoded and the captured radiance maps. So it is the codec's error
-// alone (the capture's analytic sun term and its discretisation are the same on both sides).
+// alone (the texel discretisation is the same on both sides), on the light shading reads from probes
+// (training sets hold no directly seen discs, captureTrainingSet).
 //
 // Determinism: torch's generator is seeded with `seed` before the weights are created, latents are
 // initialised from it, minibatches are a fixed function of (seed, epoch). Same seed, data, options and
@@ -83,6 +86,10 @@ struct TrainingLossWeights {
   float albedo = 0.25f;
   float latent = 1e-4f;
   float adversarial = 0.02f;  // used only with GeneratorTrainingOptions::adversarial
+  // The irradiance term's floor f: each sample's error is relative to |E_s|^2 + f^2 (its key's mean
+  // |E|^2), so a dark probe is held to f of the key's mean probe irradiance rather than lost in the bright
+  // ones (f = 0.01: the sealed room of worlds/leak_scene.h stays within its 1 % leak bound).
+  float irradianceFloor = 0.03f;
 };
 
 struct GeneratorTrainingOptions {
@@ -201,7 +208,10 @@ CellAdaptation fitCellToSharedGenerator(const GeneratorWeights& shared, const Ge
 
 // Captures a training set: every position under every key (worlds::makeSky of `sky` with the key's time
 // and overcast). positions01 = (position - boxMin) / (boxMax - boxMin), clamped to [0, 1] (0.5 on a
-// zero-size axis). Throws lfgi::Error if a capture is interrupted.
+// zero-size axis). The maps hold what shading reads from probes: the discs the probe sees directly are
+// left out (capture.primaryDiscs is ignored; the shading pass adds them with shadow rays), so the codec
+// never spends bits on a one-texel sun it must not decode and its error is measured on the light probes
+// give. Throws lfgi::Error if a capture is interrupted.
 struct LightingKeySpec {
   float timeOfDayHours = 12.0f;
   float weather = 0.0f;

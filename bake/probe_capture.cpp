@@ -223,7 +223,8 @@ ProbeCapture captureOne(const EmbreeScene& scene, const worlds::SkyModel& sky, g
   // Discs on the primary segment go into the radiance map; irradiance gets them analytically instead.
   std::vector<float> withoutDiscs = c.radiance;
   std::vector<const worlds::DiscLight*> visible;
-  const uint64_t discRays = depositDiscs(scene, discs, position, o, solidAngles, c, visible);
+  const uint64_t discRays =
+      o.primaryDiscs ? depositDiscs(scene, discs, position, o, solidAngles, c, visible) : 0;
   c.meanRelativeStdError = meanRelativeStdError(c, luminanceStdError, texels);
   integrateIrradiance(c, withoutDiscs, visible, solidAngles);
   c.rays = rays.load() + discRays;

@@ -72,6 +72,10 @@ struct CaptureOptions {
   int rouletteAfter = 3;         // first hit index with Russian roulette, >= 1
   float maxDistance = 1.0e4f;    // m: distance recorded for a miss; also the ray length limit, > 0
   uint64_t seed = 1;
+  // The discs the probe sees directly (the primary segment's deposit and analytic irradiance). false:
+  // left out of radiance and irradiance, so the maps hold what shading reads from probes (the shading
+  // pass adds the discs with shadow rays); the discs' light reflected by surfaces stays either way.
+  bool primaryDiscs = true;
 };
 
 // Throws lfgi::Error naming the first bad field ("CaptureOptions.resolution = 0 outside [1, 256]").

@@ -174,33 +174,6 @@ void fallbackMaps(const CellFile& cell, const std::string& what, const worlds::S
   }
 }
 
-void replaceDiscTexels(ProbeField& f, const EmbreeScene& scene, const worlds::SkyModel& sky,
-                       std::span<const int64_t> activeIndex, float missDistance) {
-  const int n = f.resolution;
-  const size_t n2 = size_t(n) * size_t(n);
-  // The bake trains on maps with the sun/moon deposited in one texel; a generator reproduces that spike
-  // blurred over its neighbours, so subtracting the exact disc energy afterwards leaves a residual that is
-  // small against the total irradiance (the bake's stored error) but large against the indirect light
-  // (measured on a world cell at noon: shaded indirect rel RMS 0.67). Instead, where a probe sees a disc,
-  // the disc's texel and its 8 neighbours are replaced by the analytic sky (no disc) before the
-  // irradiance is integrated: the sky there is known, the decoded spike is not.
-  const detail::Discs discs = detail::activeDiscs(sky);
-  for (int d = 0; d < discs.count; ++d) {
-    const glm::vec3 dir = discs.light[d]->direction;
-    const glm::ivec2 c = octDirectionTexel(dir, n);
-    for (int64_t i : activeIndex) {
-      if (scene.occluded(f.probePosition(i), dir, 0.0f, missDistance)) continue;
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          const glm::ivec2 t = shared::octWrap(c + glm::ivec2(dx, dy), n);
-          const glm::vec3 L = worlds::skyRadiance(sky, octTexelDirection(t.x, t.y, n));
-          for (int ch = 0; ch < 3; ++ch)
-            f.radiance[(size_t(i) * n2 + size_t(t.y * n + t.x)) * 3 + size_t(ch)] = L[ch];
-        }
-    }
-  }
-}
-
 // Every active probe's irradiance map (m x m) integrated from its radiance.
 void integrateIrradiance(ProbeField& f, std::span<const int64_t> activeIndex, size_t count, int m) {
   const int n = f.resolution;
@@ -219,9 +192,9 @@ void integrateIrradiance(ProbeField& f, std::span<const int64_t> activeIndex, si
 
 }  // namespace
 
-ProbeField codecProbeField(const CellFile& cell, const std::string& what, const EmbreeScene& scene,
-                           const worlds::SkyModel& sky, int resolution, int irradianceResolution,
-                           float missDistance, const ResolvedSharedModel* shared) {
+ProbeField codecProbeField(const CellFile& cell, const std::string& what, const worlds::SkyModel& sky,
+                           int resolution, int irradianceResolution, float missDistance,
+                           const ResolvedSharedModel* shared) {
   cell.validate(what);
   if (irradianceResolution < 1 || irradianceResolution > 64)
     fail("{}: irradiance resolution {} outside [1, 64]", what, irradianceResolution);
@@ -239,7 +212,6 @@ ProbeField codecProbeField(const CellFile& cell, const std::string& what, const 
     decodeGeneratorMaps(cell, what, sky, shared, activeIndex, count, f);
   else
     fallbackMaps(cell, what, sky, resolution, missDistance, activeIndex, count, f);
-  replaceDiscTexels(f, scene, sky, activeIndex, missDistance);
   integrateIrradiance(f, activeIndex, count, irradianceResolution);
   f.validate();
   return f;

@@ -12,10 +12,9 @@
 //   codec    codecProbeField: a baked cell file (core/cell_file.h) decoded on the CPU (core/generator_cpu.h
 //            decodeProbeField) under the frame's conditioning (time of day, overcast); a "no network" cell
 //            gives every probe the cell's SH L1 fallback radiance (the first bake key: no time of day) and
-//            open distance moments (missDistance: Chebyshev never occludes). The sun/moon the bake had
-//            deposited in the maps: where a probe sees a disc (Embree shadow ray), the disc's texel and its 8
-//            neighbours get the analytic sky radiance (the decoded spike is blurred, the sky there is known);
-//            irradiance = exact cosine convolution of that radiance.
+//            open distance moments (missDistance: Chebyshev never occludes). The bake trains on maps
+//            without the directly seen discs (captureTrainingSet), so the decoded maps are already what
+//            shading reads; irradiance = exact cosine convolution of the decoded radiance.
 #pragma once
 
 #include <cstdint>
@@ -81,13 +80,12 @@ void regenerateVirMoments(gpu::VirFieldRelighter& relighter, std::span<const wor
                           VirProbeStats* stats = nullptr);
 
 // Probe field of a decoded cell file (see the top of this file). resolution: map size for a "no network"
-// cell (a network cell decodes at its model's size). scene: the capture scene of the cell (its mesh and
-// neighbours'), for the disc visibility. Throws lfgi::Error naming `what` when the
+// cell (a network cell decodes at its model's size). Throws lfgi::Error naming `what` when the
 // file holds no probes or the model cannot emit a ProbeField.
 // shared: the world's shared model for a shared-model (version 3) cell (core/shared_model.h
 // resolveCellWeights; its errors name the cell and the model file), null for other cells.
-ProbeField codecProbeField(const CellFile& cell, const std::string& what, const EmbreeScene& scene,
-                           const worlds::SkyModel& sky, int resolution, int irradianceResolution = 8,
-                           float missDistance = 1.0e4f, const ResolvedSharedModel* shared = nullptr);
+ProbeField codecProbeField(const CellFile& cell, const std::string& what, const worlds::SkyModel& sky,
+                           int resolution, int irradianceResolution = 8, float missDistance = 1.0e4f,
+                           const ResolvedSharedModel* shared = nullptr);
 
 }  // namespace lfgi::bake

@@ -133,16 +133,16 @@ WorldBakeSettings tinyBakeSettings(const std::string& keys, double errorTarget) 
 
 TEST(ProbeSources, CodecProbesMatchTheCaptureWithinTheBakedError) {
   const worlds::SyntheticWorld world(worlds::WorldParams{3, 64.0, 32.0});
-  // Overcast: no sun disc, so the decoded field needs no disc subtraction and the error is the codec's
-  // alone; a target no SH meets forces a generator.
-  const WorldBakeSettings s = tinyBakeSettings("12:1", 0.001);
+  // Noon sun: the bake trains without the directly seen disc, so the decoded maps match the capture
+  // with its disc taken out (what shading reads); a target no SH meets forces a generator.
+  const WorldBakeSettings s = tinyBakeSettings("12", 0.001);
   const worlds::CellCoord cell{1, 0};
   CellBakeInputs in = prepareCellBake(world, cell, s);
   const worlds::BuiltCell built = in.built;
   const EmbreeScene scene(in.sceneMesh, "cell 1,0 + neighbours");
   const CellFile cf = bakeCell(world, std::move(in), s);
-  const worlds::SkyModel sky = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 1.0f});
-  const ProbeField decoded = codecProbeField(cf, "cell 1,0", scene, sky, s.resolution);
+  const worlds::SkyModel sky = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
+  const ProbeField decoded = codecProbeField(cf, "cell 1,0", sky, s.resolution);
   // The bake's own capture (same options, same per-probe seeds), disc light taken out the same way.
   CaptureOptions co = worldBakeCaptureOptions(world, s);
   co.irradianceResolution = decoded.irradianceResolution;
@@ -241,7 +241,7 @@ TEST(ProbeSources, CodecGeneratorCellDecodesLikeTheCpuDecoder) {
   ground.addQuad(glm::vec3(-9, 0, 9), glm::vec3(9, 0, 9), glm::vec3(9, 0, -9), glm::vec3(-9, 0, -9), mat);
   const EmbreeScene scene(ground, "ground");
   const worlds::SkyModel night = worlds::makeSky(worlds::SkyState{0.0f, 45.0f, 172, 3.0f, 1.0f});  // no disc
-  const ProbeField f = codecProbeField(cf, "random cell", scene, night, 99);
+  const ProbeField f = codecProbeField(cf, "random cell", night, 99);
   ASSERT_EQ(f.resolution, 16);
   EXPECT_FALSE(f.isActive(5));
   GeneratorCpu decoder(dequantizeWeights(cf.generator->weights));

@@ -144,8 +144,9 @@ uint64_t hashInputs(const worlds::SyntheticWorld& world, worlds::CellCoord c, co
                     uint64_t sharedModelHash) {
   const CaptureOptions capture = worldBakeCaptureOptions(world, settings);
   ContentHasher hasher;
-  // v3: cell file version 2 (one fallback per lighting key), so an incremental bake rewrites v1 cells.
-  hasher.add(std::string("lfgi-bake-v3")).addValue(world.params().seed).addValue(c.x).addValue(c.z);
+  // The version names what an older cell file lacks, so an incremental bake rewrites it: v4, training
+  // sets without the directly seen discs and the per-probe irradiance loss (bake/generator_training.h).
+  hasher.add(std::string("lfgi-bake-v4")).addValue(world.params().seed).addValue(c.x).addValue(c.z);
   for (uint64_t h : neighbours) hasher.addValue(h);
   hasher.addValue(cell.stats.meshHash).addValue(cell.probes.grid.origin).addValue(cell.probes.grid.spacing);
   hasher.addValue(cell.probes.grid.dims);
@@ -310,6 +311,42 @@ uint64_t cellInputHash(const worlds::SyntheticWorld& world, worlds::CellCoord c,
   return prepareCellBake(world, c, settings, sharedModelHash).inputHash;
 }
 
+void encodeCellCodec(worlds::CellCoord c, const GeneratorTrainingSet& set,
+                     std::span<const uint8_t> probeFlags, const WorldBakeSettings& settings,
+                     const ResolvedSharedModel* shared, CellFile& cf, CellBakeReport* report) {
+  if (settings.sharedCodec() && !shared)
+    fail("bake: cell {},{}: --codec shared needs the world's shared model", c.x, c.z);
+  const ModelSizingOptions sizing = cellSizingOptions(settings);
+  CellBakeReport r;
+  // Shared codec: a simple cell still stores no network; every other cell fits the shared model below.
+  std::optional<CellModelChoice> noNetwork;
+  if (settings.sharedCodec()) noNetwork = chooseNoNetworkModel(set, probeFlags, sizing);
+  const bool fitShared = settings.sharedCodec() && !noNetwork;
+  CellModelChoice choice = noNetwork   ? std::move(*noNetwork)
+                           : fitShared ? CellModelChoice{}
+                                       : chooseCellModel(set, probeFlags, sizing);
+  cf.fallback = fallbackOf(set);
+  cf.stats.errorTarget = settings.errorTarget;
+  if (fitShared) {
+    storeSharedFit(c, set, settings, shared, cf, r);
+  } else {
+    // On Ctrl-C, training stops and chooseCellModel returns the best model so far. Stored under this
+    // cell's input hash, that half-trained model would be skipped by every rerun (and differ from an
+    // uninterrupted bake), so an interrupted cell is an error and nothing is written for it.
+    if (InterruptGuard::interrupted()) fail("bake: cell {},{}: interrupted during training", c.x, c.z);
+    cf.stats.trainingSeconds = choice.trainingSeconds;
+    cf.stats.model = choice.describe();
+    cf.stats.errorAchieved = choice.error.irradianceRelativeRms;
+    r.trainingSeconds = choice.trainingSeconds;
+  }
+  if (choice.kind == CellModelKind::kGenerator && choice.generator)
+    storeGenerator(*choice.generator, set, cf, r);
+  if (report) {
+    report->network = r.network;
+    report->trainingSeconds = r.trainingSeconds;
+  }
+}
+
 CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const WorldBakeSettings& settings,
                   CellBakeReport* report, const ResolvedSharedModel* shared) {
   using Clock = std::chrono::steady_clock;
@@ -317,8 +354,6 @@ CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const 
   if (settings.sharedCodec() && !shared)
     fail("bake: cell {},{}: --codec shared needs the world's shared model", in.cell.x, in.cell.z);
   const std::vector<LightingKeySpec> keys = parseLightingKeys(settings.keys);
-  ModelSizingOptions sizing = cellSizingOptions(settings);
-
   const worlds::CellCoord c = in.cell;
   const worlds::BuiltCell& cell = in.built;
   const ActiveProbes probes = activeProbes(cell);
@@ -337,29 +372,7 @@ CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs in, const 
   } else {
     const GeneratorTrainingSet set = captureCell(world, in, probes, settings);
     r.captureSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
-    // Shared codec: a simple cell still stores no network; every other cell fits the shared model below.
-    std::optional<CellModelChoice> noNetwork;
-    if (settings.sharedCodec()) noNetwork = chooseNoNetworkModel(set, probes.flags, sizing);
-    const bool fitShared = settings.sharedCodec() && !noNetwork;
-    CellModelChoice choice = noNetwork   ? std::move(*noNetwork)
-                             : fitShared ? CellModelChoice{}
-                                         : chooseCellModel(set, probes.flags, sizing);
-    cf.fallback = fallbackOf(set);
-    cf.stats.errorTarget = settings.errorTarget;
-    if (fitShared) {
-      storeSharedFit(c, set, settings, shared, cf, r);
-    } else {
-      // On Ctrl-C, training stops and chooseCellModel returns the best model so far. Stored under this
-      // cell's input hash, that half-trained model would be skipped by every rerun (and differ from an
-      // uninterrupted bake), so an interrupted cell is an error and nothing is written for it.
-      if (InterruptGuard::interrupted()) fail("bake: cell {},{}: interrupted during training", c.x, c.z);
-      cf.stats.trainingSeconds = choice.trainingSeconds;
-      cf.stats.model = choice.describe();
-      cf.stats.errorAchieved = choice.error.irradianceRelativeRms;
-      r.trainingSeconds = choice.trainingSeconds;
-    }
-    if (choice.kind == CellModelKind::kGenerator && choice.generator)
-      storeGenerator(*choice.generator, set, cf, r);
+    encodeCellCodec(c, set, probes.flags, settings, shared, cf, &r);
   }
   r.totalSeconds = std::chrono::duration<double>(Clock::now() - t0).count();
   if (report) *report = r;
@@ -432,7 +445,7 @@ uint64_t hashSharedModelInputs(const worlds::SyntheticWorld& world, const WorldB
                                const std::vector<CellBakeInputs>& cells) {
   const GeneratorArch arch = sharedModelArch(settings);
   ContentHasher h;
-  h.add(std::string("lfgi-shared-model-v1")).addValue(world.params().seed).addValue(settings.sharedSteps);
+  h.add(std::string("lfgi-shared-model-v2")).addValue(world.params().seed).addValue(settings.sharedSteps);
   for (const CellBakeInputs& in : cells) h.addValue(in.cell.x).addValue(in.cell.z).addValue(in.inputHash);
   h.addValue(arch.latentDim).addValue(arch.condDim);
   for (int ch : arch.convChannels) h.addValue(ch);

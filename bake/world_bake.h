@@ -30,6 +30,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -109,6 +110,15 @@ struct CellBakeReport {
 CellFile bakeCell(const worlds::SyntheticWorld& world, CellBakeInputs inputs,
                   const WorldBakeSettings& settings, CellBakeReport* report = nullptr,
                   const ResolvedSharedModel* shared = nullptr);
+
+// The codec stage of bakeCell on a captured training set (probeFlags: worlds::ProbeFlag per training
+// probe): the model choice (chooseCellModel at settings' error target and steps, or the shared model's fit)
+// and its int8 quantization into cf's fallback, stats and generator. report: network and trainingSeconds
+// are set. Throws as bakeCell does. The leak tests run the bake's codec through it on scenes that are not
+// world cells.
+void encodeCellCodec(worlds::CellCoord c, const GeneratorTrainingSet& set,
+                     std::span<const uint8_t> probeFlags, const WorldBakeSettings& settings,
+                     const ResolvedSharedModel* shared, CellFile& cf, CellBakeReport* report = nullptr);
 
 // ---- the shared codec's world model (core/shared_model.h) ---------------------------------------------
 // Pre-training cells: one of each kind (field, suburb, city, park) that has active probes, the first of

@@ -416,9 +416,10 @@ void worldCellSources(const Bench& b) {
       vo.maxRange = 32.0f;
       f = bake::virProbeField(b.ctx, built.surfels, grid, built.probes.offsets, active, noon, vo);
     } else {
-      f = bake::codecProbeField(cf, "cell 1,0", scene, noon, bs.resolution);
+      f = bake::codecProbeField(cf, "cell 1,0", noon, bs.resolution);
       // Visibility from the cell's geometry (docs/ARCHITECTURE.md, "Where visibility comes from").
       bake::regenerateVirMoments(b.ctx, built.surfels, built.probes.offsets, f, 32.0f);
+      f.offsets = built.probes.offsets;
     }
     const double sourceS = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
     const ProbeField* fields[] = {&f};

@@ -429,17 +429,14 @@ struct UnseenSummary {
   size_t nonFiniteValues = 0;
 };
 
-// A capture field of probes idx from a training-set key (captureTrainingSet holds the disc deposit; the
-// shading fields do not: subtract it as captureGridField does).
-ProbeField fieldFromKey(const CellSetup& cs, const bake::LightingKey& key, const bake::EmbreeScene& scene,
-                        const worlds::SkyModel& sky) {
+// A capture field of probes idx from a training-set key (captureTrainingSet holds no directly seen discs,
+// as shading fields do not).
+ProbeField fieldFromKey(const CellSetup& cs, const bake::LightingKey& key) {
   bake::CaptureResult r;
   r.probes = key.probes;
   r.done.assign(key.probes.size(), 1);
   r.probesDone = key.probes.size();
-  ProbeField f = bake::probeFieldFromCapture(cs.grid, r, cs.idx);
-  bake::subtractDiscLight(f, scene, sky);
-  return f;
+  return bake::probeFieldFromCapture(cs.grid, r, cs.idx);
 }
 
 // A zeroed field of the cell's grid at the capture's resolutions: what decodeGenerator writes into.
@@ -454,10 +451,9 @@ ProbeField decodeTarget(const CellSetup& cs, const bake::CaptureOptions& co) {
   return f;
 }
 
-// The streaming manager's VIR relight (gpu::VirFieldRelighter with the discs, as
-// streaming::VirRelightSource runs it from a codec field: 3 frames, no seed) of the cell's surfels at
-// (tod, weather): radiance maps of probes cs.idx in the capture layout, the disc energy deposited over
-// three texels as the capture does (worlds::skyOctahedralMap) where the probe sees the disc.
+// The streaming manager's VIR relight (gpu::VirFieldRelighter as streaming::VirRelightSource runs it
+// from a codec field: 3 frames, no seed, no discs, as the training captures hold none) of the cell's
+// surfels at (tod, weather): radiance maps of probes cs.idx in the capture layout.
 std::vector<float> virRelightRadiance(Ctx& c, CellSetup& cs, const bake::CaptureOptions& co, float tod,
                                       float weather, double* ms) {
   worlds::SurfelOptions so;
@@ -469,43 +465,17 @@ std::vector<float> virRelightRadiance(Ctx& c, CellSetup& cs, const bake::Capture
   vo.irradianceResolution = co.irradianceResolution;
   vo.frames = 3;
   vo.maxRange = 32.0f;
-  vo.discs = true;
   gpu::VirFieldRelighter relighter(c.gpu);
   ProbeField f;
   gpu::VirFieldStats st;
   const auto t0 = std::chrono::steady_clock::now();
   relighter.run(surfels, cs.grid, cs.placement.offsets, cs.placement.active, sky.params, vo, f, nullptr, &st);
   if (ms) *ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  const int n = co.resolution;
-  const size_t n2 = size_t(n) * size_t(n);
-  const std::vector<double> omega = octTexelSolidAngles(n);
-  const worlds::DiscLight* discs[] = {&sky.sun, &sky.moon};
-  std::vector<float> deposit[2];  // per disc: the capture's deposit (map with it - map without)
-  for (int d = 0; d < 2; ++d) {
-    worlds::SkyModel only = sky;
-    worlds::DiscLight& other = d == 0 ? only.moon : only.sun;
-    other.radiance = glm::vec3(0.0f);
-    other.visibleFraction = 0.0f;
-    deposit[d] = worlds::skyOctahedralMap(only, n, true);
-    const std::vector<float> without = worlds::skyOctahedralMap(only, n, false);
-    for (size_t q = 0; q < deposit[d].size(); ++q) deposit[d][q] -= without[q];
-  }
+  const size_t n2 = size_t(co.resolution) * size_t(co.resolution);
   std::vector<float> out;
-  for (int64_t i : cs.idx) {
-    std::vector<float> map(f.radiance.begin() + std::ptrdiff_t(size_t(i) * n2 * 3),
-                           f.radiance.begin() + std::ptrdiff_t(size_t(i + 1) * n2 * 3));
-    for (int d = 0; d < 2; ++d) {
-      if (!(st.discVisible[size_t(i)] & (1u << d))) continue;
-      // Replace the one-texel deposit VirFieldRelighter made by the capture's three-texel one.
-      const glm::ivec2 t = octDirectionTexel(discs[d]->direction, n);
-      const size_t k = size_t(t.y * n + t.x);
-      const glm::vec3 e = discs[d]->irradianceNormal();
-      for (int ch = 0; ch < 3; ++ch) map[k * 3 + size_t(ch)] -= e[ch] / float(omega[k]);
-      for (size_t q = 0; q < n2 * 3; ++q) map[q] += deposit[d][q];
-    }
-    for (float& v : map) v = std::max(v, 0.0f);
-    out.insert(out.end(), map.begin(), map.end());
-  }
+  for (int64_t i : cs.idx)
+    out.insert(out.end(), f.radiance.begin() + std::ptrdiff_t(size_t(i) * n2 * 3),
+               f.radiance.begin() + std::ptrdiff_t(size_t(i + 1) * n2 * 3));
   return out;
 }
 
@@ -589,9 +559,8 @@ void unseenExtremes(Ctx& c, const CellSetup& cs, const bake::CaptureOptions& co,
 }
 
 // The 1e-5 interior light through FP16 and the generator: dark-room probes' irradiance error.
-void interiorPanel(Ctx& c, const CellSetup& cs, const bake::EmbreeScene& scene, UnseenSummary& sum) {
-  const worlds::SkyModel noon = worlds::makeSky(worlds::SkyState{12.0f, 45.0f, 172, 3.0f, 0.0f});
-  const ProbeField f = fieldFromKey(cs, cs.train.keys[1], scene, noon);
+void interiorPanel(Ctx& c, const CellSetup& cs, UnseenSummary& sum) {
+  const ProbeField f = fieldFromKey(cs, cs.train.keys[1]);
   auto raw = makeRawFp16Codec();
   const ProbeField r = codecRoundTrip(f, *raw);
   const size_t bad = nonFinite(r.radiance) + nonFinite(r.irradiance);
@@ -649,7 +618,7 @@ UnseenSummary unseenSection(Ctx& c, CellSetup& cs, const bake::EmbreeScene& scen
     unseenEval(c, cs, co, all, e, evals[e], sum, betweenSum, betweenN);
   sum.betweenRelRms = betweenN ? betweenSum / betweenN : 0.0;
   unseenExtremes(c, cs, co, sum);
-  interiorPanel(c, cs, scene, sum);
+  interiorPanel(c, cs, sum);
   return sum;
 }
 

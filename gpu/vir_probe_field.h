@@ -12,7 +12,8 @@
 // With options.discs the sun and moon are added where a probe's texel towards the disc is not covered by
 // a surfel (the VIR atlas is the visibility test): irradiance + the analytic disc irradiance on each
 // texel normal (shared::sunIrradianceOn / moonIrradianceOn), radiance + the disc energy over that one
-// texel's exact solid angle. That is what a baked (codec) cell holds, whose training maps carry the discs.
+// texel's exact solid angle, for a consumer whose maps must hold the discs; the codec's fields and the
+// shading pass's inputs do not (the pass adds the discs with shadow rays).
 // Only the box of lattice indices holding active probes is relit and splatted, and only surfels within
 // maxRange of that box (VIR's cost is per (surfel, probe) pair).
 //
@@ -79,7 +80,8 @@ class VirFieldRelighter {
   // Visibility from geometry (docs/ARCHITECTURE.md, "Where visibility comes from"): replaces the distance
   // moments of field's active probes (probe i at its lattice point + offsets[i]) with VIR's of `surfels`
   // at field's N, as run() makes them (3 x 3 filtered, sky texels at missDistance); radiance, irradiance
-  // and inactive probes stay. One frame without sun or bounce (moments do not depend on the light);
+  // and inactive probes stay (field.offsets too: a caller that shades the field sets them to offsets,
+  // where the moments were seen). One frame without sun or bounce (moments do not depend on the light);
   // scratch holds that frame's field (reused). Throws as run() does.
   void regenerateMoments(std::span<const shared::Surfel> surfels, std::span<const glm::vec3> offsets,
                          const VirFieldOptions& options, ProbeField& field, ProbeField& scratch,

@@ -25,35 +25,6 @@ double msSince(Clock::time_point t0) {
 
 constexpr size_t kMaxRecords = 512;  // seed records kept (cells); the oldest is dropped beyond
 
-// The seed of a relight from `current`, our own last result for its cell: current's irradiance and
-// distance less the sun and moon discs (sky) the last relight added where discVisible says they were seen.
-void seedWithoutDiscs(const ProbeField& current, const shared::SkyParams& sky,
-                      const std::vector<uint8_t>& discVisible, ProbeField& scratch) {
-  const size_t count = size_t(current.probeCount());
-  const int n = current.resolution, m = current.irradianceResolution;
-  const size_t m2 = size_t(m) * size_t(m);
-  scratch.grid = current.grid;
-  scratch.resolution = n;
-  scratch.irradianceResolution = m;
-  scratch.irradiance.assign(current.irradiance.begin(), current.irradiance.end());
-  scratch.distance.assign(current.distance.begin(), current.distance.end());
-  const std::pair<glm::vec4, glm::vec4> discs[] = {{sky.sunDirection, sky.sunIrradiance},
-                                                   {sky.moonDirection, sky.moonIrradiance}};
-  for (size_t i = 0; i < count; ++i)
-    for (int d = 0; d < 2; ++d) {
-      if (!(discVisible[i] & (1u << d))) continue;
-      const glm::vec3 dir = glm::normalize(glm::vec3(discs[d].first)), e(discs[d].second);
-      for (size_t t = 0; t < m2; ++t) {
-        const float c =
-            std::max(glm::dot(octTexelDirection(int(t % size_t(m)), int(t / size_t(m)), m), dir), 0.0f);
-        for (int ch = 0; ch < 3; ++ch) {
-          float& v = scratch.irradiance[(i * m2 + t) * 3 + size_t(ch)];
-          v = std::max(0.0f, v - e[ch] * c);
-        }
-      }
-    }
-}
-
 // Geometry as the cell holds it: same active flags, offsets and optional channels; inactive probes keep
 // current's values.
 void keepGeometryAndInactive(const ProbeField& current, ProbeField& out) {
@@ -134,7 +105,7 @@ VirRelightStats VirRelightSource::stats() const {
   VirRelightStats s = stats_;
   s.cacheBytes = cacheBytes_;
   s.recordBytes = 0;
-  for (const auto& [k, r] : records_) s.recordBytes += r.discVisible.size() + sizeof(Record);
+  s.recordBytes = records_.size() * (sizeof(int64_t) + sizeof(uint64_t));
   return s;
 }
 
@@ -220,18 +191,12 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
   std::shared_ptr<const CellSurfels> cs = surfelsOf(cell);
   const std::span<const glm::vec3> offsets = offsetsFor(cell, *cs, count);
 
-  // Seed: current is our own last result for this cell -> its irradiance without the discs we added.
+  // Seed: current is our own last result for this cell (no discs in it: its irradiance is the bounce).
   const ProbeField* seed = nullptr;
   {
-    std::unique_lock lock(cacheMutex_);
+    std::lock_guard lock(cacheMutex_);
     auto it = records_.find(key);
-    if (it != records_.end() && it->second.hash == lightingHash(current) &&
-        it->second.discVisible.size() == count) {
-      const Record rec = it->second;
-      lock.unlock();
-      seedWithoutDiscs(current, rec.sky, rec.discVisible, scratch_);
-      seed = &scratch_;
-    }
+    if (it != records_.end() && it->second == lightingHash(current)) seed = &current;
   }
 
   gpu::VirFieldOptions vo;
@@ -239,7 +204,7 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
   vo.irradianceResolution = m;
   vo.frames = seed ? options_.seededFrames : options_.frames;
   vo.maxRange = options_.maxRange;
-  vo.discs = true;
+  vo.discs = false;  // codec fields hold no directly seen discs: the shading pass adds them
   vo.storeOffsets = false;
   vo.noSurfelsIsSky = true;
   vo.checkInterrupt = false;
@@ -253,12 +218,9 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
       "{:.0f} ms ({:.0f} ms on the device)",
       cell.x, cell.y, timeOfDayHours, weather, fieldStats_.probes, fieldStats_.surfels, vo.frames,
       seed ? " seeded" : "", msSince(t0), fieldStats_.gpuMs);
-  Record rec;
-  rec.hash = lightingHash(out);
-  rec.sky = sky.params;
-  rec.discVisible = fieldStats_.discVisible;
+  const uint64_t hash = lightingHash(out);
   std::lock_guard lock(cacheMutex_);
-  records_.insert_or_assign(key, std::move(rec));
+  records_.insert_or_assign(key, hash);
   while (records_.size() > kMaxRecords) records_.erase(records_.begin());  // bounded (lowest index first)
   ++stats_.relights;
   stats_.seeded += seed ? 1 : 0;

@@ -9,18 +9,17 @@
 //   2. gpu::VirFieldRelighter (gpu/vir_probe_field.h) on the current field's grid, resolutions and active
 //      probes, for makeSky(options.sky with the relight's time of day and overcast): sun / moon through
 //      the VIR shadow map, probe irradiance of the last frame as the next bounce, VIR splat into the
-//      probes, the discs added where a probe sees them (as the codec's fields hold them);
+//      probes, without the directly seen discs (as the codec's fields: the shading pass adds them);
 //   3. `out` gets grid, resolutions, active and (empty) offsets / normal / albedo exactly as `current`
 //      (geometry channels consistent with the cell, same bytes: the staging field never grows), radiance,
 //      distance moments and irradiance of every active probe from the relight; inactive probes keep
 //      current's values (the inner source's SH fallback evaluation).
 // Seed: when `current` is this source's own last VIR result for the cell (a 64-bit hash of its irradiance
-// and distance moments is kept per cell with the sky it was lit under and which probes saw which disc),
-// its irradiance minus the discs it added seeds frame 1's bounce, and options.seededFrames frames run;
-// otherwise (a fresh codec load) options.frames frames run from direct light. The seed costs one
-// scratch field (maxCellBytes, outside the manager's budget) plus ~1 byte per probe per relit cell.
+// and distance moments is kept per cell), its irradiance seeds frame 1's bounce and options.seededFrames
+// frames run; otherwise (a fresh codec load) options.frames frames run from direct light. The records
+// cost 16 bytes per relit cell.
 //
-// A cell whose provider has no surfels: every active probe sees only the sky (+ discs).
+// A cell whose provider has no surfels: every active probe sees only the sky.
 //
 // Load (docs/ARCHITECTURE.md, "Where visibility comes from"): the codec carries radiance; the visibility
 // its decoder returns is not trusted. With options.momentsOnLoad (default) load() runs the inner load,
@@ -124,11 +123,6 @@ class VirRelightSource final : public CellSource {
   VirRelightStats stats() const;
 
  private:
-  struct Record {
-    uint64_t hash = 0;
-    shared::SkyParams sky{};
-    std::vector<uint8_t> discVisible;
-  };
   std::shared_ptr<const CellSurfels> surfelsOf(glm::ivec2 cell);
   // cs's offsets when they match a grid of `count` probes, else none (warned).
   static std::span<const glm::vec3> offsetsFor(glm::ivec2 cell, const CellSurfels& cs, size_t count);
@@ -146,7 +140,7 @@ class VirRelightSource final : public CellSource {
   mutable std::mutex cacheMutex_;                                          // cache, records, stats
   std::list<std::pair<int64_t, std::shared_ptr<const CellSurfels>>> lru_;  // front: most recent
   size_t cacheBytes_ = 0;
-  std::map<int64_t, Record> records_;
+  std::map<int64_t, uint64_t> records_;  // per cell: lightingHash of its last relight
   VirRelightStats stats_;
 };
 

@@ -214,19 +214,21 @@ TEST(VirRelightSource, UnseenTimesAreFiniteAndFollowTheSun) {
     source.relightWeatherInto({0, 0}, current, out, hours, overcast);
     for (float v : out.irradiance) ASSERT_TRUE(std::isfinite(v) && v >= 0.0f) << name;
     for (float v : out.radiance) ASSERT_TRUE(std::isfinite(v) && v >= 0.0f) << name;
-    up[name] = meanUp(out);
-    // The upward texel sees the open sky and the sun: within 5 % of sky + ground + disc irradiance (the
-    // discs are added where the probe's texel towards them is open, as the codec's fields hold them).
+    // The upward texel sees the open sky: within 10 % of sky + ground irradiance (measured -7 % at noon,
+    // +8 % at dusk: the 8 x 8 map's texel-centre sky samples; no discs: the codec's
+    // fields hold none either, the shading pass adds them with shadow rays).
     const worlds::SkyModel sky = skyAt(hours, overcast);
     const glm::vec3 nrm = octTexelDirection(int(upTexel(out.irradianceResolution)) % out.irradianceResolution,
                                             int(upTexel(out.irradianceResolution)) / out.irradianceResolution,
                                             out.irradianceResolution);
-    const double expect = lum(planeIrradiance(sky, nrm) + sky.sun.irradiance(nrm) + sky.moon.irradiance(nrm));
-    std::printf("%s: mean upward irradiance %.6g klx (sky + discs %.6g)\n", name, up[name], expect);
+    const double field = meanUp(out), expect = lum(planeIrradiance(sky, nrm));
+    std::printf("%s: mean upward irradiance %.6g klx (sky %.6g)\n", name, field, expect);
     // 20 h (sun below the horizon): the twilight sky is brightest at the horizon, which an 8 x 8 map's
     // horizon-straddling texels sample at their centres: measured +14 %.
-    const double tol = hours == 20.0f ? 0.2 : 0.05;
-    EXPECT_NEAR(up[name], expect, tol * expect + 1e-9) << name;
+    const double tol = hours == 20.0f ? 0.2 : 0.1;
+    EXPECT_NEAR(field, expect, tol * expect + 1e-9) << name;
+    // What a shaded upward surface gets: the field's light and the discs the shading pass adds.
+    up[name] = field + lum(sky.sun.irradiance(nrm) + sky.moon.irradiance(nrm));
   }
   EXPECT_GT(up["noon"], 2.0 * up["dusk"]);
   EXPECT_GT(up["dusk"], 10.0 * up["20h"]);
