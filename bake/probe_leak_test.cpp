@@ -132,12 +132,7 @@ TEST(SlowProbeLeak, BakedCodecProbesKeepTheSealedRoomDarkAndTheSunlitRoomLit) {
       positions.push_back(grid.probePosition(grid.probeCoord(int64_t(i))) + placed.offsets[i]);
       flags.push_back(placed.flags[i]);
     }
-    CaptureOptions co;
-    co.resolution = settings.resolution;
-    co.irradianceResolution = settings.resolution / 2;
-    co.samplesPerTexel = settings.spp;
-    co.maxBounces = settings.bounces;
-    co.maxDistance = 64.0f;
+    CaptureOptions co = bakeCaptureOptions(settings, 64.0f);
     const std::vector<LightingKeySpec> keys = parseLightingKeys(settings.keys);
     const GeneratorTrainingSet set =
         captureTrainingSet(scene, positions, grid.origin, grid.boxMax(), keys, co, sky.state);

@@ -55,19 +55,23 @@ std::vector<LightingKeySpec> parseLightingKeys(const std::string& text) {
   return keys;
 }
 
-CaptureOptions worldBakeCaptureOptions(const worlds::SyntheticWorld& world,
-                                       const WorldBakeSettings& settings) {
+CaptureOptions bakeCaptureOptions(const WorldBakeSettings& settings, float maxDistance) {
   CaptureOptions capture;
   capture.resolution = settings.resolution;
   capture.irradianceResolution = std::max(2, settings.resolution / 2);
   capture.samplesPerTexel = settings.spp;
   capture.maxBounces = settings.bounces;
   capture.seed = settings.seed;
-  // A miss records this distance: a few cells, not the 10 km default, so the generator's distance range
-  // (1.5 x the 95th percentile) keeps centimetre precision where visibility needs it.
-  capture.maxDistance = float(4.0 * world.cellSizeM());
+  capture.maxDistance = maxDistance;
   validateCaptureOptions(capture);
   return capture;
+}
+
+CaptureOptions worldBakeCaptureOptions(const worlds::SyntheticWorld& world,
+                                       const WorldBakeSettings& settings) {
+  // A miss records this distance: a few cells, not the 10 km default, so the generator's distance range
+  // (1.5 x the 95th percentile) keeps centimetre precision where visibility needs it.
+  return bakeCaptureOptions(settings, float(4.0 * world.cellSizeM()));
 }
 
 fs::path cellFilePath(const fs::path& outDir, worlds::CellCoord c) {

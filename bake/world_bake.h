@@ -68,6 +68,8 @@ struct WorldBakeSettings {
 // "8,12,17.5:0.3" -> keys; throws lfgi::Error naming the bad item.
 std::vector<LightingKeySpec> parseLightingKeys(const std::string& text);
 
+// Capture options the bake uses for these settings, a miss recorded at maxDistance (m).
+CaptureOptions bakeCaptureOptions(const WorldBakeSettings& settings, float maxDistance);
 // Capture options the bake uses for this world (capture.maxDistance = 4 cells).
 CaptureOptions worldBakeCaptureOptions(const worlds::SyntheticWorld& world,
                                        const WorldBakeSettings& settings);

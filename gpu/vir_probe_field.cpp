@@ -147,44 +147,19 @@ std::vector<float> skyMapIrradiance(const std::vector<glm::vec3>& skyL, int n, i
   return skyIrradiance;
 }
 
-// Discs: the texel holding each disc's direction and its exact solid angle.
-struct Disc {
-  glm::vec3 dir, irradiance;
-  size_t texel;
-  float omega;
-  uint8_t bit;
-};
-
-std::vector<Disc> skyDiscs(const shared::SkyParams& sky, int n) {
-  std::vector<Disc> discs;
-  const std::vector<double> omega = octTexelSolidAngles(n);
-  const std::pair<glm::vec4, glm::vec4> both[] = {{sky.sunDirection, sky.sunIrradiance},
-                                                  {sky.moonDirection, sky.moonIrradiance}};
-  for (int d = 0; d < 2; ++d) {
-    const glm::vec3 e(both[d].second);
-    if (!(std::max({e.x, e.y, e.z}) > 0.0f)) continue;
-    const glm::vec3 dir = glm::normalize(glm::vec3(both[d].first));
-    const glm::ivec2 c = octDirectionTexel(dir, n);
-    const size_t t = size_t(c.y) * size_t(n) + size_t(c.x);
-    discs.push_back({dir, e, t, float(omega[t]), uint8_t(1u << d)});
-  }
-  return discs;
-}
-
 // What the stages writing the field read.
 struct FieldInputs {
   const SubGrid& sub;
   const CellLighting& state;
   const std::vector<glm::vec3>& skyL;
   const std::vector<float>& skyIrradiance;
-  const std::vector<Disc>& discs;
   bool skyOnly;  // no surfel near the probes
   float miss;
   uint32_t skyFlags;
 };
 
-// The active probes' maps into the field: the last frame's (or the sky's), plus the discs they see.
-void writeProbes(const FieldInputs& in, int n, int m, ProbeField& f, VirFieldStats& st) {
+// The active probes' maps into the field: the last frame's (or the sky's).
+void writeProbes(const FieldInputs& in, int n, int m, ProbeField& f) {
   const size_t n2 = size_t(n) * size_t(n), m2 = size_t(m) * size_t(m);
   const std::vector<size_t>& toFull = in.sub.toFull;
   const RelightProbes& probes = in.sub.probes;
@@ -222,17 +197,6 @@ void writeProbes(const FieldInputs& in, int n, int m, ProbeField& f, VirFieldSta
       for (size_t t = 0; t < m2; ++t)
         for (int c = 0; c < 3; ++c) irr[t * 3 + size_t(c)] = state.probes.irradiance[k * m2 + t][c];
     }
-    for (const Disc& d : in.discs) {
-      if (!in.skyOnly && !shared::relightTexelSeesSky(atlas.normal[k * n2 + d.texel].w, skyFlags))
-        continue;  // blocked
-      st.discVisible[i] |= d.bit;
-      for (int c = 0; c < 3; ++c) rad[d.texel * 3 + size_t(c)] += d.irradiance[c] / d.omega;
-      for (size_t t = 0; t < m2; ++t) {
-        const glm::vec3 nrm = octTexelDirection(int(t % size_t(m)), int(t / size_t(m)), m);
-        const float cosine = std::max(glm::dot(nrm, d.dir), 0.0f);
-        for (int c = 0; c < 3; ++c) irr[t * 3 + size_t(c)] += d.irradiance[c] * cosine;
-      }
-    }
   }
 }
 
@@ -261,7 +225,6 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
   VirFieldStats local;
   VirFieldStats& st = stats ? *stats : local;
   st = VirFieldStats{};
-  st.discVisible.assign(o.discs ? count : 0, 0);
   if (lo.x == INT32_MAX) return;  // nothing active
 
   const SubGrid sub = activeSubGrid(grid, offsets, active, lo, hi);
@@ -302,10 +265,7 @@ void VirFieldRelighter::run(std::span<const shared::Surfel> surfels, const Probe
 
   std::vector<float> skyIrradiance;
   if (near_.empty()) skyIrradiance = skyMapIrradiance(skyL, n, m);
-  std::vector<Disc> discs;
-  if (o.discs) discs = skyDiscs(sky, n);
-
-  writeProbes({sub, state, skyL, skyIrradiance, discs, near_.empty(), miss, probeSkyFlags(ro)}, n, m, f, st);
+  writeProbes({sub, state, skyL, skyIrradiance, near_.empty(), miss, probeSkyFlags(ro)}, n, m, f);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   st.surfels = near_.size();
   st.probes = probes.positions.size();
@@ -323,7 +283,6 @@ void VirFieldRelighter::regenerateMoments(std::span<const shared::Surfel> surfel
   o.resolution = field.resolution;
   o.irradianceResolution = field.irradianceResolution;
   o.frames = 1;
-  o.discs = false;
   o.storeOffsets = false;
   o.relight.sun = false;
   o.relight.bounce = false;

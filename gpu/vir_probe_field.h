@@ -9,11 +9,8 @@
 //   distance    the relight pass's 3 x 3 filtered moments (r, r^2), sky texels at missDistance;
 //   irradiance  the relight pass's own probe irradiance (ProbeLighting: what the next relight frame
 //               would read), without the discs.
-// With options.discs the sun and moon are added where a probe's texel towards the disc is not covered by
-// a surfel (the VIR atlas is the visibility test): irradiance + the analytic disc irradiance on each
-// texel normal (shared::sunIrradianceOn / moonIrradianceOn), radiance + the disc energy over that one
-// texel's exact solid angle, for a consumer whose maps must hold the discs; the codec's fields and the
-// shading pass's inputs do not (the pass adds the discs with shadow rays).
+// The sun and moon a probe sees directly are never in the maps, as in the codec's fields: the shading pass
+// adds them with shadow rays.
 // Only the box of lattice indices holding active probes is relit and splatted, and only surfels within
 // maxRange of that box (VIR's cost is per (surfel, probe) pair).
 //
@@ -43,7 +40,6 @@ struct VirFieldOptions {
   int irradianceResolution = 8;  // M, [1, 64]
   int frames = 4;                // relight frames, [1, 64]
   float maxRange = 64.0f;        // m: surfels farther from a probe are not splatted into it
-  bool discs = false;            // add the sun / moon where the probe sees them (see the top)
   bool storeOffsets = true;      // out.offsets = offsets (false: out.offsets left empty; the probes still
                                  // sit at lattice + offsets for the relight)
   bool noSurfelsIsSky = false;   // no surfel within maxRange: every active probe sees only the sky
@@ -59,8 +55,6 @@ struct VirFieldStats {
   double gpuMs = 0.0;    // device time summed over frames (relight + VIR + convolution)
   size_t surfels = 0, probes = 0;
   bool seeded = false;
-  // Per grid probe (options.discs): bit 0 the probe saw the sun, bit 1 the moon (what was added).
-  std::vector<uint8_t> discVisible;
 };
 
 class VirFieldRelighter {

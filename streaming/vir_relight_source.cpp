@@ -104,7 +104,6 @@ VirRelightStats VirRelightSource::stats() const {
   std::lock_guard lock(cacheMutex_);
   VirRelightStats s = stats_;
   s.cacheBytes = cacheBytes_;
-  s.recordBytes = 0;
   s.recordBytes = records_.size() * (sizeof(int64_t) + sizeof(uint64_t));
   return s;
 }
@@ -204,7 +203,6 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
   vo.irradianceResolution = m;
   vo.frames = seed ? options_.seededFrames : options_.frames;
   vo.maxRange = options_.maxRange;
-  vo.discs = false;  // codec fields hold no directly seen discs: the shading pass adds them
   vo.storeOffsets = false;
   vo.noSurfelsIsSky = true;
   vo.checkInterrupt = false;
