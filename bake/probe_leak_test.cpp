@@ -23,34 +23,6 @@
 namespace lfgi::bake {
 namespace {
 
-double luminance(glm::vec3 c) {
-  return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
-}
-
-// Mean indirect diffuse luminance over 6 x 6 floor points of a room.
-double roomIndirect(ShadingRenderer& r, const worlds::SkyModel& sky, const worlds::Aabb& air) {
-  gpu::GBufferHost g;
-  g.height = 1;
-  for (int j = 0; j < 6; ++j)
-    for (int i = 0; i < 6; ++i) {
-      const float x = glm::mix(air.min.x + 0.3f, air.max.x - 0.3f, float(i) / 5.0f);
-      const float z = glm::mix(air.min.z + 0.3f, air.max.z - 0.3f, float(j) / 5.0f);
-      g.position.push_back(glm::vec4(x, air.min.y + 0.001f, z, 1.0f));
-      g.normal.push_back(glm::vec4(0.0f, 1.0f, 0.0f, 1.0f));
-      g.albedo.push_back(glm::vec4(0.5f, 0.5f, 0.5f, 0.0f));
-      g.emission.push_back(glm::vec4(0.0f));
-    }
-  g.width = int(g.position.size());
-  gpu::ShadingOptions o;
-  o.chebyshev = true;
-  o.direct = false;
-  o.specular = false;
-  const gpu::ShadeOutputHost s = r.shadePoints(sky, g, 0.5f * (air.min + air.max), o);
-  double sum = 0.0;
-  for (const glm::vec4& d : s.diffuse) sum += luminance(glm::vec3(d));
-  return sum / double(s.diffuse.size());
-}
-
 struct RoomLight {
   double lit = 0.0, dark = 0.0;
   double ratio() const { return lit > 0.0 ? dark / lit : 1.0; }
@@ -60,7 +32,7 @@ RoomLight shade(ShadingRenderer& r, const ProbeField& f, const worlds::SkyModel&
                 const worlds::LeakScene& s) {
   const ProbeField* fp[] = {&f};
   r.setProbes(fp, 1);
-  return {roomIndirect(r, sky, s.litAir), roomIndirect(r, sky, s.darkAir)};
+  return {roomFloorIndirect(r, sky, s.litAir, true), roomFloorIndirect(r, sky, s.darkAir, true)};
 }
 
 // VIR probes (the runtime source: relit surfels splatted into every probe) keep the sealed room dark and

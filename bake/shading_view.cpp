@@ -158,6 +158,31 @@ Image errorHeatMap(const Image& a, const std::string& la, const Image& r, const 
   return out;
 }
 
+double roomFloorIndirect(ShadingRenderer& r, const worlds::SkyModel& sky, const worlds::Aabb& air,
+                         bool chebyshev, int points) {
+  gpu::GBufferHost g;
+  g.height = 1;
+  const float last = float(std::max(1, points - 1));
+  for (int j = 0; j < points; ++j)
+    for (int i = 0; i < points; ++i) {
+      const float x = glm::mix(air.min.x + 0.3f, air.max.x - 0.3f, float(i) / last);
+      const float z = glm::mix(air.min.z + 0.3f, air.max.z - 0.3f, float(j) / last);
+      g.position.push_back(glm::vec4(x, air.min.y + 0.001f, z, 1.0f));
+      g.normal.push_back(glm::vec4(0.0f, 1.0f, 0.0f, 1.0f));
+      g.albedo.push_back(glm::vec4(0.5f, 0.5f, 0.5f, 0.0f));
+      g.emission.push_back(glm::vec4(0.0f));
+    }
+  g.width = int(g.position.size());
+  gpu::ShadingOptions o;
+  o.chebyshev = chebyshev;
+  o.direct = false;
+  o.specular = false;
+  const gpu::ShadeOutputHost s = r.shadePoints(sky, g, 0.5f * (air.min + air.max), o);
+  double sum = 0.0;
+  for (const glm::vec4& d : s.diffuse) sum += 0.2126 * d.x + 0.7152 * d.y + 0.0722 * d.z;
+  return sum / double(s.diffuse.size());
+}
+
 LeakTestResult measureLeakTest(gpu::Context& ctx, const worlds::SyntheticWorld& world, worlds::CellCoord cc,
                                const worlds::SkyModel& sky, const CaptureOptions& co) {
   worlds::BuiltCell cell = worlds::buildCell(world, cc);
@@ -184,30 +209,10 @@ LeakTestResult measureLeakTest(gpu::Context& ctx, const worlds::SyntheticWorld& 
   ShadingRenderer r(ctx, cell.mesh);
   const ProbeField* fields[] = {&f};
   r.setProbes(fields, 1);
-  auto meanIndirect = [&](const worlds::Room& room, bool chebyshev) {
-    gpu::GBufferHost g;
-    g.height = 1;
-    for (int j = 0; j < 5; ++j)
-      for (int i = 0; i < 5; ++i) {
-        const float x = glm::mix(room.air.min.x + 0.3f, room.air.max.x - 0.3f, float(i) / 4.0f);
-        const float z = glm::mix(room.air.min.z + 0.3f, room.air.max.z - 0.3f, float(j) / 4.0f);
-        g.position.push_back(glm::vec4(x, room.air.min.y + 0.001f, z, 1.0f));
-        g.normal.push_back(glm::vec4(0.0f, 1.0f, 0.0f, 1.0f));
-        g.albedo.push_back(glm::vec4(0.5f, 0.5f, 0.5f, 0.0f));
-        g.emission.push_back(glm::vec4(0.0f));
-      }
-    g.width = int(g.position.size());
-    gpu::ShadingOptions o;
-    o.chebyshev = chebyshev;
-    const gpu::ShadeOutputHost s = r.shadePoints(sky, g, 0.5f * (room.air.min + room.air.max), o);
-    double sum = 0.0;
-    for (const glm::vec4& d : s.diffuse) sum += 0.2126 * d.x + 0.7152 * d.y + 0.0722 * d.z;
-    return sum / double(s.diffuse.size());
-  };
-  res.litOn = meanIndirect(lit, true);
-  res.sealedOn = meanIndirect(sealed, true);
-  res.litOff = meanIndirect(lit, false);
-  res.sealedOff = meanIndirect(sealed, false);
+  res.litOn = roomFloorIndirect(r, sky, lit.air, true, 5);
+  res.sealedOn = roomFloorIndirect(r, sky, sealed.air, true, 5);
+  res.litOff = roomFloorIndirect(r, sky, lit.air, false, 5);
+  res.sealedOff = roomFloorIndirect(r, sky, sealed.air, false, 5);
   return res;
 }
 

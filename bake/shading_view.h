@@ -66,6 +66,12 @@ double layerRelativeRms(const Image& a, const std::string& layerA, const Image& 
 Image errorHeatMap(const Image& a, const std::string& layerA, const Image& reference,
                    const std::string& layerRef);
 
+// Mean indirect-diffuse luminance (Rec. 709 weights) over a points x points lattice of floor points of a
+// room's air box (0.3 m in from its walls, just above its floor, normal up, albedo 0.5), shaded from
+// r's probes (direct and specular off) with Chebyshev visibility on or off: what the leak tests compare.
+double roomFloorIndirect(ShadingRenderer& r, const worlds::SkyModel& sky, const worlds::Aabb& air,
+                         bool chebyshev, int points = 6);
+
 // Leak test (docs/DESIGN.md §5, NVIDIA LFP/DDGI style) on the first LeakTestSite of a world cell: captures
 // the cell's own placed probes around the house (within one spacing of its bounds), shades 5 x 5 floor points
 // of the lit room and of the sealed room and reports mean indirect-diffuse luminance, with Chebyshev

@@ -258,30 +258,6 @@ struct VirRelight {
   }
 };
 
-// Mean indirect diffuse luminance over 6 x 6 floor points of a room.
-double roomIndirect(bake::ShadingRenderer& r, const worlds::SkyModel& sky, const Aabb& air, bool chebyshev) {
-  gpu::GBufferHost g;
-  g.height = 1;
-  for (int j = 0; j < 6; ++j)
-    for (int i = 0; i < 6; ++i) {
-      const float x = glm::mix(air.min.x + 0.3f, air.max.x - 0.3f, float(i) / 5.0f);
-      const float z = glm::mix(air.min.z + 0.3f, air.max.z - 0.3f, float(j) / 5.0f);
-      g.position.push_back(glm::vec4(x, air.min.y + 0.001f, z, 1.0f));
-      g.normal.push_back(glm::vec4(0.0f, 1.0f, 0.0f, 1.0f));
-      g.albedo.push_back(glm::vec4(0.5f, 0.5f, 0.5f, 0.0f));
-      g.emission.push_back(glm::vec4(0.0f));
-    }
-  g.width = int(g.position.size());
-  gpu::ShadingOptions o;
-  o.chebyshev = chebyshev;
-  o.direct = false;
-  o.specular = false;
-  const gpu::ShadeOutputHost s = r.shadePoints(sky, g, 0.5f * (air.min + air.max), o);
-  double sum = 0.0;
-  for (const glm::vec4& d : s.diffuse) sum += lum(glm::vec3(d));
-  return sum / double(s.diffuse.size());
-}
-
 size_t nonFinite(const std::vector<float>& v) {
   return size_t(std::count_if(v.begin(), v.end(), [](float x) { return !std::isfinite(x); }));
 }
@@ -383,8 +359,8 @@ LeakSummary leakSection(Ctx& c, const std::vector<float>& walls, const std::vect
           const ProbeField* fp[] = {&f};
           renderer.setProbes(fp, 1);
           for (bool cheb : {true, false}) {
-            const double lit = roomIndirect(renderer, sky, s.litAir, cheb),
-                         dark = roomIndirect(renderer, sky, s.darkAir, cheb);
+            const double lit = bake::roomFloorIndirect(renderer, sky, s.litAir, cheb),
+                         dark = bake::roomFloorIndirect(renderer, sky, s.darkAir, cheb);
             const double ratio = lit > 0.0 ? dark / lit : 0.0;
             c.row("leak", method, t, sp, reloc, cheb ? "on" : "off", 12.0, 0.0, "leak_ratio", ratio);
             c.row("leak", method, t, sp, reloc, cheb ? "on" : "off", 12.0, 0.0, "lit_room_indirect", lit);
