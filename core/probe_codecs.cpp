@@ -193,6 +193,42 @@ void evaluateSh(const float* coeff, int K, const std::vector<float>& basis, size
   }
 }
 
+// SH coefficients of bands 0..lmax of every probe's radiance ([probe][k][rgb]), exact texel weights.
+std::vector<float> projectSh(const ProbeField& f, int lmax) {
+  const int n = f.resolution, K = shCoefficientCount(lmax);
+  const size_t texels = size_t(n) * size_t(n), P = size_t(f.probeCount());
+  const auto weights = shTexelWeightsHigh(lmax, n);
+  std::vector<float> coeff(P * size_t(K) * 3);
+  std::vector<double> acc(size_t(K) * 3);
+  for (size_t p = 0; p < P; ++p) {
+    std::fill(acc.begin(), acc.end(), 0.0);
+    const float* L = f.radiance.data() + p * texels * 3;
+    for (size_t t = 0; t < texels; ++t) {
+      const double* w = weights->data() + t * size_t(K);
+      for (int k = 0; k < K; ++k)
+        for (int c = 0; c < 3; ++c) acc[size_t(3 * k + c)] += double(L[3 * t + size_t(c)]) * w[k];
+    }
+    for (size_t i = 0; i < acc.size(); ++i) coeff[p * size_t(K) * 3 + i] = float(acc[i]);
+  }
+  return coeff;
+}
+
+// out.radiance at texel centres and out.irradiance (cosine convolution) from the coefficients.
+void evaluateShField(const std::vector<float>& coeff, int lmax, const char* codec, ProbeField& out) {
+  const int n = out.resolution, m = out.irradianceResolution, K = shCoefficientCount(lmax);
+  if (m < 1 || m > 256) fail("{} decode: irradiance resolution {} outside [1, 256]", codec, m);
+  const size_t P = size_t(out.probeCount());
+  const auto rb = texelCentreBasis(lmax, n, false);
+  const auto ib = texelCentreBasis(lmax, m, true);
+  const size_t tn = size_t(n) * size_t(n), tm = size_t(m) * size_t(m);
+  out.irradiance.assign(P * tm * 3, 0.0f);
+  for (size_t p = 0; p < P; ++p) {
+    const float* c = coeff.data() + p * size_t(K) * 3;
+    evaluateSh(c, K, *rb, tn, out.radiance.data() + p * tn * 3);
+    evaluateSh(c, K, *ib, tm, out.irradiance.data() + p * tm * 3);
+  }
+}
+
 class ShCodec final : public ProbeCodec {
  public:
   explicit ShCodec(int lmax) : lmax_(lmax) {
@@ -203,25 +239,10 @@ class ShCodec final : public ProbeCodec {
   bool decodesIrradiance() const override { return true; }
   std::vector<std::byte> encode(const ProbeField& f) const override {
     checkField(name().c_str(), f);
-    const int n = f.resolution, K = shCoefficientCount(lmax_);
-    const size_t texels = size_t(n) * size_t(n), P = size_t(f.probeCount());
-    const auto weights = shTexelWeightsHigh(lmax_, n);
-    std::vector<float> coeff(P * size_t(K) * 3);
-    std::vector<double> acc(size_t(K) * 3);
-    for (size_t p = 0; p < P; ++p) {
-      std::fill(acc.begin(), acc.end(), 0.0);
-      const float* L = f.radiance.data() + p * texels * 3;
-      for (size_t t = 0; t < texels; ++t) {
-        const double* w = weights->data() + t * size_t(K);
-        for (int k = 0; k < K; ++k)
-          for (int c = 0; c < 3; ++c) acc[size_t(3 * k + c)] += double(L[3 * t + size_t(c)]) * w[k];
-      }
-      for (size_t i = 0; i < acc.size(); ++i) coeff[p * size_t(K) * 3 + i] = float(acc[i]);
-    }
     ByteWriter w;
-    writeHeader(w, {{'L', 'S', 'H', 'C'}, 1, n, uint32_t(P)});
+    writeHeader(w, {{'L', 'S', 'H', 'C'}, 1, f.resolution, uint32_t(f.probeCount())});
     w.u8(uint8_t(lmax_));
-    w.halves(coeff);
+    w.halves(projectSh(f, lmax_));
     return std::move(w.bytes);
   }
   void decode(std::span<const std::byte> bytes, ProbeField& out) const override {
@@ -229,26 +250,65 @@ class ShCodec final : public ProbeCodec {
     readHeader(r, "LSHC", 1, out);
     const int lmax = r.u8("lmax");
     if (lmax != lmax_) fail("sh decode: bytes hold bands 0..{}, this codec is sh_l{}", lmax, lmax_);
-    const int n = out.resolution, m = out.irradianceResolution, K = shCoefficientCount(lmax_);
-    if (m < 1 || m > 256) fail("sh decode: irradiance resolution {} outside [1, 256]", m);
     prepareOut(out);
-    const size_t P = size_t(out.probeCount());
-    std::vector<float> coeff(P * size_t(K) * 3);
+    std::vector<float> coeff(size_t(out.probeCount()) * size_t(shCoefficientCount(lmax_)) * 3);
     r.halves(coeff, "coefficients");
     r.expectEnd();
-    const auto rb = texelCentreBasis(lmax_, n, false);
-    const auto ib = texelCentreBasis(lmax_, m, true);
-    const size_t tn = size_t(n) * size_t(n), tm = size_t(m) * size_t(m);
-    out.irradiance.assign(P * tm * 3, 0.0f);
-    for (size_t p = 0; p < P; ++p) {
-      const float* c = coeff.data() + p * size_t(K) * 3;
-      evaluateSh(c, K, *rb, tn, out.radiance.data() + p * tn * 3);
-      evaluateSh(c, K, *ib, tm, out.irradiance.data() + p * tm * 3);
-    }
+    evaluateShField(coeff, lmax_, "sh", out);
   }
 
  private:
   int lmax_;
+};
+
+// SH L1 in Unity APV's split: L0 per channel FP16, each L1 coefficient as L1 / (sqrt(3) L0) in int8 snorm
+// (|L1| <= sqrt(3) L0 for any radiance >= 0, so the ratio fits [-1, 1]); 15 B per probe.
+class ShL1Q8Codec final : public ProbeCodec {
+ public:
+  std::string name() const override { return "sh_l1_q8"; }
+  std::string setting() const override { return "L0 FP16, L1/L0 int8"; }
+  bool decodesIrradiance() const override { return true; }
+  std::vector<std::byte> encode(const ProbeField& f) const override {
+    checkField(name().c_str(), f);
+    const std::vector<float> coeff = projectSh(f, 1);
+    const size_t P = size_t(f.probeCount());
+    std::vector<float> l0(P * 3);
+    for (size_t i = 0; i < l0.size(); ++i) l0[i] = std::max(0.0f, coeff[(i / 3) * 12 + i % 3]);
+    ByteWriter w;
+    writeHeader(w, {{'L', 'S', 'H', 'Q'}, 1, f.resolution, uint32_t(P)});
+    w.halves(l0);  // per-cell power-of-two scale + FP16 (core/byte_stream.h)
+    for (size_t p = 0; p < P; ++p)
+      for (int k = 1; k < 4; ++k)
+        for (int ch = 0; ch < 3; ++ch) {
+          const float c0 = l0[p * 3 + size_t(ch)];
+          const float ratio = c0 > 0.0f ? coeff[p * 12 + size_t(3 * k + ch)] / (kSqrt3 * c0) : 0.0f;
+          w.i8(int8_t(std::lround(std::clamp(ratio, -1.0f, 1.0f) * 127.0f)));
+        }
+    return std::move(w.bytes);
+  }
+  void decode(std::span<const std::byte> bytes, ProbeField& out) const override {
+    ByteReader r{bytes, "sh_l1_q8"};
+    readHeader(r, "LSHQ", 1, out);
+    prepareOut(out);
+    const size_t P = size_t(out.probeCount());
+    std::vector<float> l0(P * 3), coeff(P * 12);
+    r.halves(l0, "L0");
+    for (size_t p = 0; p < P; ++p) {
+      float* c = coeff.data() + p * 12;
+      for (int ch = 0; ch < 3; ++ch) c[ch] = l0[p * 3 + size_t(ch)];
+      for (int k = 1; k < 4; ++k)
+        for (int ch = 0; ch < 3; ++ch) {
+          const int8_t q = r.i8("L1");
+          if (q < -127) fail("sh_l1_q8 decode: L1 code -128 of probe {} is not a valid snorm code", p);
+          c[3 * k + ch] = float(q) / 127.0f * kSqrt3 * c[ch];
+        }
+    }
+    r.expectEnd();
+    evaluateShField(coeff, 1, "sh_l1_q8", out);
+  }
+
+ private:
+  static constexpr float kSqrt3 = 1.7320508f;
 };
 
 }  // namespace
@@ -261,6 +321,9 @@ std::unique_ptr<ProbeCodec> makeZstdFp16Codec(int level) {
 }
 std::unique_ptr<ProbeCodec> makeShCodec(int lmax) {
   return std::make_unique<ShCodec>(lmax);
+}
+std::unique_ptr<ProbeCodec> makeShL1Q8Codec() {
+  return std::make_unique<ShL1Q8Codec>();
 }
 
 void deriveIrradiance(ProbeField& field) {

@@ -62,6 +62,11 @@ std::unique_ptr<ProbeCodec> makeZstdFp16Codec(int level);
 // projected with the exact texel weights (core/sh_high_order.h), stored FP16. Decodes radiance at texel
 // centres and irradiance by the cosine convolution.
 std::unique_ptr<ProbeCodec> makeShCodec(int lmax);
+// SH L1 as Unity's Adaptive Probe Volumes store it: L0 (the mean) per RGB channel in FP16, each of the 9 L1
+// coefficients as its ratio to sqrt(3) L0 in int8 (the ratio of any non-negative radiance lies in [-1, 1]):
+// 15 bytes per probe. Negative L0 (impossible for radiance >= 0, possible after float rounding) stores 0.
+// Decodes as makeShCodec(1) does.
+std::unique_ptr<ProbeCodec> makeShL1Q8Codec();
 // PCA per cell: mean + k principal radiance maps of the cell's probes (LAPACK dsyevr on the Gram or the
 // covariance matrix, whichever is smaller) + k coefficients per probe, all FP16. k is the smallest count
 // whose discarded energy gives a radiance relative RMS <= errorTarget (before FP16 rounding), at most

@@ -117,6 +117,28 @@ TEST(ProbeCodecs, ShErrorsOnSmoothField) {
   EXPECT_LT(e7, 0.01);
 }
 
+// APV-style SH L1: 15 B per probe; its coefficients within the int8 step of SH L1's (|error| <= sqrt(3) L0 /
+// 254 per L1 coefficient, FP16 rounding on L0), so its irradiance is within 1 % of SH L1's.
+TEST(ProbeCodecs, ShL1Q8StaysWithinItsQuantizationStepOfShL1) {
+  const ProbeField f = skyField(6, 16, false);
+  size_t bytes = 0;
+  const ProbeField q = roundTrip(*makeShL1Q8Codec(), f, &bytes);
+  const ProbeField full = roundTrip(*makeShCodec(1), f);
+  EXPECT_EQ(bytes, 11u + 4u + 6u * 15u);
+  const double e = relativeRms(q.irradiance, full.irradiance), r = relativeRms(q.radiance, full.radiance);
+  std::printf("sh_l1_q8 vs sh_l1: irradiance rel RMS %.5f, radiance %.5f\n", e, r);
+  EXPECT_LT(e, 0.01);
+  EXPECT_LT(r, 0.01);
+  EXPECT_GT(e, 0.0);  // it is quantized
+  // A black probe stays black, a constant one keeps L1 = 0 exactly.
+  ProbeField dark = emptyField(2, 8);
+  for (size_t i = dark.radiance.size() / 2; i < dark.radiance.size(); ++i) dark.radiance[i] = 0.75f;
+  const ProbeField d = roundTrip(*makeShL1Q8Codec(), dark);
+  for (size_t i = 0; i < d.irradiance.size() / 2; ++i) EXPECT_EQ(d.irradiance[i], 0.0f);
+  for (size_t i = d.irradiance.size() / 2; i < d.irradiance.size(); ++i)
+    EXPECT_NEAR(d.irradiance[i], 0.75f * std::numbers::pi_v<float>, 2e-3f);
+}
+
 TEST(ProbeCodecs, PcaRecoversALowRankCellAndMeetsItsTarget) {
   // Rank 3 around a mean: k = 3 components reproduce it to FP16 rounding.
   const int P = 40, n = 8, D = n * n * 3;
@@ -216,6 +238,7 @@ std::vector<std::unique_ptr<ProbeCodec>> allCodecs() {
   c.push_back(makeZstdFp16Codec(3));
   c.push_back(makeShCodec(2));
   c.push_back(makeShCodec(7));
+  c.push_back(makeShL1Q8Codec());
   c.push_back(makePcaCodec(0.05));
   c.push_back(makeAstcHdrCodec(8, 10.0f));
   return c;
