@@ -367,8 +367,9 @@ void addBakeFlags(CLI::App* c, lfgi::app::WorldBakeOptions& o) {
   c->add_option("--codec", o.settings.codec,
                 "per-cell (each cell its own smallest generator) or shared (one generator per world, "
                 "OUT/shared_model.vdb; cells store latents + a FiLM adapter; "
-                "--model-widths/--model-latents' first entries size it)")
-      ->check(CLI::IsMember({"per-cell", "shared"}))
+                "--model-widths/--model-latents' first entries size it) or sh-l1 (no network: each probe's "
+                "SH L1 per key, 24 B per probe per key)")
+      ->check(CLI::IsMember({"per-cell", "shared", "sh-l1"}))
       ->capture_default_str();
   c->add_option("--shared-steps", o.settings.sharedSteps,
                 "--codec shared: pre-training steps of the shared generator")

@@ -146,8 +146,9 @@ void decodeGeneratorMaps(const CellFile& cell, const std::string& what, const wo
   }
 }
 
-// The active probes' radiance from the cell's SH L1 fallback and distances at missDistance (f.resolution
-// set).
+// The active probes' radiance and irradiance (cosine convolution of the SH, clamped at 0, as the streaming
+// source decodes) from the cell's SH L1 fallback (a per-probe fallback: each probe's own entry) and
+// distances at missDistance (f.resolution set).
 void fallbackMaps(const CellFile& cell, const std::string& what, const worlds::SkyModel& sky, int resolution,
                   float missDistance, std::span<const int64_t> activeIndex, size_t count, ProbeField& f) {
   if (resolution < 1 || resolution > 256) fail("{}: resolution {} outside [1, 256]", what, resolution);
@@ -156,20 +157,37 @@ void fallbackMaps(const CellFile& cell, const std::string& what, const worlds::S
   const size_t n2 = size_t(n) * size_t(n);
   if (cell.fallback.shHalf.size() < 12) fail("{}: the cell file has no SH L1 fallback", what);
   // The stored keys blended at this sky's time of day and overcast (as the streaming source decodes).
-  const ShL1 sh = cellFileFallback(cell, sky.state.timeOfDayHours, sky.state.overcast);
-  std::vector<float> map(n2 * 3);
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const glm::vec3 L = glm::max(shEvaluate<4>(sh, octTexelDirection(i, j, n)), glm::vec3(0.0f));
-      for (int ch = 0; ch < 3; ++ch) map[size_t(j * n + i) * 3 + size_t(ch)] = L[ch];
-    }
+  const float hours = sky.state.timeOfDayHours, overcast = sky.state.overcast;
+  const bool perProbe = cell.fallback.kind == CellFallback::Kind::PerProbe;
+  const FallbackKeyBlend blend = fallbackKeyBlend(cell.fallback, hours, overcast);
+  const size_t entries = fallbackEntries(cell);
+  const int m = f.irradianceResolution;
+  const size_t m2 = size_t(m) * size_t(m);
+  std::vector<float> map(n2 * 3), irr(m2 * 3);
+  auto evaluate = [&](const ShL1& sh) {
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const glm::vec3 L = glm::max(shEvaluate<4>(sh, octTexelDirection(i, j, n)), glm::vec3(0.0f));
+        for (int ch = 0; ch < 3; ++ch) map[size_t(j * n + i) * 3 + size_t(ch)] = L[ch];
+      }
+    for (int j = 0; j < m; ++j)
+      for (int i = 0; i < m; ++i) {
+        const glm::vec3 E = glm::max(shIrradiance(sh, octTexelDirection(i, j, m)), glm::vec3(0.0f));
+        for (int ch = 0; ch < 3; ++ch) irr[size_t(j * m + i) * 3 + size_t(ch)] = E[ch];
+      }
+  };
+  if (!perProbe) evaluate(cellFileFallback(cell, hours, overcast));
   f.radiance.assign(count * n2 * 3, 0.0f);
   f.distance.assign(count * n2 * 2, 0.0f);
-  for (int64_t i : activeIndex) {
-    std::copy(map.begin(), map.end(), f.radiance.begin() + ptrdiff_t(size_t(i) * n2 * 3));
+  f.irradiance.assign(count * m2 * 3, 0.0f);
+  for (size_t k = 0; k < activeIndex.size(); ++k) {
+    const size_t i = size_t(activeIndex[k]);
+    if (perProbe) evaluate(fallbackEntry(cell.fallback, entries, k, blend));
+    std::copy(map.begin(), map.end(), f.radiance.begin() + ptrdiff_t(i * n2 * 3));
+    std::copy(irr.begin(), irr.end(), f.irradiance.begin() + ptrdiff_t(i * m2 * 3));
     for (size_t t = 0; t < n2; ++t) {
-      f.distance[(size_t(i) * n2 + t) * 2] = missDistance;
-      f.distance[(size_t(i) * n2 + t) * 2 + 1] = missDistance * missDistance;
+      f.distance[(i * n2 + t) * 2] = missDistance;
+      f.distance[(i * n2 + t) * 2 + 1] = missDistance * missDistance;
     }
   }
 }
@@ -208,11 +226,12 @@ ProbeField codecProbeField(const CellFile& cell, const std::string& what, const 
     if (f.isActive(int64_t(i))) activeIndex.push_back(int64_t(i));
   if (activeIndex.empty()) fail("{}: the cell file holds no active probe", what);
 
-  if (cell.generator)
+  if (cell.generator) {
     decodeGeneratorMaps(cell, what, sky, shared, activeIndex, count, f);
-  else
+    integrateIrradiance(f, activeIndex, count, irradianceResolution);
+  } else {
     fallbackMaps(cell, what, sky, resolution, missDistance, activeIndex, count, f);
-  integrateIrradiance(f, activeIndex, count, irradianceResolution);
+  }
   f.validate();
   return f;
 }

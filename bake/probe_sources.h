@@ -11,10 +11,12 @@
 //            would read. Lambertian surfels (the relight pass's assumption).
 //   codec    codecProbeField: a baked cell file (core/cell_file.h) decoded on the CPU (core/generator_cpu.h
 //            decodeProbeField) under the frame's conditioning (time of day, overcast); a "no network" cell
-//            gives every probe the cell's SH L1 fallback radiance (the first bake key: no time of day) and
-//            open distance moments (missDistance: Chebyshev never occludes). The bake trains on maps
-//            without the directly seen discs (captureTrainingSet), so the decoded maps are already what
-//            shading reads; irradiance = exact cosine convolution of the decoded radiance.
+//            gives every probe the cell's SH L1 fallback radiance (per probe for a per-probe fallback,
+//            `lfgi bake --codec sh-l1`; the keys blended at the sky's time of day and overcast) and
+//            open distance moments (missDistance: Chebyshev never occludes); its irradiance is the SH's
+//            cosine convolution (as the streaming source decodes), a network cell's that of its maps.
+//            The bake trains on maps without the directly seen discs (captureTrainingSet), so the
+//            decoded maps are already what shading reads.
 #pragma once
 
 #include <cstdint>

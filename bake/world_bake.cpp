@@ -9,8 +9,11 @@
 #include "core/quantize.h"
 
 #include "bake/embree_scene.h"
+#include "core/cell_fallback.h"
 #include "core/error.h"
 #include "core/half.h"
+#include "core/metrics.h"
+#include "core/octahedral.h"
 #include "core/progress.h"
 #include "core/sh.h"
 
@@ -30,7 +33,8 @@ void WorldBakeSettings::validate() const {
     if (w != 8 && w != 16 && w != 32 && w != 64) fail("bake model width {}: expected 8, 16, 32 or 64", w);
   for (int z : modelLatents)
     if (z != 4 && z != 8 && z != 16) fail("bake model latent size {}: expected 4, 8 or 16", z);
-  if (codec != "per-cell" && codec != "shared") fail("bake codec '{}': expected per-cell or shared", codec);
+  if (codec != "per-cell" && codec != "shared" && codec != "sh-l1")
+    fail("bake codec '{}': expected per-cell, shared or sh-l1", codec);
   if (sharedSteps < 1) fail("bake shared steps {} >= 1 required", sharedSteps);
   (void)parseLightingKeys(keys);
 }
@@ -129,6 +133,38 @@ CellFallback fallbackOf(const GeneratorTrainingSet& set) {
   return f;
 }
 
+// --codec sh-l1: every probe's own SH L1 per key (entries in the training set's probe order = the active
+// probes' order), and the irradiance relative RMS of its cosine convolution against the captures'.
+CellFallback perProbeFallbackOf(const GeneratorTrainingSet& set, double* irradianceError) {
+  CellFallback f;
+  f.kind = CellFallback::Kind::PerProbe;
+  f.keyHours.clear();
+  f.keyOvercast.clear();
+  std::vector<float> got, want;
+  for (size_t i : fileKeyOrder(set.keys)) {
+    const LightingKey& key = set.keys[i];
+    f.keyHours.push_back(key.timeOfDayHours);
+    f.keyOvercast.push_back(key.weather);
+    for (const ProbeCapture& p : key.probes) {
+      const ShL1 sh = shProject<4>(p.radiance, p.resolution);
+      for (int k = 0; k < 4; ++k)
+        for (int c = 0; c < 3; ++c) f.shHalf.push_back(floatToHalfClamped(sh.c[size_t(k)][c]));
+      const ShL1 stored = shFromHalves(f.shHalf.data() + f.shHalf.size() - 12);
+      const int m = p.irradianceResolution;
+      for (int t = 0; t < m * m; ++t) {
+        const glm::vec3 e =
+            glm::max(shIrradiance(stored, octTexelDirection(t % m, t / m, m)), glm::vec3(0.0f));
+        for (int c = 0; c < 3; ++c) {
+          got.push_back(e[c]);
+          want.push_back(p.irradiance[size_t(t) * 3 + size_t(c)]);
+        }
+      }
+    }
+  }
+  *irradianceError = relativeRms(got, want);
+  return f;
+}
+
 // An empty cell's fallback: dark at every key (same keys as the other cells).
 CellFallback darkFallback(const std::vector<LightingKeySpec>& keys) {
   CellFallback f;
@@ -167,6 +203,7 @@ uint64_t hashInputs(const worlds::SyntheticWorld& world, worlds::CellCoord c, co
   for (int z : settings.modelLatents) hasher.addValue(z);
   // The per-cell codec's hash is unchanged from before the codec choice existed (no rebake of its worlds).
   if (settings.sharedCodec()) hasher.add(std::string("codec shared")).addValue(sharedModelHash);
+  if (settings.codec == "sh-l1") hasher.add(std::string("codec sh-l1"));
   return hasher.digest();
 }
 
@@ -320,6 +357,18 @@ void encodeCellCodec(worlds::CellCoord c, const GeneratorTrainingSet& set,
                      const ResolvedSharedModel* shared, CellFile& cf, CellBakeReport* report) {
   if (settings.sharedCodec() && !shared)
     fail("bake: cell {},{}: --codec shared needs the world's shared model", c.x, c.z);
+  if (settings.codec == "sh-l1") {
+    cf.generator.reset();
+    cf.fallback = perProbeFallbackOf(set, &cf.stats.errorAchieved);
+    cf.stats.errorTarget = settings.errorTarget;
+    cf.stats.model = "no network: SH L1 per probe";
+    cf.stats.trainingSeconds = 0.0;
+    if (report) {
+      report->network = false;
+      report->trainingSeconds = 0.0;
+    }
+    return;
+  }
   const ModelSizingOptions sizing = cellSizingOptions(settings);
   CellBakeReport r;
   // Shared codec: a simple cell still stores no network; every other cell fits the shared model below.
