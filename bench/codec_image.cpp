@@ -21,8 +21,10 @@
 //   sh_l1, sh_l2  SH per channel, FP16 (core/probe_codecs.h), irradiance by the cosine convolution
 //   sh_l1_q8  SH L1 in Unity APV's split (L0 FP16, L1 / L0 int8): 15 B per probe
 //   pca, astc core/probe_codecs.h on the radiance, irradiance derived from the decoded radiance
-//   codec     the shipped per-cell generator: the bake's codec stage (bake::encodeCellCodec at `lfgi bake`'s
-//             settings: model search, error target, int8) into a cell file, decoded by codecProbeField
+//   codec     the per-cell generator (`lfgi bake`'s default): the bake's codec stage (bake::encodeCellCodec
+//   at
+//             the bake's settings: model search, error target, int8) into a cell file, decoded by
+//             codecProbeField; shared_codec and sh_l1_cell the same through `--codec shared` / `sh-l1`
 //   vir       not a codec: the runtime's VIR probes (bake::virProbeField: surfels relit, splatted), 0 B
 // Scenes: the Cornell box at the paper's 2 x 2 x 2 grid, synthetic world cells of every kind (small worlds of
 // 32 m cells, seeds kWorldSeeds), Sponza (full runs), the leak scene with 0.05 m and 0.5 m walls.
@@ -221,14 +223,17 @@ struct Decoded {
   double decodeUs = 0.0;      // CPU decode of that part, all active probes
 };
 
+// A scene's probes through one `lfgi bake --codec`: the cell file and its all-in bytes.
+struct BakedCell {
+  CellFile cell;
+  double bytes = 0.0, seconds = 0.0;
+};
+
 // Everything a method may read about its scene.
 struct SceneData {
   const Scene& scene;
-  const ProbeField& capture;  // ground truth probes (no discs), distance moments included
-  const CellFile* cell;       // the shipped codec's cell file
-  double cellBytes = 0.0;
-  const CellFile* sharedCell;  // the shared codec's (null without --shared)
-  double sharedCellBytes = 0.0;
+  const ProbeField& capture;                      // ground truth probes (no discs), distance moments included
+  const std::map<std::string, BakedCell>& cells;  // by `lfgi bake --codec` name
   const ResolvedSharedModel* shared;
   gpu::Context& ctx;
 };
@@ -331,26 +336,17 @@ Decoded probeCodec(const SceneData& d, const ProbeCodec& codec) {
   return out;
 }
 
-// The shipped codec: the scene's baked cell file decoded (no VIR moments yet: visibility is added after).
-Decoded shippedCodec(const SceneData& d) {
+// A bake codec's cell file decoded (no VIR moments yet: visibility is added after). Bytes are the cell
+// file's; a shared-model cell's model is in summary.json, amortised over a world there.
+Decoded bakedCell(const SceneData& d, const std::string& codec) {
+  const BakedCell& c = d.cells.at(codec);
   const auto t0 = Clock::now();
-  Decoded out{bake::codecProbeField(*d.cell, d.scene.name, d.scene.sky, d.capture.resolution,
-                                    d.capture.irradianceResolution)};
+  Decoded out{bake::codecProbeField(c.cell, d.scene.name, d.scene.sky, d.capture.resolution,
+                                    d.capture.irradianceResolution, 1.0e4f,
+                                    codec == "shared" ? d.shared : nullptr)};
   out.decodeUs = usSince(t0);
   out.field.offsets = d.scene.offsets;
-  out.payloadBytes = d.cellBytes;
-  return out;
-}
-
-// The shared codec (`lfgi bake --codec shared`): latents + FiLM adapter against the world model; bytes are
-// the cell file's (the model's own bytes are in summary.json, amortised over a world there).
-Decoded sharedCodec(const SceneData& d) {
-  const auto t0 = Clock::now();
-  Decoded out{bake::codecProbeField(*d.sharedCell, d.scene.name, d.scene.sky, d.capture.resolution,
-                                    d.capture.irradianceResolution, 1.0e4f, d.shared)};
-  out.decodeUs = usSince(t0);
-  out.field.offsets = d.scene.offsets;
-  out.payloadBytes = d.sharedCellBytes;
+  out.payloadBytes = c.bytes;
   return out;
 }
 
@@ -394,6 +390,9 @@ std::vector<Method> makeMethods(bool shared) {
   auto codec = [](std::shared_ptr<ProbeCodec> c) {
     return [c](const SceneData& d) { return probeCodec(d, *c); };
   };
+  auto baked = [](std::string bakeCodec) {
+    return [bakeCodec](const SceneData& d) { return bakedCell(d, bakeCodec); };
+  };
   std::shared_ptr<ProbeCodec> sh1 = makeShCodec(1), sh1q = makeShL1Q8Codec(), sh2 = makeShCodec(2),
                               pca = makePcaCodec(0.05), astc = makeAstcHdrCodec(6, 60);
   std::vector<Method> m = {
@@ -407,11 +406,12 @@ std::vector<Method> makeMethods(bool shared) {
       {"sh_l2", "FP16", Visibility::kVir, codec(sh2)},
       {"pca", "target 0.05", Visibility::kVir, codec(pca)},
       {"astc", "6x6 medium", Visibility::kVir, codec(astc)},
-      {"codec", "per-cell generator", Visibility::kVir, shippedCodec},
-      {"codec", "per-cell generator", Visibility::kCarried, shippedCodec},
+      {"codec", "per-cell generator", Visibility::kVir, baked("per-cell")},
+      {"codec", "per-cell generator", Visibility::kCarried, baked("per-cell")},
+      {"sh_l1_cell", "lfgi bake --codec sh-l1", Visibility::kVir, baked("sh-l1")},
       {"vir", "relight 4 frames", Visibility::kOwn, virSource},
   };
-  if (shared) m.push_back({"shared_codec", "shared generator", Visibility::kVir, sharedCodec});
+  if (shared) m.push_back({"shared_codec", "shared generator", Visibility::kVir, baked("shared")});
   return m;
 }
 
@@ -467,16 +467,16 @@ struct Prepared {
   std::optional<bake::EmbreeScene> embree;
   ProbeField capture;
   Image reference;
-  CellFile cell, sharedCell;
-  double cellBytes = 0.0, bakeS = 0.0, sharedCellBytes = 0.0;
+  std::map<std::string, BakedCell> cells;  // by bake codec
   double captureLit = 0.0;
   std::unique_ptr<bake::ShadingRenderer> renderer;
 };
 
 // The bake's codec stage on the scene's probes (captured at the bake's settings under the scene's keys) into
 // a cell file; returns its bytes.
-double encodeScene(Prepared& p, bake::WorldBakeSettings bs, const ResolvedSharedModel* shared, CellFile& cf,
-                   double* seconds) {
+BakedCell encodeScene(Prepared& p, bake::WorldBakeSettings bs, const ResolvedSharedModel* shared) {
+  BakedCell out;
+  CellFile& cf = out.cell;
   const Scene& s = p.scene;
   if (!s.keys.empty()) bs.keys = s.keys;
   cf.grid = s.grid;
@@ -494,12 +494,12 @@ double encodeScene(Prepared& p, bake::WorldBakeSettings bs, const ResolvedShared
   const bake::GeneratorTrainingSet set =
       bake::captureTrainingSet(*p.embree, positions, s.grid.origin, s.grid.boxMax(), keys, co, s.sky.state);
   bake::encodeCellCodec({0, 0}, set, flags, bs, shared, cf);
-  *seconds = usSince(t0) * 1e-6;
-  const double bytes = double(encodeCellFile(cf).size());
-  spdlog::info("{}: {} codec {} in {:.1f} s, {:.0f} B ({:.1f} B/probe), stored error {:.4f}", s.name,
-               shared ? "shared" : "per-cell", cf.stats.model, *seconds, bytes,
-               bytes / double(positions.size()), cf.stats.errorAchieved);
-  return bytes;
+  out.seconds = usSince(t0) * 1e-6;
+  out.bytes = double(encodeCellFile(cf).size());
+  spdlog::info("{}: codec {} ({}) in {:.1f} s, {:.0f} B ({:.1f} B/probe), stored error {:.4f}", s.name,
+               bs.codec, cf.stats.model, out.seconds, out.bytes, out.bytes / double(positions.size()),
+               cf.stats.errorAchieved);
+  return out;
 }
 
 Prepared prepare(Scene scene, gpu::Context& ctx, const bake::WorldBakeSettings& bs,
@@ -524,16 +524,18 @@ Prepared prepare(Scene scene, gpu::Context& ctx, const bake::WorldBakeSettings& 
     ro.maxBounces = bs.bounces;
     p.reference = bake::renderShadingReference(*p.embree, s.sky, s.camera, ro).image;
   }
-  p.cellBytes = encodeScene(p, bs, nullptr, p.cell, &p.bakeS);
-  double sharedS = 0.0;
-  if (shared) p.sharedCellBytes = encodeScene(p, sharedBs, shared, p.sharedCell, &sharedS);
+  p.cells["per-cell"] = encodeScene(p, bs, nullptr);
+  bake::WorldBakeSettings shBs = bs;
+  shBs.codec = "sh-l1";
+  p.cells["sh-l1"] = encodeScene(p, shBs, nullptr);
+  if (shared) p.cells["shared"] = encodeScene(p, sharedBs, shared);
   return p;
 }
 
 Result measure(const Method& m, Prepared& p, gpu::Context& ctx, const ResolvedSharedModel* shared,
                const fs::path& imageDir) {
   const Scene& s = p.scene;
-  const SceneData d{s, p.capture, &p.cell, p.cellBytes, &p.sharedCell, p.sharedCellBytes, shared, ctx};
+  const SceneData d{s, p.capture, p.cells, shared, ctx};
   Decoded dec = m.decode(d);
   const auto [visBytes, visMs] = applyVisibility(m.visibility, d, dec.field);
   Result r{s.name, s.kind, m.name, visibilityName(m.visibility), m.setting, activeCount(p.capture)};
@@ -764,7 +766,7 @@ void run(const Args& a) {
     Prepared p = prepare(scenes[i](), *ctx, bs, shared.settings, model);
     if (p.scene.kind != "leak" && p.scene.kind != "cornell" && p.scene.kind != "sponza")
       cellProbes += double(activeCount(p.capture)), cellArea += 32.0 * 32.0;
-    bakeS += p.bakeS;
+    bakeS += p.cells.at("per-cell").seconds;
     spdlog::info("[{}/{}] {}: {} active probes", i + 1, scenes.size(), p.scene.name, activeCount(p.capture));
     for (const Method& m : methods) {
       if (InterruptGuard::interrupted()) fail("interrupted");
