@@ -26,6 +26,8 @@
 //             the bake's settings: model search, error target, int8) into a cell file, decoded by
 //             codecProbeField; shared_codec and sh_l1_cell the same through `--codec shared` / `sh-l1`
 //   vir       not a codec: the runtime's VIR probes (bake::virProbeField: surfels relit, splatted), 0 B
+// Unseen lighting: every scene but the Cornell box again at 6 h, 20 h and overcast noon (no bake key holds
+// them) for the stores that follow the lighting and the VIR relight, against the raw capture there.
 // Scenes: the Cornell box at the paper's 2 x 2 x 2 grid, synthetic world cells of every kind (small worlds of
 // 32 m cells, seeds kWorldSeeds), Sponza (full runs), the leak scene with 0.05 m and 0.5 m walls.
 #include <spdlog/spdlog.h>
@@ -67,7 +69,7 @@ constexpr float kVirRange = 32.0f;      // m: VIR splat range (as the streaming 
 struct Args {
   std::string out = "out/bench/codec_image", scenesDir = worlds::defaultScenesDir().string();
   std::string cacheDir = "out/cache/codec_image";
-  bool quick = false, noShared = false;
+  bool quick = false, noShared = false, noUnseen = false;
   int cells = 0;        // world cells (default 4 quick, 8 full)
   int sharedSteps = 0;  // pre-training steps of the shared model (default 1000 quick, 3000 full)
 };
@@ -447,6 +449,7 @@ struct Result {
   size_t probes = 0;
   double bytes = 0.0, decodeUs = 0.0, visMs = 0.0;  // totals over the scene's active probes
   double indirect = NAN, leak = NAN, litVsCapture = NAN;
+  std::string lighting = "key";  // "key": the bake's lighting key; else an unseen lighting (kUnseen)
 };
 
 // Pixels shaded from probes (weight > 0) where neither image sees an emitter.
@@ -502,16 +505,14 @@ BakedCell encodeScene(Prepared& p, bake::WorldBakeSettings bs, const ResolvedSha
   return out;
 }
 
-Prepared prepare(Scene scene, gpu::Context& ctx, const bake::WorldBakeSettings& bs,
-                 const bake::WorldBakeSettings& sharedBs, const ResolvedSharedModel* shared) {
-  Prepared p;
-  p.scene = std::move(scene);
+// The ground truth of the scene under `sky`: its capture, and the reference image or the capture's sunlit
+// room.
+void groundTruthAt(Prepared& p, const worlds::SkyModel& sky, const bake::WorldBakeSettings& bs) {
+  p.scene.sky = sky;
   const Scene& s = p.scene;
-  p.embree.emplace(s.mesh, s.name);
   bake::CaptureOptions co = bake::bakeCaptureOptions(bs, 128.0f);
   co.irradianceResolution = 8;
   p.capture = bake::captureGridField(*p.embree, s.sky, s.grid, s.offsets, s.active, co);
-  p.renderer = std::make_unique<bake::ShadingRenderer>(ctx, s.mesh);
   if (s.leak) {
     const ProbeField* fp[] = {&p.capture};
     p.renderer->setProbes(fp, 1);
@@ -524,6 +525,15 @@ Prepared prepare(Scene scene, gpu::Context& ctx, const bake::WorldBakeSettings& 
     ro.maxBounces = bs.bounces;
     p.reference = bake::renderShadingReference(*p.embree, s.sky, s.camera, ro).image;
   }
+}
+
+Prepared prepare(Scene scene, gpu::Context& ctx, const bake::WorldBakeSettings& bs,
+                 const bake::WorldBakeSettings& sharedBs, const ResolvedSharedModel* shared) {
+  Prepared p;
+  p.scene = std::move(scene);
+  p.embree.emplace(p.scene.mesh, p.scene.name);
+  p.renderer = std::make_unique<bake::ShadingRenderer>(ctx, p.scene.mesh);
+  groundTruthAt(p, p.scene.sky, bs);
   p.cells["per-cell"] = encodeScene(p, bs, nullptr);
   bake::WorldBakeSettings shBs = bs;
   shBs.codec = "sh-l1";
@@ -533,12 +543,13 @@ Prepared prepare(Scene scene, gpu::Context& ctx, const bake::WorldBakeSettings& 
 }
 
 Result measure(const Method& m, Prepared& p, gpu::Context& ctx, const ResolvedSharedModel* shared,
-               const fs::path& imageDir) {
+               const fs::path& imageDir, const std::string& lighting = "key") {
   const Scene& s = p.scene;
   const SceneData d{s, p.capture, p.cells, shared, ctx};
   Decoded dec = m.decode(d);
   const auto [visBytes, visMs] = applyVisibility(m.visibility, d, dec.field);
   Result r{s.name, s.kind, m.name, visibilityName(m.visibility), m.setting, activeCount(p.capture)};
+  r.lighting = lighting;
   r.bytes = dec.payloadBytes + visBytes;
   r.decodeUs = dec.decodeUs;
   r.visMs = visMs;
@@ -555,8 +566,9 @@ Result measure(const Method& m, Prepared& p, gpu::Context& ctx, const ResolvedSh
   const bake::ShadedView v = p.renderer->render(s.sky, s.camera, s.width, s.height);
   const std::vector<uint8_t> mask = shadedMask(v.image, p.reference, s.emitterLevel);
   r.indirect = bake::layerRelativeRms(v.image, "indirect.", p.reference, "indirect.", &mask);
-  writePng(imageDir / fmt::format("{}_{}.png", s.name, m.label()), v.image, 0.0f, ToneMap::kAcesFitted,
-           "indirect.");
+  const std::string suffix = lighting == "key" ? "" : "@" + lighting;
+  writePng(imageDir / fmt::format("{}{}_{}.png", s.name, suffix, m.label()), v.image, 0.0f,
+           ToneMap::kAcesFitted, "indirect.");
   return r;
 }
 
@@ -604,7 +616,8 @@ void addRow(bench::BenchOutput& o, const Result& r) {
   std::replace(setting.begin(), setting.end(), ',', ';');  // the charts split on commas
   o.addRow({r.scene, r.kind, r.method, r.visibility, r.method + "+" + r.visibility, setting,
             std::to_string(r.probes), bench::num(r.bytes / P), bench::num(r.decodeUs / P),
-            bench::num(r.visMs), numOrEmpty(r.indirect), numOrEmpty(r.leak), numOrEmpty(r.litVsCapture)});
+            bench::num(r.visMs), numOrEmpty(r.indirect), numOrEmpty(r.leak), numOrEmpty(r.litVsCapture),
+            r.lighting});
 }
 
 // Per image scene: label's indirect error over raw_fp16+carried_fp16's on the same probes; mean and worst.
@@ -721,10 +734,61 @@ void writeWinner(bench::BenchOutput& o, const std::vector<Result>& rows,
            : nlohmann::ordered_json();
 }
 
+// Lighting none of the bake's keys holds (the keys are 8, 12 and 17.5 h clear): dawn, dusk, overcast noon.
+struct UnseenLighting {
+  const char* name;
+  worlds::SkyState sky;
+};
+constexpr UnseenLighting kUnseen[] = {{"6h", {6.0f, 45.0f, 172, 3.0f, 0.0f}},
+                                      {"20h", {20.0f, 45.0f, 172, 3.0f, 0.0f}},
+                                      {"overcast", {12.0f, 45.0f, 172, 3.0f, 1.0f}}};
+// The stores that follow the lighting (decoded under the frame's conditioning or key blend) and the
+// runtime's VIR relight, against the raw capture at that lighting (a rebake: the floor).
+constexpr const char* kUnseenLabels[] = {"raw_fp16+carried_fp16", "codec+vir", "shared_codec+vir",
+                                         "sh_l1_cell+vir", "vir+own"};
+
+// The scene under every unseen lighting (not the Cornell box: its light is its own emitter).
+std::vector<Result> measureUnseen(Prepared& p, const std::vector<Method>& methods, gpu::Context& ctx,
+                                  const ResolvedSharedModel* shared, const fs::path& imageDir,
+                                  const bake::WorldBakeSettings& bs) {
+  std::vector<Result> out;
+  if (p.scene.kind == "cornell") return out;
+  for (const UnseenLighting& u : kUnseen) {
+    groundTruthAt(p, worlds::makeSky(u.sky), bs);
+    for (const Method& m : methods) {
+      if (std::find(std::begin(kUnseenLabels), std::end(kUnseenLabels), m.label()) == std::end(kUnseenLabels))
+        continue;
+      if (InterruptGuard::interrupted()) fail("interrupted");
+      out.push_back(measure(m, p, ctx, shared, imageDir, u.name));
+      spdlog::info("  {} {:26s} indirect {:.4f}  leak {:.4f}  lit {:.3f}", u.name, m.label(),
+                   out.back().indirect, out.back().leak, out.back().litVsCapture);
+    }
+  }
+  return out;
+}
+
+// summary.json "unseen_lighting": per lighting and method, the image over raw's (mean, worst scene), the
+// worst leak and the darkest sunlit room.
+void writeUnseen(bench::BenchOutput& o, const std::vector<Result>& rows) {
+  auto& js = o.summary()["unseen_lighting"];
+  for (const UnseenLighting& u : kUnseen) {
+    std::vector<Result> at;
+    for (const Result& r : rows)
+      if (r.lighting == u.name) at.push_back(r);
+    for (const char* label : kUnseenLabels) {
+      const auto [mean, worst] = ratioVsRaw(at, label);
+      const Result pool = pooled(at, label);
+      js[u.name][label] = {{"image_ratio_vs_raw_mean", jsonOrNull(mean)},
+                           {"image_ratio_vs_raw_worst", jsonOrNull(worst)},
+                           {"leak_ratio", jsonOrNull(pool.leak)},
+                           {"lit_vs_capture", jsonOrNull(pool.litVsCapture)}};
+    }
+  }
+}
+
 bake::WorldBakeSettings benchBakeSettings(bool quick) {
   bake::WorldBakeSettings bs;  // `lfgi bake`'s defaults
   if (quick) {
-    bs.keys = "12";
     bs.maxSteps = 300;
     bs.modelWidths = {16, 32};
     bs.modelLatents = {8};
@@ -752,7 +816,8 @@ void run(const Args& a) {
   auto ctx = gpu::createContext();
   o.setDevice(ctx->info.name);
   o.setColumns({"scene", "kind", "method", "visibility", "label", "setting", "probes", "bytes_per_probe",
-                "decode_us_per_probe", "vis_ms", "indirect_rel_rms", "leak_ratio", "lit_vs_capture"});
+                "decode_us_per_probe", "vis_ms", "indirect_rel_rms", "leak_ratio", "lit_vs_capture",
+                "lighting"});
   const fs::path imageDir = fs::path(a.out) / "images";
   fs::create_directories(imageDir);
   const bake::WorldBakeSettings bs = benchBakeSettings(a.quick);
@@ -761,6 +826,7 @@ void run(const Args& a) {
   const std::vector<Method> methods = makeMethods(model != nullptr);
   const auto scenes = sceneList(a, bs);
   std::vector<Result> rows;
+  std::vector<Result> unseen;
   double bakeS = 0.0, cellProbes = 0.0, cellArea = 0.0;
   for (size_t i = 0; i < scenes.size(); ++i) {
     Prepared p = prepare(scenes[i](), *ctx, bs, shared.settings, model);
@@ -775,8 +841,13 @@ void run(const Args& a) {
       spdlog::info("  {:26s} {:8.1f} B/probe  indirect {:.4f}  leak {:.4f}", m.label(),
                    r.bytes / double(std::max<size_t>(1, r.probes)), r.indirect, r.leak);
     }
+    if (!a.noUnseen) {
+      std::vector<Result> u = measureUnseen(p, methods, *ctx, model, imageDir, bs);
+      unseen.insert(unseen.end(), u.begin(), u.end());
+    }
   }
   for (const Result& r : rows) addRow(o, r);
+  for (const Result& r : unseen) addRow(o, r);
   std::map<std::string, Result> all;
   for (const Method& m : methods) {
     all[m.label()] = pooled(rows, m.label());
@@ -789,6 +860,7 @@ void run(const Args& a) {
                                                               {"worst", jsonOrNull(worst)}};
   }
   writeWinner(o, rows, all);
+  if (!unseen.empty()) writeUnseen(o, unseen);
   if (model) {
     const Result& r = all.at("shared_codec+vir");
     const double perProbe = r.bytes / double(std::max<size_t>(1, r.probes)),
@@ -817,6 +889,7 @@ int main(int argc, char** argv) {
   app.add_option("--scenes-dir", a.scenesDir, "Folder of the scene presets")->capture_default_str();
   app.add_option("--cells", a.cells, "World cells measured (default 4 quick, 8 full)");
   app.add_option("--cache", a.cacheDir, "Cache of the shared model")->capture_default_str();
+  app.add_flag("--no-unseen", a.noUnseen, "Skip the unseen lighting (6 h, 20 h, overcast noon)");
   app.add_flag("--no-shared", a.noShared, "Skip the shared codec (pre-trains a world model: minutes)");
   app.add_option("--shared-steps", a.sharedSteps,
                  "Shared model pre-training steps (default 1000 quick, 3000 full)");
