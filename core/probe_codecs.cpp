@@ -266,7 +266,7 @@ class ShCodec final : public ProbeCodec {
 class ShL1Q8Codec final : public ProbeCodec {
  public:
   std::string name() const override { return "sh_l1_q8"; }
-  std::string setting() const override { return "L0 FP16, L1/L0 int8"; }
+  std::string setting() const override { return "L0 FP16 + L1/L0 int8"; }
   bool decodesIrradiance() const override { return true; }
   std::vector<std::byte> encode(const ProbeField& f) const override {
     checkField(name().c_str(), f);
