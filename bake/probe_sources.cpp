@@ -164,18 +164,7 @@ void fallbackMaps(const CellFile& cell, const std::string& what, const worlds::S
   const int m = f.irradianceResolution;
   const size_t m2 = size_t(m) * size_t(m);
   std::vector<float> map(n2 * 3), irr(m2 * 3);
-  auto evaluate = [&](const ShL1& sh) {
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i) {
-        const glm::vec3 L = glm::max(shEvaluate<4>(sh, octTexelDirection(i, j, n)), glm::vec3(0.0f));
-        for (int ch = 0; ch < 3; ++ch) map[size_t(j * n + i) * 3 + size_t(ch)] = L[ch];
-      }
-    for (int j = 0; j < m; ++j)
-      for (int i = 0; i < m; ++i) {
-        const glm::vec3 E = glm::max(shIrradiance(sh, octTexelDirection(i, j, m)), glm::vec3(0.0f));
-        for (int ch = 0; ch < 3; ++ch) irr[size_t(j * m + i) * 3 + size_t(ch)] = E[ch];
-      }
-  };
+  auto evaluate = [&](const ShL1& sh) { shProbeMaps(sh, n, m, map.data(), irr.data()); };
   if (!perProbe) evaluate(cellFileFallback(cell, hours, overcast));
   f.radiance.assign(count * n2 * 3, 0.0f);
   f.distance.assign(count * n2 * 2, 0.0f);

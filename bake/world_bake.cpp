@@ -13,7 +13,6 @@
 #include "core/error.h"
 #include "core/half.h"
 #include "core/metrics.h"
-#include "core/octahedral.h"
 #include "core/progress.h"
 #include "core/sh.h"
 
@@ -149,16 +148,11 @@ CellFallback perProbeFallbackOf(const GeneratorTrainingSet& set, double* irradia
       const ShL1 sh = shProject<4>(p.radiance, p.resolution);
       for (int k = 0; k < 4; ++k)
         for (int c = 0; c < 3; ++c) f.shHalf.push_back(floatToHalfClamped(sh.c[size_t(k)][c]));
-      const ShL1 stored = shFromHalves(f.shHalf.data() + f.shHalf.size() - 12);
-      const int m = p.irradianceResolution;
-      for (int t = 0; t < m * m; ++t) {
-        const glm::vec3 e =
-            glm::max(shIrradiance(stored, octTexelDirection(t % m, t / m, m)), glm::vec3(0.0f));
-        for (int c = 0; c < 3; ++c) {
-          got.push_back(e[c]);
-          want.push_back(p.irradiance[size_t(t) * 3 + size_t(c)]);
-        }
-      }
+      const size_t values = p.irradiance.size();
+      got.resize(got.size() + values);
+      shProbeMaps(shFromHalves(f.shHalf.data() + f.shHalf.size() - 12), p.resolution, p.irradianceResolution,
+                  nullptr, got.data() + got.size() - values);
+      want.insert(want.end(), p.irradiance.begin(), p.irradiance.end());
     }
   }
   *irradianceError = relativeRms(got, want);

@@ -5,6 +5,7 @@
 
 #include "core/error.h"
 #include "core/half.h"
+#include "core/octahedral.h"
 
 namespace lfgi {
 
@@ -13,6 +14,23 @@ ShL1 shFromHalves(const uint16_t* h) {
   for (int k = 0; k < 4; ++k)
     for (int c = 0; c < 3; ++c) sh.c[size_t(k)][c] = halfToFloat(h[k * 3 + c]);
   return sh;
+}
+
+void shProbeMaps(const ShL1& sh, int n, int m, float* radiance, float* irradiance) {
+  if (radiance)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const glm::vec3 L = glm::max(shEvaluate(sh, octTexelDirection(i, j, n)), glm::vec3(0.0f));
+        float* o = radiance + size_t(j * n + i) * 3;
+        o[0] = L.x, o[1] = L.y, o[2] = L.z;
+      }
+  if (irradiance)
+    for (int j = 0; j < m; ++j)
+      for (int i = 0; i < m; ++i) {
+        const glm::vec3 E = glm::max(shIrradiance(sh, octTexelDirection(i, j, m)), glm::vec3(0.0f));
+        float* o = irradiance + size_t(j * m + i) * 3;
+        o[0] = E.x, o[1] = E.y, o[2] = E.z;
+      }
 }
 
 ShL1 shLerp(const ShL1& a, const ShL1& b, float t) {

@@ -27,6 +27,11 @@ FallbackKeyBlend fallbackKeyBlend(const CellFallback& fallback, float timeOfDayH
 // Entry `entry` (of `entries` per key) of the fallback blended between the keys.
 ShL1 fallbackEntry(const CellFallback& fallback, size_t entries, size_t entry, const FallbackKeyBlend& blend);
 
+// What a probe of SH L1 radiance `sh` gives shading: radiance at the n x n octahedral texel centres (skipped
+// when radiance is null) and irradiance, the SH's cosine convolution, at the m x m texel centres (skipped
+// when irradiance is null), both clamped at 0, rgb interleaved.
+void shProbeMaps(const ShL1& sh, int n, int m, float* radiance, float* irradiance);
+
 // The cell's SH L1 fallback at (timeOfDayHours, weather): per key the per-cell entry, or the mean of the
 // per-probe entries, blended by fallbackKeyBlend (cell.fallback must be valid, as readCellFile
 // guarantees).

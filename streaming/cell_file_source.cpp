@@ -82,22 +82,9 @@ std::shared_ptr<const std::vector<float>> irradianceKernel(int n, int m) {
 void fillFromSh(const ShL1& sh, float range, ProbeField& f, size_t p) {
   const int n = f.resolution, m = f.irradianceResolution;
   const size_t tn = size_t(n) * size_t(n), tm = size_t(m) * size_t(m);
-  float* rad = f.radiance.data() + p * tn * 3;
+  shProbeMaps(sh, n, m, f.radiance.data() + p * tn * 3, f.irradiance.data() + p * tm * 3);
   float* dist = f.distance.data() + p * tn * 2;
-  float* irr = f.irradiance.data() + p * tm * 3;
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const glm::vec3 L = glm::max(shEvaluate(sh, octTexelDirection(i, j, n)), glm::vec3(0.0f));
-      const size_t t = size_t(j * n + i);
-      rad[t * 3] = L.x, rad[t * 3 + 1] = L.y, rad[t * 3 + 2] = L.z;
-      dist[t * 2] = range, dist[t * 2 + 1] = range * range;
-    }
-  for (int j = 0; j < m; ++j)
-    for (int i = 0; i < m; ++i) {
-      const glm::vec3 E = glm::max(shIrradiance(sh, octTexelDirection(i, j, m)), glm::vec3(0.0f));
-      const size_t t = size_t(j * m + i);
-      irr[t * 3] = E.x, irr[t * 3 + 1] = E.y, irr[t * 3 + 2] = E.z;
-    }
+  for (size_t t = 0; t < tn; ++t) dist[t * 2] = range, dist[t * 2 + 1] = range * range;
 }
 
 void copyProbe(const ProbeField& from, size_t a, ProbeField& to, size_t b) {
