@@ -107,6 +107,18 @@ int channel(const Image& img, const std::string& name) {
 }
 }  // namespace
 
+std::vector<uint8_t> shadedSurfaceMask(const Image& shaded, const Image& ref, float emitterLevel) {
+  std::vector<uint8_t> m(size_t(shaded.width) * size_t(shaded.height), 0);
+  const int w = channel(shaded, "weight"), f = channel(shaded, "fallback"), d = channel(shaded, "direct.G"),
+            rd = channel(ref, "direct.G");
+  for (int y = 0; y < shaded.height; ++y)
+    for (int x = 0; x < shaded.width; ++x)
+      m[size_t(y) * size_t(shaded.width) + size_t(x)] =
+          (shaded.at(x, y, w) > 0.0f || shaded.at(x, y, f) > 0.0f) && shaded.at(x, y, d) < emitterLevel &&
+          ref.at(x, y, rd) < emitterLevel;
+  return m;
+}
+
 double layerRelativeRms(const Image& a, const std::string& la, const Image& r, const std::string& lr,
                         const std::vector<uint8_t>* mask) {
   if (a.width != r.width || a.height != r.height)

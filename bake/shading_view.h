@@ -56,6 +56,12 @@ class ShadingRenderer {
   gpu::ProbeShadingPass shading_;
 };
 
+// Mask (width*height) of the pixels shaded from probes or fallbacks (weight > 0 or fallback > 0), leaving out
+// those where either image sees an emitter (direct.G >= emitterLevel): at an emitter's edge the reference's
+// jittered samples mix in its radiance, which a total would then compare against a pixel-centre G-buffer.
+// ref is a renderShadingReference image of the same size.
+std::vector<uint8_t> shadedSurfaceMask(const Image& shaded, const Image& ref, float emitterLevel);
+
 // Relative RMS (core/metrics.h) between the 3 channels layer+"R/G/B" of a and of reference, over pixels
 // where mask (if given, width*height) is non-zero. Throws lfgi::Error naming a missing channel.
 double layerRelativeRms(const Image& a, const std::string& layerA, const Image& reference,

@@ -452,18 +452,6 @@ struct Result {
   std::string lighting = "key";  // "key": the bake's lighting key; else an unseen lighting (kUnseen)
 };
 
-// Pixels shaded from probes (weight > 0) where neither image sees an emitter.
-std::vector<uint8_t> shadedMask(const Image& shaded, const Image& ref, float emitterLevel) {
-  std::vector<uint8_t> m(size_t(shaded.width) * size_t(shaded.height), 0);
-  const int w = shaded.channelIndex("weight"), dd = shaded.channelIndex("direct.G"),
-            rd = ref.channelIndex("direct.G");
-  for (int y = 0; y < shaded.height; ++y)
-    for (int x = 0; x < shaded.width; ++x)
-      m[size_t(y) * size_t(shaded.width) + size_t(x)] =
-          shaded.at(x, y, w) > 0.0f && shaded.at(x, y, dd) < emitterLevel && ref.at(x, y, rd) < emitterLevel;
-  return m;
-}
-
 // A scene once: capture, reference (image or the raw capture's rooms), the shipped codec's bake.
 struct Prepared {
   Scene scene;
@@ -564,7 +552,7 @@ Result measure(const Method& m, Prepared& p, gpu::Context& ctx, const ResolvedSh
   }
   p.renderer->setProbes(fp);
   const bake::ShadedView v = p.renderer->render(s.sky, s.camera, s.width, s.height);
-  const std::vector<uint8_t> mask = shadedMask(v.image, p.reference, s.emitterLevel);
+  const std::vector<uint8_t> mask = bake::shadedSurfaceMask(v.image, p.reference, s.emitterLevel);
   r.indirect = bake::layerRelativeRms(v.image, "indirect.", p.reference, "indirect.", &mask);
   const std::string suffix = lighting == "key" ? "" : "@" + lighting;
   writePng(imageDir / fmt::format("{}{}_{}.png", s.name, suffix, m.label()), v.image, 0.0f,

@@ -43,21 +43,6 @@ struct Row {
   double indirect = 0.0, total = 0.0, shadeMsPerMpix = 0.0;
 };
 
-// Pixels shaded from probes or fallbacks, leaving out those where either image sees an emitter (direct >
-// emitterLevel): at an emitter's edge the reference's jittered samples mix in its radiance, which the total
-// would then compare against a pixel-centre G-buffer.
-std::vector<uint8_t> surfaceMask(const Image& shaded, const Image& ref, float emitterLevel) {
-  std::vector<uint8_t> m(size_t(shaded.width) * size_t(shaded.height), 0);
-  const int w = shaded.channelIndex("weight"), f = shaded.channelIndex("fallback"),
-            d = shaded.channelIndex("direct.G"), rd = ref.channelIndex("direct.G");
-  for (int y = 0; y < shaded.height; ++y)
-    for (int x = 0; x < shaded.width; ++x)
-      m[size_t(y) * size_t(shaded.width) + size_t(x)] =
-          (shaded.at(x, y, w) > 0.0f || shaded.at(x, y, f) > 0.0f) && shaded.at(x, y, d) < emitterLevel &&
-          ref.at(x, y, rd) < emitterLevel;
-  return m;
-}
-
 // The world-cell view (cell 1,0 of the 64 m world of 32 m cells, seed 3, seen from the south-west) and its
 // path-traced reference settings.
 bake::PinholeCamera worldCellCamera() {
@@ -148,7 +133,7 @@ std::vector<Row> sweep(const Bench& b, const std::string& name, const worlds::Tr
       const ProbeField* fields[] = {&f};
       renderer.setProbes(fields);
       const bake::ShadedView v = renderer.render(sky, cam, refW, refH);
-      const std::vector<uint8_t> mask = surfaceMask(v.image, ref.image, emitterLevel);
+      const std::vector<uint8_t> mask = bake::shadedSurfaceMask(v.image, ref.image, emitterLevel);
       Row row;
       row.indirect = bake::layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
       row.total = bake::layerRelativeRms(v.image, "", ref.image, "", &mask);
@@ -251,7 +236,7 @@ void neighbourState(const Bench& b, const NeighbourView& nv, const std::string& 
   nv.renderer.setCells(cells);
   const bake::ShadedView v = nv.renderer.render(nv.noon, nv.wc, nv.w, nv.h);
   images.push_back(v.image);
-  const std::vector<uint8_t> mask = surfaceMask(v.image, nv.ref.image, 1e30f);
+  const std::vector<uint8_t> mask = bake::shadedSurfaceMask(v.image, nv.ref.image, 1e30f);
   const double indirect = bake::layerRelativeRms(v.image, "indirect.", nv.ref.image, "indirect.", &mask);
   const double total = bake::layerRelativeRms(v.image, "", nv.ref.image, "", &mask);
   double shadeMs = 1e30, gbufMs = 1e30;
@@ -293,7 +278,7 @@ void neighbourState(const Bench& b, const NeighbourView& nv, const std::string& 
 // The same comparison over the pixels the fallback run shades mostly from fallbacks (the neighbours).
 void neighboursOnFallbackPixels(const Bench& b, const std::vector<Image>& images,
                                 const bake::RenderResult& ref, int w, int h) {
-  std::vector<uint8_t> onFallback = surfaceMask(images[1], ref.image, 1e30f);
+  std::vector<uint8_t> onFallback = bake::shadedSurfaceMask(images[1], ref.image, 1e30f);
   const int fc = images[1].channelIndex("fallback");
   size_t count = 0;
   for (int y = 0; y < h; ++y)
@@ -425,7 +410,7 @@ void worldCellSources(const Bench& b) {
     const ProbeField* fields[] = {&f};
     renderer.setProbes(fields);
     const bake::ShadedView v = renderer.render(noon, wc, w, h);
-    const std::vector<uint8_t> mask = surfaceMask(v.image, ref.image, 1e30f);
+    const std::vector<uint8_t> mask = bake::shadedSurfaceMask(v.image, ref.image, 1e30f);
     const double indirect = bake::layerRelativeRms(v.image, "indirect.", ref.image, "indirect.", &mask);
     const double total = bake::layerRelativeRms(v.image, "", ref.image, "", &mask);
     const float spacing = std::min({grid.spacing.x, grid.spacing.y, grid.spacing.z});
