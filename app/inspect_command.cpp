@@ -40,8 +40,11 @@ int runInspect(const InspectOptions& options) {
   CellFile c = readCellFile(options.file, &bytes);
   const int64_t probes = c.activeProbeCount();
   const double perProbe = probes ? double(bytes.total) / double(probes) : 0.0;
-  const char* fallbackKind =
-      c.fallback.kind == CellFallback::Kind::PerCell ? "SH L1 per cell" : "SH L1 per probe";
+  const bool int8 = c.fallback.precision == CellFallback::Precision::L1Int8;
+  const char* fallbackKind = c.fallback.kind == CellFallback::Kind::PerCell
+                                 ? (int8 ? "SH L1 int8 per cell" : "SH L1 per cell")
+                                 : (int8 ? "SH L1 int8 per probe" : "SH L1 per probe");
+  const char* fallbackPrecision = int8 ? "L0 FP16 + L1 int8" : "FP16";
 
   if (options.json) {
     nlohmann::ordered_json j;
@@ -117,10 +120,10 @@ int runInspect(const InspectOptions& options) {
               double(c.grid.spacing.z), double(c.grid.origin.x), double(c.grid.origin.y),
               double(c.grid.origin.z));
   std::printf(
-      "bytes: weights %zu, adapter %zu, latents %zu, metadata %zu, fallback %zu (%s, FP16), total %zu (%.1f "
+      "bytes: weights %zu, adapter %zu, latents %zu, metadata %zu, fallback %zu (%s, %s), total %zu (%.1f "
       "per probe)\n",
       bytes.weights, bytes.adapter, bytes.latents, bytes.metadata(), bytes.fallback, fallbackKind,
-      bytes.total, perProbe);
+      fallbackPrecision, bytes.total, perProbe);
   std::string keys;
   for (size_t k = 0; k < c.fallback.keyCount(); ++k)
     keys += fmt::format(

@@ -368,7 +368,7 @@ void addBakeFlags(CLI::App* c, lfgi::app::WorldBakeOptions& o) {
                 "per-cell (each cell its own smallest generator) or shared (one generator per world, "
                 "OUT/shared_model.vdb; cells store latents + a FiLM adapter; "
                 "--model-widths/--model-latents' first entries size it) or sh-l1 (no network: each probe's "
-                "SH L1 per key, 24 B per probe per key)")
+                "SH L1 per key, int8 APV split, 15 B per probe per key)")
       ->check(CLI::IsMember({"per-cell", "shared", "sh-l1"}))
       ->capture_default_str();
   c->add_option("--shared-steps", o.settings.sharedSteps,

@@ -157,6 +157,7 @@ TEST(ProbeLeak, ShL1CellProbesKeepTheSealedRoomDarkAndTheSunlitRoomLit) {
   const BakedLeak b = bakeLeakScene(*ctx, sky, settings, 0.05f);
   EXPECT_FALSE(b.cell.generator.has_value());
   EXPECT_EQ(b.cell.fallback.kind, CellFallback::Kind::PerProbe);
+  EXPECT_EQ(b.cell.fallback.precision, CellFallback::Precision::L1Int8);
   EXPECT_EQ(b.cell.fallback.shHalf.size(), size_t(b.cell.activeProbeCount()) * 12);
   EXPECT_LE(b.decoded.ratio(), 1e-3);
   EXPECT_GE(b.decoded.lit, 0.95 * b.capture.lit);

@@ -133,13 +133,14 @@ CellFallback fallbackOf(const GeneratorTrainingSet& set) {
 }
 
 // --codec sh-l1: every probe's own SH L1 per key (entries in the training set's probe order = the active
-// probes' order), and the irradiance relative RMS of its cosine convolution against the captures'.
+// probes' order) in the cell file's int8 layout (15 B per probe per key), and the irradiance relative RMS
+// of the stored SH's cosine convolution against the captures'.
 CellFallback perProbeFallbackOf(const GeneratorTrainingSet& set, double* irradianceError) {
   CellFallback f;
   f.kind = CellFallback::Kind::PerProbe;
   f.keyHours.clear();
   f.keyOvercast.clear();
-  std::vector<float> got, want;
+  std::vector<const ProbeCapture*> probes;  // entry order
   for (size_t i : fileKeyOrder(set.keys)) {
     const LightingKey& key = set.keys[i];
     f.keyHours.push_back(key.timeOfDayHours);
@@ -148,12 +149,18 @@ CellFallback perProbeFallbackOf(const GeneratorTrainingSet& set, double* irradia
       const ShL1 sh = shProject<4>(p.radiance, p.resolution);
       for (int k = 0; k < 4; ++k)
         for (int c = 0; c < 3; ++c) f.shHalf.push_back(floatToHalfClamped(sh.c[size_t(k)][c]));
-      const size_t values = p.irradiance.size();
-      got.resize(got.size() + values);
-      shProbeMaps(shFromHalves(f.shHalf.data() + f.shHalf.size() - 12), p.resolution, p.irradianceResolution,
-                  nullptr, got.data() + got.size() - values);
-      want.insert(want.end(), p.irradiance.begin(), p.irradiance.end());
+      probes.push_back(&p);
     }
+  }
+  quantizeFallbackToInt8(f);
+  std::vector<float> got, want;
+  for (size_t e = 0; e < probes.size(); ++e) {
+    const ProbeCapture& p = *probes[e];
+    const size_t values = p.irradiance.size();
+    got.resize(got.size() + values);
+    shProbeMaps(shFromHalves(f.shHalf.data() + e * 12), p.resolution, p.irradianceResolution, nullptr,
+                got.data() + got.size() - values);
+    want.insert(want.end(), p.irradiance.begin(), p.irradiance.end());
   }
   *irradianceError = relativeRms(got, want);
   return f;
@@ -197,7 +204,7 @@ uint64_t hashInputs(const worlds::SyntheticWorld& world, worlds::CellCoord c, co
   for (int z : settings.modelLatents) hasher.addValue(z);
   // The per-cell codec's hash is unchanged from before the codec choice existed (no rebake of its worlds).
   if (settings.sharedCodec()) hasher.add(std::string("codec shared")).addValue(sharedModelHash);
-  if (settings.codec == "sh-l1") hasher.add(std::string("codec sh-l1"));
+  if (settings.codec == "sh-l1") hasher.add(std::string("codec sh-l1 int8"));
   return hasher.digest();
 }
 
@@ -355,7 +362,7 @@ void encodeCellCodec(worlds::CellCoord c, const GeneratorTrainingSet& set,
     cf.generator.reset();
     cf.fallback = perProbeFallbackOf(set, &cf.stats.errorAchieved);
     cf.stats.errorTarget = settings.errorTarget;
-    cf.stats.model = "no network: SH L1 per probe";
+    cf.stats.model = "no network: SH L1 int8 per probe";
     cf.stats.trainingSeconds = 0.0;
     if (report) {
       report->network = false;

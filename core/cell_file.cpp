@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/sh_l1_q8.h"
 #include "core/vdb_container.h"
 
 namespace lfgi {
@@ -24,6 +25,27 @@ constexpr size_t kShHalves = 12;  // SH L1: 4 coefficients x rgb
 // Written for cells that refer to a world's shared model; other cells are still written as version 2
 // (byte-identical to before, so readers of version 2 keep reading them).
 constexpr int kSharedRefVersion = 3;
+// Written for cells whose fallback is stored in the int8 layout (CellFallback::Precision::L1Int8).
+constexpr int kInt8FallbackVersion = 4;
+
+int writtenVersion(const CellFile& cell) {
+  if (cell.fallback.precision == CellFallback::Precision::L1Int8) return kInt8FallbackVersion;
+  return cell.generator && cell.generator->shared ? kSharedRefVersion : 2;
+}
+
+// fallback_sh: the halves as is (Fp16) or 15 B per entry (L1Int8, core/sh_l1_q8.h).
+std::vector<uint8_t> encodeFallbackSh(const CellFallback& f) {
+  std::vector<uint8_t> out;
+  if (f.precision == CellFallback::Precision::Fp16) {
+    appendPod<uint16_t>(out, f.shHalf);
+    return out;
+  }
+  const size_t entries = f.shHalf.size() / kShHalves;
+  out.resize(entries * kShL1Q8Bytes);
+  for (size_t e = 0; e < entries; ++e)
+    packShL1Q8(f.shHalf.data() + e * kShHalves, out.data() + e * kShL1Q8Bytes);
+  return out;
+}
 
 std::vector<uint8_t> encodeLatents(const QuantizedLatents& l) {
   std::vector<uint8_t> out;
@@ -81,7 +103,7 @@ std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::Cell
   openvdb::MetaMap m;
   m.insertMeta("lfgi_magic", openvdb::StringMetadata(kMagic));
   const bool sharedRef = cell.generator && cell.generator->shared;
-  m.insertMeta("lfgi_format_version", openvdb::Int32Metadata(sharedRef ? kSharedRefVersion : 2));
+  m.insertMeta("lfgi_format_version", openvdb::Int32Metadata(writtenVersion(cell)));
   m.insertMeta("world_seed", openvdb::StringMetadata(hex64(cell.worldSeed)));
   m.insertMeta("cell_x", openvdb::Int32Metadata(cell.cellX));
   m.insertMeta("cell_z", openvdb::Int32Metadata(cell.cellZ));
@@ -120,10 +142,11 @@ std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::Cell
   m.insertMeta("fallback_kind", openvdb::StringMetadata(cell.fallback.kind == CellFallback::Kind::PerCell
                                                             ? "sh_l1_per_cell"
                                                             : "sh_l1_per_probe"));
+  if (cell.fallback.precision == CellFallback::Precision::L1Int8)
+    m.insertMeta("fallback_precision", openvdb::StringMetadata("l1_int8"));
   {
-    std::vector<uint8_t> sh, hours, overcast;
-    appendPod<uint16_t>(sh, cell.fallback.shHalf);
-    putBlob(m, "fallback_sh", std::move(sh));
+    std::vector<uint8_t> hours, overcast;
+    putBlob(m, "fallback_sh", encodeFallbackSh(cell.fallback));
     m.insertMeta("fallback_key_count", openvdb::Int32Metadata(int32_t(cell.fallback.keyCount())));
     appendPod<float>(hours, cell.fallback.keyHours);
     putBlob(m, "fallback_key_hours", std::move(hours));
@@ -240,6 +263,13 @@ void CellFile::validate(const std::string& what) const {
          keys * entries * kShHalves, keys, entries);
   for (size_t i = 0; i < fallback.shHalf.size(); ++i)
     if ((fallback.shHalf[i] & 0x7c00u) == 0x7c00u) fail("{}: fallback SH half {} is Inf or NaN", what, i);
+  if (fallback.precision == CellFallback::Precision::L1Int8) {
+    for (size_t e = 0; e < keys * entries; ++e)
+      if (!shL1HalvesAreQ8(fallback.shHalf.data() + e * kShHalves))
+        fail("{}: fallback entry {} is not in the int8 layout (quantizeFallbackToInt8)", what, e);
+  } else if (fallback.precision != CellFallback::Precision::Fp16) {
+    fail("{}: unknown fallback precision {}", what, int(fallback.precision));
+  }
   auto nonNegative = [&](double v, const char* field) {
     if (!std::isfinite(v) || v < 0.0) fail("{}: {} = {} must be finite and >= 0", what, field, v);
   };
@@ -248,6 +278,17 @@ void CellFile::validate(const std::string& what) const {
   nonNegative(stats.trainingSeconds, "trainingSeconds");
   if (stats.model.size() > 4096)
     fail("{}: model description is {} characters (limit 4096)", what, stats.model.size());
+}
+
+size_t CellFallback::storedShBytes() const {
+  const size_t entries = shHalf.size() / kShHalves;
+  return entries * (precision == Precision::L1Int8 ? size_t(kShL1Q8Bytes) : kShHalves * 2);
+}
+
+void quantizeFallbackToInt8(CellFallback& fallback) {
+  for (size_t e = 0; e + kShHalves <= fallback.shHalf.size(); e += kShHalves)
+    quantizeShL1HalvesQ8(fallback.shHalf.data() + e);
+  fallback.precision = CellFallback::Precision::L1Int8;
 }
 
 std::vector<std::byte> encodeCellFile(const CellFile& cell) {
@@ -402,6 +443,23 @@ void readModel(const MetaReader& r, const std::string& name, int64_t version, in
   }
 }
 
+// fallback_precision: version 4 only, where it must be present.
+void readFallbackPrecision(const MetaReader& r, const std::string& name, int64_t version, CellFallback& f) {
+  if (version < kInt8FallbackVersion) {
+    if (r.has("fallback_precision"))
+      fail("{}: a version-{} cell file holds field 'fallback_precision' (version {} and later only)", name,
+           version, kInt8FallbackVersion);
+    return;
+  }
+  const std::string p = r.get<std::string>("fallback_precision");
+  if (p == "l1_int8")
+    f.precision = CellFallback::Precision::L1Int8;
+  else if (p == "fp16")
+    f.precision = CellFallback::Precision::Fp16;
+  else
+    fail("{}: fallback_precision '{}' is unknown (fp16, l1_int8)", name, p);
+}
+
 // The SH L1 fallback and its lighting keys.
 void readFallback(const MetaReader& r, const std::string& name, int64_t version, int64_t probeCount,
                   CellFile& c, CellFileBytes& parts) {
@@ -432,13 +490,22 @@ void readFallback(const MetaReader& r, const std::string& name, int64_t version,
     for (const char* f : {"fallback_key_count", "fallback_key_hours", "fallback_key_overcast"})
       if (r.has(f)) fail("{}: a version-1 cell file holds field '{}' (version 2 and later only)", name, f);
   }
+  readFallbackPrecision(r, name, version, c.fallback);
   std::vector<uint8_t> fb = r.blob("fallback_sh");
-  size_t entries = c.fallback.kind == CellFallback::Kind::PerCell ? 1 : size_t(probeCount);
-  if (fb.size() != keys * entries * kShHalves * 2)
-    fail("{}: fallback_sh holds {} bytes, {} expected ({} keys x {} x 12 halves)", name, fb.size(),
-         keys * entries * kShHalves * 2, keys, entries);
+  const size_t entries = c.fallback.kind == CellFallback::Kind::PerCell ? 1 : size_t(probeCount);
+  const bool int8 = c.fallback.precision == CellFallback::Precision::L1Int8;
+  const size_t perEntry = int8 ? size_t(kShL1Q8Bytes) : kShHalves * 2;
+  if (fb.size() != keys * entries * perEntry)
+    fail("{}: fallback_sh holds {} bytes, {} expected ({} keys x {} x {})", name, fb.size(),
+         keys * entries * perEntry, keys, entries, int8 ? "15 B (int8 layout)" : "12 halves");
   c.fallback.shHalf.resize(keys * entries * kShHalves);
-  if (!fb.empty()) std::memcpy(c.fallback.shHalf.data(), fb.data(), fb.size());
+  if (!int8 && !fb.empty()) std::memcpy(c.fallback.shHalf.data(), fb.data(), fb.size());
+  for (size_t e = 0; int8 && e < keys * entries; ++e)
+    if (!unpackShL1Q8(fb.data() + e * perEntry, c.fallback.shHalf.data() + e * kShHalves))
+      fail(
+          "{}: fallback_sh entry {} holds an L1 code the int8 layout never writes (-128, or nonzero "
+          "against a zero L0)",
+          name, e);
   parts.fallback += fb.size();
 }
 

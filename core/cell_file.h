@@ -37,10 +37,12 @@
 // hash (shared_model_hash, 16 hex digits, nonzero), the cell's quantized FiLM adapter (adapter_stages,
 // adapter_bits, adapter_channels and an "adapter" blob: 2 f32 scales, then the scale and shift codes
 // packed like the latents) and the cell's latents as before. Cells with their own weights (or none) are
-// still written as version 2, byte-identical to what earlier builds wrote. 2 stores one fallback SH L1
-// per bake lighting key; 1 (read only) stored one, the bake's first key, and has no key fields: it reads
-// as one key at 12 h, overcast 0 (its true hour is not recorded; with one key the fallback is the same at
-// every time of day). Fields of a later version in an earlier version's file are errors.
+// still written as version 2, byte-identical to what earlier builds wrote. 4 (written for cells whose
+// fallback is CellFallback::Precision::L1Int8) adds fallback_precision "l1_int8", the fallback_sh blob then
+// holding 15 B per entry (3 L0 halves, 9 L1 codes); a version-4 file without the field is an error. 2 stores
+// one fallback SH L1 per bake lighting key; 1 (read only) stored one, the bake's first key, and has no key
+// fields: it reads as one key at 12 h, overcast 0 (its true hour is not recorded; with one key the fallback
+// is the same at every time of day). Fields of a later version in an earlier version's file are errors.
 #pragma once
 
 #include <cstddef>
@@ -58,7 +60,7 @@
 
 namespace lfgi {
 
-inline constexpr int kCellFileVersion = 3;  // newest written; versions 1 .. kCellFileVersion are read
+inline constexpr int kCellFileVersion = 4;  // newest written; versions 1 .. kCellFileVersion are read
 inline constexpr int kCellFileMaxFallbackKeys = 64;
 inline constexpr int64_t kCellFileMaxProbes = int64_t(1) << 22;  // per cell (~4 M)
 inline constexpr size_t kCellFileMaxBytes = size_t(1) << 30;     // 1 GiB
@@ -71,15 +73,28 @@ inline constexpr size_t kCellFileMaxBytes = size_t(1) << 30;     // 1 GiB
 // 1 .. kCellFileMaxFallbackKeys of them. The radiance is what the bake's captures hold at that key (sky,
 // bounces and the sun / moon disc deposits, the generator's training targets), so a fallback and a
 // decoded cell agree at a key. The default is one key at 12 h, overcast 0.
+//
+// Precision: how the file stores the entries. Fp16: the 12 halves (24 B). L1Int8 (version 4): Unity APV's
+// split, L0 as 3 halves and each L1 coefficient as an int8 code of L1 / (sqrt(3) L0) (core/sh_l1_q8.h),
+// 15 B per entry; shHalf then holds what the codes decode to (every entry a fixed point of
+// quantizeShL1HalvesQ8; quantizeFallbackToInt8 makes one), so the file round-trips bit-exact.
 struct CellFallback {
   enum class Kind : uint8_t { PerCell = 0, PerProbe = 1 };
+  enum class Precision : uint8_t { Fp16 = 0, L1Int8 = 1 };
   Kind kind = Kind::PerCell;
+  Precision precision = Precision::Fp16;
   std::vector<float> keyHours{12.0f};    // time of day of each key
   std::vector<float> keyOvercast{0.0f};  // weather of each key (same size as keyHours)
   std::vector<uint16_t> shHalf;          // keys x entries x 12 (layout above)
 
   size_t keyCount() const { return keyHours.size(); }
+  // Bytes the entries take in the file (24 or 15 per entry).
+  size_t storedShBytes() const;
 };
+
+// Converts the entries to the int8 layout in place (core/sh_l1_q8.h quantizeShL1HalvesQ8 on each) and
+// sets precision = L1Int8.
+void quantizeFallbackToInt8(CellFallback& fallback);
 
 struct CellBakeStats {
   double errorAchieved = 0.0;    // irradiance relative RMS vs ground truth (metrics.h), >= 0

@@ -16,6 +16,7 @@
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/half.h"
+#include "core/sh_l1_q8.h"
 #include "generator_test_util.h"
 
 namespace lfgi {
@@ -29,7 +30,7 @@ fs::path tmpDir() {
   return d;
 }
 
-enum class Variant { Int8Latents8, Fp16Latents4, PositionLatents, NoNetwork };
+enum class Variant { Int8Latents8, Fp16Latents4, PositionLatents, NoNetwork, Int8Fallback };
 
 // A small cell: 3x2x2 probes (some disabled), a 2-layer generator.
 CellFile makeCell(Variant v, uint32_t seed = 1) {
@@ -44,7 +45,8 @@ CellFile makeCell(Variant v, uint32_t seed = 1) {
   c.grid.dims = {3, 2, 2};
   if (v != Variant::Fp16Latents4) c.active = {1, 1, 0, 1, 1, 1, 1, 0, 1, 1, 1, 1};
   int64_t n = c.activeProbeCount();
-  if (v != Variant::NoNetwork) {
+  const bool noNetwork = v == Variant::NoNetwork || v == Variant::Int8Fallback;
+  if (!noNetwork) {
     GeneratorArch a;
     a.latentDim = 8;
     a.convChannels = {8, 6, kGeneratorChannels};
@@ -65,15 +67,15 @@ CellFile makeCell(Variant v, uint32_t seed = 1) {
     c.generator = std::move(g);
   }
   c.outputScale = {3.5f, 96.0f};
-  c.fallback.kind = v == Variant::Int8Latents8 || v == Variant::NoNetwork ? CellFallback::Kind::PerProbe
-                                                                          : CellFallback::Kind::PerCell;
+  c.fallback.kind =
+      v == Variant::Int8Latents8 || noNetwork ? CellFallback::Kind::PerProbe : CellFallback::Kind::PerCell;
   size_t entries = c.fallback.kind == CellFallback::Kind::PerCell ? 1 : size_t(n);
-  // Int8Latents8: one lighting key (as a version-1 file); the others: 3 keys (NoNetwork with an overcast
-  // key).
+  // Int8Latents8: one lighting key (as a version-1 file); the others: 3 keys (NoNetwork and Int8Fallback
+  // with an overcast key).
   if (v == Variant::Fp16Latents4 || v == Variant::PositionLatents) {
     c.fallback.keyHours = {8.0f, 12.0f, 17.5f};
     c.fallback.keyOvercast = {0.0f, 0.0f, 0.0f};
-  } else if (v == Variant::NoNetwork) {
+  } else if (noNetwork) {
     c.fallback.keyHours = {8.0f, 12.0f, 12.0f};
     c.fallback.keyOvercast = {0.0f, 0.0f, 1.0f};
   }
@@ -83,7 +85,8 @@ CellFile makeCell(Variant v, uint32_t seed = 1) {
   c.stats.errorAchieved = 0.0423;
   c.stats.errorTarget = 0.05;
   c.stats.trainingSeconds = 12.75;
-  c.stats.model = v == Variant::NoNetwork ? "no network: SH L1" : "L8 C8-6 test";
+  if (v == Variant::Int8Fallback) quantizeFallbackToInt8(c.fallback);  // negative L0s become 0
+  c.stats.model = noNetwork ? "no network: SH L1" : "L8 C8-6 test";
   return c;
 }
 
@@ -135,6 +138,7 @@ void expectSameCell(const CellFile& a, const CellFile& b) {
   EXPECT_EQ(std::bit_cast<uint32_t>(a.outputScale.exposure), std::bit_cast<uint32_t>(b.outputScale.exposure));
   EXPECT_EQ(std::bit_cast<uint32_t>(a.outputScale.range), std::bit_cast<uint32_t>(b.outputScale.range));
   EXPECT_EQ(a.fallback.kind, b.fallback.kind);
+  EXPECT_EQ(a.fallback.precision, b.fallback.precision);
   EXPECT_EQ(bits(a.fallback.keyHours), bits(b.fallback.keyHours));
   EXPECT_EQ(bits(a.fallback.keyOvercast), bits(b.fallback.keyOvercast));
   EXPECT_EQ(a.fallback.shHalf, b.fallback.shHalf);
@@ -154,8 +158,8 @@ std::string errorOf(std::span<const std::byte> bytes, const std::string& name = 
 }
 
 TEST(CellFile, RoundTripIsBitExactForEveryVariant) {
-  for (Variant v :
-       {Variant::Int8Latents8, Variant::Fp16Latents4, Variant::PositionLatents, Variant::NoNetwork}) {
+  for (Variant v : {Variant::Int8Latents8, Variant::Fp16Latents4, Variant::PositionLatents,
+                    Variant::NoNetwork, Variant::Int8Fallback}) {
     SCOPED_TRACE(int(v));
     CellFile c = makeCell(v);
     std::vector<std::byte> bytes = encodeCellFile(c);
@@ -168,7 +172,8 @@ TEST(CellFile, RoundTripIsBitExactForEveryVariant) {
     EXPECT_EQ(parts.total, bytes.size());
     EXPECT_EQ(parts.weights, c.generator ? c.generator->weights.bytes() : 0u);
     EXPECT_EQ(parts.latents, c.generator ? c.generator->latents.bytes() : 0u);
-    EXPECT_EQ(parts.fallback, c.fallback.shHalf.size() * 2 + c.fallback.keyCount() * 8);
+    EXPECT_EQ(parts.fallback, c.fallback.storedShBytes() + c.fallback.keyCount() * 8);
+    EXPECT_EQ(parts.version, v == Variant::Int8Fallback ? 4 : 2);
     std::printf("variant %d: %zu bytes = weights %zu + latents %zu + fallback %zu + metadata/topology %zu\n",
                 int(v), parts.total, parts.weights, parts.latents, parts.fallback, parts.metadata());
   }
@@ -290,8 +295,8 @@ struct BadFileCase {
 TEST(CellFile, IntactButWrongFilesNameTheProblem) {
   CellFile c = makeCell(Variant::Int8Latents8);
   const std::vector<BadFileCase> cases = {
-      {{{"lfgi_format_version", 99, ""}}, "cell file format version 99, this build reads versions 1 to 3"},
-      {{{"lfgi_format_version", 0, ""}}, "cell file format version 0, this build reads versions 1 to 3"},
+      {{{"lfgi_format_version", 99, ""}}, "cell file format version 99, this build reads versions 1 to 4"},
+      {{{"lfgi_format_version", 0, ""}}, "cell file format version 0, this build reads versions 1 to 4"},
       {{{"lfgi_magic", 0, "not-a-cell"}}, "lfgi_magic is 'not-a-cell'"},
       {{{"latent_count", int64_t(1) << 40, ""}}, "field 'latent_count' = 1099511627776 outside [0, 4194304]"},
       {{{"latent_count", 9, ""}}, "latent_count = 9, but the file has 10 probes"},
@@ -542,6 +547,45 @@ TEST(CellFile, VersionOneFilesStillRead) {
   const std::vector<detail::CellFileOverride> v1WithKeys = {{"lfgi_format_version", 1, ""}};
   e = errorOf(detail::encodeCellFileWithOverrides(c, v1WithKeys), "v1.vdb");
   EXPECT_NE(e.find("v1.vdb: a version-1 cell file holds field 'fallback_key_count'"), std::string::npos) << e;
+}
+
+// The int8 fallback layout (version 4): 15 B per entry, and the reader and writer hold its contract.
+TEST(CellFile, Int8FallbackStoresFifteenBytesPerEntryAndChecksThem) {
+  const CellFile c = makeCell(Variant::Int8Fallback);  // 10 probes x 3 keys
+  const CellFile fp16 = makeCell(Variant::NoNetwork);
+  CellFileBytes parts, fp16Parts;
+  decodeCellFile(encodeCellFile(c), "mem", &parts);
+  decodeCellFile(encodeCellFile(fp16), "mem", &fp16Parts);
+  EXPECT_EQ(parts.fallback, 30u * 15u + 3u * 8u);
+  EXPECT_EQ(fp16Parts.fallback, 30u * 24u + 3u * 8u);
+  EXPECT_LT(parts.total, fp16Parts.total);
+  // Entries that are not the quantizer's fixed point are refused by the writer.
+  CellFile off = c;
+  off.fallback.shHalf[5] ^= 1u;  // an L1 half one bit away from what its code decodes to
+  try {
+    encodeCellFile(off);
+    ADD_FAILURE() << "wrote a non-int8 entry";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("fallback entry 0 is not in the int8 layout"), std::string::npos)
+        << e.what();
+  }
+  // The packed blob with one code the writer never writes (-128).
+  std::string blob(30 * 15, '\0');
+  for (size_t e = 0; e < 30; ++e)
+    packShL1Q8(c.fallback.shHalf.data() + e * 12, (uint8_t*)blob.data() + e * 15);
+  blob[15 + 6] = char(0x80);
+  const std::vector<BadFileCase> cases = {
+      {{{"lfgi_format_version", 3, ""}}, "a version-3 cell file holds field 'fallback_precision'"},
+      {{{"fallback_precision", 0, "", true}}, "fallback_precision"},
+      {{{"fallback_precision", 0, "int4"}}, "fallback_precision 'int4' is unknown (fp16, l1_int8)"},
+      {{{"fallback_sh", 0, std::string(720, '\0')}}, "fallback_sh holds 720 bytes, 450 expected"},
+      {{{"fallback_sh", 0, blob}}, "fallback_sh entry 1 holds an L1 code the int8 layout never writes"},
+  };
+  for (const BadFileCase& bc : cases) {
+    const std::string e = errorOf(detail::encodeCellFileWithOverrides(c, bc.overrides), "q8.vdb");
+    EXPECT_EQ(e.rfind("q8.vdb: ", 0), 0u) << e;
+    EXPECT_NE(e.find(bc.expect), std::string::npos) << "field " << bc.overrides[0].field << ": '" << e << "'";
+  }
 }
 
 TEST(CellFile, BadFallbackKeysAreRejectedByName) {

@@ -15,6 +15,7 @@
 #include "core/probe_codecs_internal.h"
 #include "core/sh.h"
 #include "core/sh_high_order.h"
+#include "core/sh_l1_q8.h"
 
 namespace lfgi {
 
@@ -261,8 +262,8 @@ class ShCodec final : public ProbeCodec {
   int lmax_;
 };
 
-// SH L1 in Unity APV's split: L0 per channel FP16, each L1 coefficient as L1 / (sqrt(3) L0) in int8 snorm
-// (|L1| <= sqrt(3) L0 for any radiance >= 0, so the ratio fits [-1, 1]); 15 B per probe.
+// SH L1 in Unity APV's split (core/sh_l1_q8.h): L0 per channel FP16 at a per-cell scale, each L1 as an int8
+// snorm code of L1 / (sqrt(3) L0); 15 B per probe.
 class ShL1Q8Codec final : public ProbeCodec {
  public:
   std::string name() const override { return "sh_l1_q8"; }
@@ -280,9 +281,7 @@ class ShL1Q8Codec final : public ProbeCodec {
     for (size_t p = 0; p < P; ++p)
       for (int k = 1; k < 4; ++k)
         for (int ch = 0; ch < 3; ++ch) {
-          const float c0 = l0[p * 3 + size_t(ch)];
-          const float ratio = c0 > 0.0f ? coeff[p * 12 + size_t(3 * k + ch)] / (kSqrt3 * c0) : 0.0f;
-          w.i8(int8_t(std::lround(std::clamp(ratio, -1.0f, 1.0f) * 127.0f)));
+          w.i8(shL1Q8Code(l0[p * 3 + size_t(ch)], coeff[p * 12 + size_t(3 * k + ch)]));
         }
     return std::move(w.bytes);
   }
@@ -300,15 +299,12 @@ class ShL1Q8Codec final : public ProbeCodec {
         for (int ch = 0; ch < 3; ++ch) {
           const int8_t q = r.i8("L1");
           if (q < -127) fail("sh_l1_q8 decode: L1 code -128 of probe {} is not a valid snorm code", p);
-          c[3 * k + ch] = float(q) / 127.0f * kSqrt3 * c[ch];
+          c[3 * k + ch] = shL1Q8Value(c[ch], q);
         }
     }
     r.expectEnd();
     evaluateShField(coeff, 1, "sh_l1_q8", out);
   }
-
- private:
-  static constexpr float kSqrt3 = 1.7320508f;
 };
 
 }  // namespace

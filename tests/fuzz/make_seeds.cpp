@@ -78,6 +78,9 @@ int main(int argc, char** argv) {
   try {
     const fs::path out = argv[1];
     writeCellSeeds(out / "cell", "no_network", smallCell(true, false, 8));
+    CellFile int8Fallback = smallCell(true, false, 8);  // version 4: the int8 SH L1 layout
+    quantizeFallbackToInt8(int8Fallback.fallback);
+    writeCellSeeds(out / "cell", "no_network_int8_fallback", int8Fallback);
     writeCellSeeds(out / "cell", "int8_latents8", smallCell(false, false, 8));
     writeCellSeeds(out / "cell", "fp16_latents4", smallCell(false, false, 4));
     writeCellSeeds(out / "cell", "position_latents", smallCell(false, true, 8));
