@@ -181,10 +181,12 @@ CellOutcome bakeOneCell(BakeRun& run, const worlds::CellCoord c) {
   bake::clearCellBakeFailure(out, c);
   run.bytesTotal += bytes.total;
   run.networks += report.network ? 1 : 0;
-  std::fprintf(stderr,
-               "\ncell %d,%d: %zu probes, %s, irradiance error %.2f %% (target %.1f %%), %zu bytes, %.1f s\n",
+  const std::string target = cf.stats.errorTarget > 0.0
+                                 ? fmt::format("target {:.1f} %", 100.0 * cf.stats.errorTarget)
+                                 : std::string("no search, no target");
+  std::fprintf(stderr, "\ncell %d,%d: %zu probes, %s, irradiance error %.2f %% (%s), %zu bytes, %.1f s\n",
                c.x, c.z, report.probes, cf.stats.model.c_str(), 100.0 * cf.stats.errorAchieved,
-               100.0 * settings.errorTarget, bytes.total, record.totalSeconds);
+               target.c_str(), bytes.total, record.totalSeconds);
   return CellOutcome::kBaked;
 }
 

@@ -119,9 +119,11 @@ TEST(ProbeSources, VirProbesRefuseBadInput) {
   EXPECT_FALSE(f.isActive(0));
 }
 
-// The tiny bake both world-cell tests use (resolution 8, 2 spp, 1 bounce, 40 training steps).
+// The tiny bake both world-cell tests use (the generator codec, resolution 8, 2 spp, 1 bounce, 40 training
+// steps).
 WorldBakeSettings tinyBakeSettings(const std::string& keys, double errorTarget) {
   WorldBakeSettings s;
+  s.codec = "per-cell";
   s.resolution = 8;
   s.spp = 2;
   s.bounces = 1;

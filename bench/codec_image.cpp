@@ -21,10 +21,10 @@
 //   sh_l1, sh_l2  SH per channel, FP16 (core/probe_codecs.h), irradiance by the cosine convolution
 //   sh_l1_q8  SH L1 in Unity APV's split (L0 FP16, L1 / L0 int8): 15 B per probe
 //   pca, astc core/probe_codecs.h on the radiance, irradiance derived from the decoded radiance
-//   codec     the per-cell generator (`lfgi bake`'s default): the bake's codec stage (bake::encodeCellCodec
-//   at
-//             the bake's settings: model search, error target, int8) into a cell file, decoded by
-//             codecProbeField; shared_codec and sh_l1_cell the same through `--codec shared` / `sh-l1`
+//   codec     the shipped codec, `lfgi bake`'s default (sh-l1: each probe's SH L1 in the int8 APV split,
+//             every bake key): the bake's codec stage (bake::encodeCellCodec at the bake's settings) into a
+//             cell file, decoded by codecProbeField; per_cell_codec and shared_codec the same through
+//             `--codec per-cell` (model search, error target, int8) / `--codec shared`
 //   vir       not a codec: the runtime's VIR probes (bake::virProbeField: surfels relit, splatted), 0 B
 // Unseen lighting: every scene but the Cornell box again at 6 h, 20 h and overcast noon (no bake key holds
 // them) for the stores that follow the lighting and the VIR relight, against the raw capture there.
@@ -408,9 +408,9 @@ std::vector<Method> makeMethods(bool shared) {
       {"sh_l2", "FP16", Visibility::kVir, codec(sh2)},
       {"pca", "target 0.05", Visibility::kVir, codec(pca)},
       {"astc", "6x6 medium", Visibility::kVir, codec(astc)},
-      {"codec", "per-cell generator", Visibility::kVir, baked("per-cell")},
-      {"codec", "per-cell generator", Visibility::kCarried, baked("per-cell")},
-      {"sh_l1_cell", "lfgi bake --codec sh-l1", Visibility::kVir, baked("sh-l1")},
+      {"codec", "lfgi bake default: sh-l1", Visibility::kVir, baked("sh-l1")},
+      {"per_cell_codec", "per-cell generator", Visibility::kVir, baked("per-cell")},
+      {"per_cell_codec", "per-cell generator", Visibility::kCarried, baked("per-cell")},
       {"vir", "relight 4 frames", Visibility::kOwn, virSource},
   };
   if (shared) m.push_back({"shared_codec", "shared generator", Visibility::kVir, baked("shared")});
@@ -522,10 +522,11 @@ Prepared prepare(Scene scene, gpu::Context& ctx, const bake::WorldBakeSettings& 
   p.embree.emplace(p.scene.mesh, p.scene.name);
   p.renderer = std::make_unique<bake::ShadingRenderer>(ctx, p.scene.mesh);
   groundTruthAt(p, p.scene.sky, bs);
-  p.cells["per-cell"] = encodeScene(p, bs, nullptr);
-  bake::WorldBakeSettings shBs = bs;
-  shBs.codec = "sh-l1";
-  p.cells["sh-l1"] = encodeScene(p, shBs, nullptr);
+  for (const char* codec : {"per-cell", "sh-l1"}) {
+    bake::WorldBakeSettings cs = bs;
+    cs.codec = codec;
+    p.cells[codec] = encodeScene(p, cs, nullptr);
+  }
   if (shared) p.cells["shared"] = encodeScene(p, sharedBs, shared);
   return p;
 }
@@ -732,8 +733,8 @@ constexpr UnseenLighting kUnseen[] = {{"6h", {6.0f, 45.0f, 172, 3.0f, 0.0f}},
                                       {"overcast", {12.0f, 45.0f, 172, 3.0f, 1.0f}}};
 // The stores that follow the lighting (decoded under the frame's conditioning or key blend) and the
 // runtime's VIR relight, against the raw capture at that lighting (a rebake: the floor).
-constexpr const char* kUnseenLabels[] = {"raw_fp16+carried_fp16", "codec+vir", "shared_codec+vir",
-                                         "sh_l1_cell+vir", "vir+own"};
+constexpr const char* kUnseenLabels[] = {"raw_fp16+carried_fp16", "codec+vir", "per_cell_codec+vir",
+                                         "shared_codec+vir", "vir+own"};
 
 // The scene under every unseen lighting (not the Cornell box: its light is its own emitter).
 std::vector<Result> measureUnseen(Prepared& p, const std::vector<Method>& methods, gpu::Context& ctx,
@@ -815,12 +816,13 @@ void run(const Args& a) {
   const auto scenes = sceneList(a, bs);
   std::vector<Result> rows;
   std::vector<Result> unseen;
-  double bakeS = 0.0, cellProbes = 0.0, cellArea = 0.0;
+  double bakeS = 0.0, perCellBakeS = 0.0, cellProbes = 0.0, cellArea = 0.0;
   for (size_t i = 0; i < scenes.size(); ++i) {
     Prepared p = prepare(scenes[i](), *ctx, bs, shared.settings, model);
     if (p.scene.kind != "leak" && p.scene.kind != "cornell" && p.scene.kind != "sponza")
       cellProbes += double(activeCount(p.capture)), cellArea += 32.0 * 32.0;
-    bakeS += p.cells.at("per-cell").seconds;
+    bakeS += p.cells.at("sh-l1").seconds;
+    perCellBakeS += p.cells.at("per-cell").seconds;
     spdlog::info("[{}/{}] {}: {} active probes", i + 1, scenes.size(), p.scene.name, activeCount(p.capture));
     for (const Method& m : methods) {
       if (InterruptGuard::interrupted()) fail("interrupted");
@@ -842,6 +844,7 @@ void run(const Args& a) {
     addRow(o, all[m.label()]);
   }
   writeSummary(o, all, scenes.size(), bs, bakeS);
+  o.summary()["per_cell_codec_bake_s"] = perCellBakeS;
   for (const Method& m : methods) {
     const auto [mean, worst] = ratioVsRaw(rows, m.label());
     o.summary()["image_ratio_vs_raw_per_scene"][m.label()] = {{"mean", jsonOrNull(mean)},
