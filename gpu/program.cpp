@@ -1,5 +1,6 @@
 #include "gpu/program.h"
 
+#include <dlfcn.h>
 #include <spirv_cross/spirv_cross_c.h>
 #include <unistd.h>
 
@@ -105,9 +106,17 @@ std::filesystem::path shaderDirectory() {
       std::filesystem::path(std::string(buf, static_cast<size_t>(n))).parent_path();
   for (const auto& candidate : {exeDir.parent_path() / "shaders", exeDir / "shaders"})
     if (std::filesystem::is_directory(candidate)) return candidate;
+  // Embedded (the installed lfgi::runtime library): PREFIX/lib/liblfgi_runtime.so ->
+  // PREFIX/share/lfgi/shaders.
+  Dl_info self{};
+  if (::dladdr(reinterpret_cast<void*>(&shaderDirectory), &self) != 0 && self.dli_fname) {
+    const std::filesystem::path libDir = std::filesystem::path(self.dli_fname).parent_path();
+    const std::filesystem::path installed = libDir.parent_path() / "share" / "lfgi" / "shaders";
+    if (std::filesystem::is_directory(installed)) return installed;
+  }
   fail(
-      "no compiled shaders next to {} (looked in ../shaders and ./shaders); build the lfgi_shaders target or "
-      "set LFGI_SHADER_DIR",
+      "no compiled shaders next to {} (looked in ../shaders and ./shaders, and share/lfgi/shaders beside the "
+      "library); build the lfgi_shaders target or set LFGI_SHADER_DIR",
       exeDir.string());
 }
 
