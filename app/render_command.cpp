@@ -312,7 +312,8 @@ void decodeCellFiles(RenderState& st, WorldProbes& w) {
     if (cf.generator && cf.generator->shared && !shared)
       shared = loadSharedModel(sharedModelPath(paths[j].parent_path().parent_path()));
     ProbeField decoded =
-        bake::codecProbeField(cf, paths[j].string(), st.sky, res, 8, 1.0e4f, shared ? &*shared : nullptr);
+        bake::codecProbeField(cf, paths[j].string(), st.sky, res, streamedIrradianceResolution(res), 1.0e4f,
+                              shared ? &*shared : nullptr);
     const size_t k = files[j].first;
     if (w.wantFallbacks) w.fallbacks[k] = bake::fieldFallback(decoded);
     spdlog::info("cell {},{}: decoded {} probes from {} ({}){}", cf.cellX, cf.cellZ, cf.activeProbeCount(),

@@ -17,10 +17,6 @@
 
 namespace lfgi::bake {
 
-// One GpuMaterial per mesh material: albedo x (mean linear colour of its texture, if any), roughness,
-// metallic, emission, double-sided flag. Textures are not sampled per pixel on the GPU (stated limit).
-std::vector<shared::GpuMaterial> gpuMaterials(const worlds::TriangleMesh& mesh);
-
 // A cell's ProbeField from a capture: probe k of `result` is grid probe gridIndex[k] (its offset from the
 // lattice point is kept); grid probes without a captured probe (or not done) are inactive with zero maps.
 // Throws lfgi::Error if sizes disagree, an index is out of range, or the captures' resolutions differ.

@@ -7,13 +7,15 @@
 #include "core/error.h"
 #include "core/metrics.h"
 #include "gpu/timing.h"
+#include "worlds/gpu_materials.h"
 #include "worlds/world_cells.h"
 
 namespace lfgi::bake {
 
 ShadingRenderer::ShadingRenderer(gpu::Context& ctx, const worlds::TriangleMesh& mesh)
     : ctx_(ctx),
-      scene_(gpu::buildGpuScene(mesh.positions, mesh.indices, mesh.triangleMaterial, gpuMaterials(mesh))),
+      scene_(gpu::buildGpuScene(mesh.positions, mesh.indices, mesh.triangleMaterial,
+                                worlds::gpuMaterials(mesh))),
       buffers_(gpu::uploadGpuScene(ctx, scene_)),
       gbuffer_(ctx),
       shading_(ctx) {}

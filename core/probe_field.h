@@ -10,6 +10,12 @@
 
 namespace lfgi {
 
+// The irradiance map size m the streamed decode gives a field of n x n radiance maps (cells read by the
+// streaming manager, and `lfgi render --probes codec`, which shows what streams): max(2, n / 2).
+constexpr int streamedIrradianceResolution(int n) {
+  return n / 2 > 2 ? n / 2 : 2;
+}
+
 struct ProbeField {
   ProbeGrid grid;                  // probe i sits at grid.probePosition(grid.probeCoord(i)) + offsets[i]
   int resolution = 16;             // n: radiance, distance (and optional normal/albedo) maps

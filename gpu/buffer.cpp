@@ -91,6 +91,14 @@ Buffer::~Buffer() {
   release();
 }
 
+Buffer Buffer::borrow(VkBuffer buffer, VkDeviceSize size) {
+  if (buffer == VK_NULL_HANDLE || size == 0) fail("borrowed Vulkan buffer: null handle or zero size");
+  Buffer b;
+  b.buffer_ = buffer;  // device_ stays null: release() leaves the handle to its owner
+  b.size_ = size;
+  return b;
+}
+
 void Buffer::release() {
   if (device_ == VK_NULL_HANDLE) return;
   if (buffer_) vkDestroyBuffer(device_, buffer_, nullptr);
@@ -150,6 +158,23 @@ void readbackBuffer(Context& ctx, const Buffer& src, std::span<std::byte> out, V
 void fillBuffer(Context& ctx, Buffer& dst, uint32_t value) {
   submitAndWait(ctx,
                 [&](VkCommandBuffer cmd) { vkCmdFillBuffer(cmd, dst.handle(), 0, VK_WHOLE_SIZE, value); });
+}
+
+void recordBufferUpdate(VkCommandBuffer cmd, Buffer& dst, std::span<const std::byte> bytes) {
+  if (bytes.empty() || bytes.size() > 65536 || bytes.size() % 4 != 0 || bytes.size() > dst.size())
+    fail("recordBufferUpdate: {} bytes into a {}-byte buffer (1..65536, a multiple of 4)", bytes.size(),
+         dst.size());
+  VkMemoryBarrier before{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  before.srcAccessMask = VK_ACCESS_SHADER_READ_BIT;
+  before.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 1,
+                       &before, 0, nullptr, 0, nullptr);
+  vkCmdUpdateBuffer(cmd, dst.handle(), 0, bytes.size(), bytes.data());
+  VkMemoryBarrier after{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  after.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+  after.dstAccessMask = VK_ACCESS_SHADER_READ_BIT;
+  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
+                       &after, 0, nullptr, 0, nullptr);
 }
 
 }  // namespace lfgi::gpu

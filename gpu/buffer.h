@@ -25,6 +25,9 @@ class Buffer {
   Buffer(const Buffer&) = delete;
   Buffer& operator=(const Buffer&) = delete;
   ~Buffer();
+  // A view of a buffer someone else owns (a host engine's): binds like any Buffer, never destroyed here.
+  // size: the bytes the passes may address (the owner's allocation must hold at least that many).
+  static Buffer borrow(VkBuffer buffer, VkDeviceSize size);
 
   VkBuffer handle() const { return buffer_; }
   VkDeviceSize size() const { return size_; }
@@ -53,6 +56,11 @@ void readbackBuffer(Context& ctx, const Buffer& src, std::span<std::byte> out, V
 
 // Fills the buffer with a 32-bit pattern on the device (vkCmdFillBuffer) and waits.
 void fillBuffer(Context& ctx, Buffer& dst, uint32_t value);
+
+// Records an in-stream update of dst[0, bytes.size()) (vkCmdUpdateBuffer: at most 65536 bytes, a multiple of
+// 4) between two barriers: earlier compute reads finish before it, later compute reads see it. For small
+// per-view parameters recorded into a command buffer someone else submits. Throws lfgi::Error on a bad size.
+void recordBufferUpdate(VkCommandBuffer cmd, Buffer& dst, std::span<const std::byte> bytes);
 
 template <typename T>
 void upload(Context& ctx, Buffer& dst, std::span<const T> data, VkDeviceSize offset = 0) {

@@ -241,6 +241,10 @@ std::vector<DeviceInfo> listDevices() {
 }
 
 Context::~Context() {
+  if (device && !ownsDevice) {
+    if (commandPool) vkDestroyCommandPool(device, commandPool, nullptr);
+    return;  // the host's device, instance and queue stay the host's
+  }
   if (device) {
     vkDeviceWaitIdle(device);
     if (commandPool) vkDestroyCommandPool(device, commandPool, nullptr);
@@ -352,6 +356,51 @@ std::unique_ptr<Context> createContext(const ContextOptions& options) {
   return ctx;
 }
 
+std::unique_ptr<Context> adoptContext(const HostDevice& host) {
+  if (!host.instance || !host.physicalDevice || !host.device || !host.queue)
+    fail("host Vulkan device: instance, physical device, device and queue must all be set");
+  auto ctx = std::make_unique<Context>();
+  ctx->ownsDevice = false;
+  ctx->instance = host.instance;
+  ctx->physicalDevice = host.physicalDevice;
+  ctx->device = host.device;
+  ctx->queue = host.queue;
+  ctx->queueFamily = host.queueFamily;
+  ctx->queueMutex = host.queueMutex;
+  ctx->features.shaderInt64 = host.shaderInt64Enabled;
+  ctx->features.shaderBufferInt64Atomics = host.int64AtomicsEnabled;
+  ctx->info = describe(host.physicalDevice);
+  vkGetPhysicalDeviceProperties(host.physicalDevice, &ctx->properties);
+  vkGetPhysicalDeviceMemoryProperties(host.physicalDevice, &ctx->memoryProperties);
+  if (ctx->properties.apiVersion < VK_API_VERSION_1_3)
+    fail("host Vulkan device '{}' supports only Vulkan {}.{}; lfgi needs 1.3", ctx->info.name,
+         VK_API_VERSION_MAJOR(ctx->properties.apiVersion), VK_API_VERSION_MINOR(ctx->properties.apiVersion));
+  if (!host.pushDescriptorEnabled)
+    fail("host Vulkan device '{}': enable {} at vkCreateDevice (lfgi binds its buffers with it)",
+         ctx->info.name, VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME);
+  if (!host.maintenance4Enabled)
+    fail(
+        "host Vulkan device '{}': enable VkPhysicalDeviceVulkan13Features::maintenance4 at vkCreateDevice "
+        "(lfgi's SPIR-V uses LocalSizeId)",
+        ctx->info.name);
+  uint32_t families = 0;
+  vkGetPhysicalDeviceQueueFamilyProperties(host.physicalDevice, &families, nullptr);
+  std::vector<VkQueueFamilyProperties> props(families);
+  vkGetPhysicalDeviceQueueFamilyProperties(host.physicalDevice, &families, props.data());
+  if (host.queueFamily >= families || !(props[host.queueFamily].queueFlags & VK_QUEUE_COMPUTE_BIT))
+    fail("host Vulkan device '{}': queue family {} has no compute queue", ctx->info.name, host.queueFamily);
+  ctx->cmdPushDescriptorSet = reinterpret_cast<PFN_vkCmdPushDescriptorSetKHR>(
+      vkGetDeviceProcAddr(host.device, "vkCmdPushDescriptorSetKHR"));
+  if (!ctx->cmdPushDescriptorSet)
+    fail("host Vulkan device '{}': vkCmdPushDescriptorSetKHR not found (enable {})", ctx->info.name,
+         VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME);
+  VkCommandPoolCreateInfo poolInfo{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+  poolInfo.flags = VK_COMMAND_POOL_CREATE_TRANSIENT_BIT | VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+  poolInfo.queueFamilyIndex = host.queueFamily;
+  check(vkCreateCommandPool(host.device, &poolInfo, nullptr, &ctx->commandPool), "vkCreateCommandPool");
+  return ctx;
+}
+
 void submitAndWait(Context& ctx, const std::function<void(VkCommandBuffer)>& record) {
   VkCommandBufferAllocateInfo alloc{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
   alloc.commandPool = ctx.commandPool;
@@ -375,9 +424,15 @@ void submitAndWait(Context& ctx, const std::function<void(VkCommandBuffer)>& rec
     VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
     submit.commandBufferCount = 1;
     submit.pCommandBuffers = &cmd;
-    check(vkQueueSubmit(ctx.queue, 1, &submit, fence), "vkQueueSubmit");
+    {
+      std::unique_lock<std::mutex> lock;
+      if (ctx.queueMutex) lock = std::unique_lock(*ctx.queueMutex);
+      check(vkQueueSubmit(ctx.queue, 1, &submit, fence), "vkQueueSubmit");
+    }
     check(vkWaitForFences(ctx.device, 1, &fence, VK_TRUE, UINT64_MAX), "vkWaitForFences");
   } catch (...) {
+    std::unique_lock<std::mutex> lock;
+    if (ctx.queueMutex) lock = std::unique_lock(*ctx.queueMutex);
     vkQueueWaitIdle(ctx.queue);
     cleanup();
     throw;

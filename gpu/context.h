@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -60,6 +61,11 @@ struct Context {
   std::atomic<uint32_t> validationErrors{0};
   std::atomic<uint32_t> validationWarnings{0};
   PFN_vkCmdPushDescriptorSetKHR cmdPushDescriptorSet = nullptr;
+  // False for a context adopted from a host (adoptContext): the destructor then destroys only the command
+  // pool lfgi created, never the host's device or instance, and does not wait for the host's device.
+  bool ownsDevice = true;
+  // Held around every submit and wait on `queue` when set (a queue shared with a host engine's threads).
+  std::mutex* queueMutex = nullptr;
 
   Context() = default;
   Context(const Context&) = delete;
@@ -71,6 +77,26 @@ struct Context {
 // device exists (names VK_ICD_FILENAMES / VK_DRIVER_FILES and the lavapipe package), the requested
 // device is not found (lists the available ones), or the device lacks Vulkan 1.3 / push descriptors.
 std::unique_ptr<Context> createContext(const ContextOptions& options = {});
+
+// A device a host engine created and owns (lfgi/runtime_vulkan.h): lfgi records into it and submits on
+// its queue, never destroys it.
+struct HostDevice {
+  VkInstance instance = VK_NULL_HANDLE;
+  VkPhysicalDevice physicalDevice = VK_NULL_HANDLE;
+  VkDevice device = VK_NULL_HANDLE;
+  VkQueue queue = VK_NULL_HANDLE;  // a queue of queueFamily with compute and transfer
+  uint32_t queueFamily = 0;
+  bool pushDescriptorEnabled = false;  // VK_KHR_push_descriptor among the device's enabled extensions
+  bool maintenance4Enabled = false;    // VkPhysicalDeviceVulkan13Features::maintenance4 enabled
+  bool shaderInt64Enabled = false;     // VkPhysicalDeviceFeatures::shaderInt64 enabled (VIR)
+  bool int64AtomicsEnabled = false;    // VkPhysicalDeviceVulkan12Features::shaderBufferInt64Atomics (VIR)
+  std::mutex* queueMutex = nullptr;    // Context::queueMutex
+};
+
+// Wraps a host's device in a Context that does not own it (ownsDevice = false; its own command pool on
+// queueFamily for uploads). Throws lfgi::Error naming what is missing: a null handle, a device below
+// Vulkan 1.3, push descriptors or maintenance4 not enabled, a queue family without compute.
+std::unique_ptr<Context> adoptContext(const HostDevice& host);
 
 // Lists every physical device the loader sees (creates a short-lived instance). Throws like createContext.
 std::vector<DeviceInfo> listDevices();

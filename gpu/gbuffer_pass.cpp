@@ -290,14 +290,30 @@ GBufferPass::GBufferPass(Context& ctx)
       program_(ctx, "gbuffer_raycast"),
       params_(createStorageBuffer(ctx, sizeof(shared::GBufferParams))) {}
 
-void GBufferPass::setCamera(const shared::GpuCamera& camera, int width, int height,
-                            const GpuSceneBuffers& scene, float maxDistance) {
+namespace {
+
+shared::GBufferParams cameraParams(const shared::GpuCamera& camera, int width, int height,
+                                   const GpuSceneBuffers& scene, float maxDistance) {
   shared::GBufferParams p{};
   p.camera = camera;
   p.size = glm::uvec4(uint32_t(width), uint32_t(height), scene.triangleCount > 0 ? scene.nodeCount : 0u,
                       scene.triangleCount);
   p.ray = glm::vec4(maxDistance, 0.0f, 0.0f, 0.0f);
+  return p;
+}
+
+}  // namespace
+
+void GBufferPass::setCamera(const shared::GpuCamera& camera, int width, int height,
+                            const GpuSceneBuffers& scene, float maxDistance) {
+  const shared::GBufferParams p = cameraParams(camera, width, height, scene, maxDistance);
   upload<shared::GBufferParams>(ctx_, params_, std::span(&p, 1));
+}
+
+void GBufferPass::recordCamera(VkCommandBuffer cmd, const shared::GpuCamera& camera, int width, int height,
+                               const GpuSceneBuffers& scene, float maxDistance) {
+  const shared::GBufferParams p = cameraParams(camera, width, height, scene, maxDistance);
+  recordBufferUpdate(cmd, params_, std::as_bytes(std::span(&p, 1)));
 }
 
 void GBufferPass::record(VkCommandBuffer cmd, const GpuSceneBuffers& scene, GBuffer& g) const {

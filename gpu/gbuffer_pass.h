@@ -70,6 +70,9 @@ class GBufferPass {
   void record(VkCommandBuffer cmd, const GpuSceneBuffers& scene, GBuffer& g) const;
   void setCamera(const shared::GpuCamera& camera, int width, int height, const GpuSceneBuffers& scene,
                  float maxDistance = 1.0e4f);
+  // setCamera recorded into cmd (recordBufferUpdate) instead of uploaded.
+  void recordCamera(VkCommandBuffer cmd, const shared::GpuCamera& camera, int width, int height,
+                    const GpuSceneBuffers& scene, float maxDistance = 1.0e4f);
 
  private:
   Context& ctx_;

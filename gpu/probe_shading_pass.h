@@ -125,9 +125,26 @@ class ProbeShadingPass {
   explicit ProbeShadingPass(Context& ctx);
   // Uploads the probes (replaces earlier ones).
   void setProbes(const ShadingProbeSet& probes);
+  // Streaming (the installed runtime): a device pool of `slots` slots of probesPerSlot probes each, maps of
+  // the given resolutions and specularLevels levels of raw radiance; a cell's maps are uploaded once into
+  // its slot when it becomes resident, and the cell table alone changes with residency, fades and
+  // fallbacks. reservePool replaces earlier probes (every slot starts inactive).
+  void reservePool(int slots, int64_t probesPerSlot, int irradianceResolution, int resolution,
+                   int specularLevels = 1);
+  // Uploads field into pool slot `slot`; returns the bytes uploaded. Throws if it does not fit the pool.
+  size_t uploadPoolSlot(int slot, const ProbeField& field);
+  // The cells to shade: a full cell reads pool slot slots[k] (its maps uploaded there), a fallback-only
+  // cell its box (slots[k] ignored). Uploads the cell table only. Throws like packShadingProbes.
+  void setPoolCells(std::span<const ShadingCellInput> cells, std::span<const int> slots);
+  // Device memory the pass holds for probes, cells and parameters (bytes).
+  size_t deviceBytes() const;
   // Uploads the per-view parameters.
   void setView(const shared::SkyParams& sky, const shared::GpuCamera& camera, int width, int height,
                const GpuSceneBuffers& scene, const ShadingOptions& options);
+  // setView recorded into cmd (recordBufferUpdate) instead of uploaded: for a command buffer the caller
+  // submits (several views in one buffer each see their own parameters).
+  void recordView(VkCommandBuffer cmd, const shared::SkyParams& sky, const shared::GpuCamera& camera,
+                  int width, int height, const GpuSceneBuffers& scene, const ShadingOptions& options);
   // Records the pass. Throws if setProbes/setView were not called or sizes disagree.
   void record(VkCommandBuffer cmd, const GpuSceneBuffers& scene, const GBuffer& g, ShadeOutput& out) const;
 
@@ -140,6 +157,12 @@ class ProbeShadingPass {
   glm::uvec4 maps_{0};
   int width_ = 0, height_ = 0;
   bool haveProbes_ = false;
+  struct Pool {
+    int slots = 0;
+    int64_t probesPerSlot = 0;
+  } pool_;
+  shared::ShadeParams viewParams(const shared::SkyParams& sky, const shared::GpuCamera& camera, int width,
+                                 int height, const GpuSceneBuffers& scene, const ShadingOptions& o);
 };
 
 }  // namespace lfgi::gpu

@@ -32,12 +32,14 @@ uint64_t usSince(Clock::time_point t0) {
 }
 
 int irradianceResolutionFor(int n, int option) {
-  return option > 0 ? option : std::max(2, n / 2);
+  return option > 0 ? option : streamedIrradianceResolution(n);
 }
 
 size_t fieldBytesFor(int64_t probes, int n, int m) {
   const size_t P = size_t(probes), tn = size_t(n) * size_t(n), tm = size_t(m) * size_t(m);
-  return sizeof(float) * P * (tn * 3 + tn * 2 + tm * 3) + P;  // + the active flags
+  // + the active flags, + room for the probes' relocation offsets, which VIR visibility on load sets
+  // (streaming/vir_relight_source.h: the probes sit where their moments were seen)
+  return sizeof(float) * P * (tn * 3 + tn * 2 + tm * 3) + P + sizeof(glm::vec3) * P;
 }
 
 // The semantic checks of a cell file against the world it is streamed into (readCellFile has checked
@@ -367,6 +369,7 @@ int CellFileSource::scanCellFiles(int cells, std::optional<GeneratorWeights>& pr
         inf.state = CellFileState::Valid;
         inf.network = file.generator.has_value();
         inf.probes = file.grid.probeCount();
+        inf.grid = file.grid;
         inf.activeProbes = file.activeProbeCount();
         inf.resolution = inf.network ? file.generator->weights.arch.outputResolution() : 0;
         if (inf.network) maxGeneratorN = std::max(maxGeneratorN, inf.resolution);

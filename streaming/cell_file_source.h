@@ -80,6 +80,7 @@ struct CellFileInfo {
   std::string error;     // Missing / Corrupt: why
   bool network = false;  // a generator is stored
   int64_t probes = 0;    // grid probe count
+  ProbeGrid grid;        // the cell's probe lattice (Valid cells)
   int64_t activeProbes = 0;
   int resolution = 0;     // n the decoded field will have
   int fallbackKeys = 0;   // lighting keys of the fallback at the source's weather (Valid cells)

@@ -8,8 +8,7 @@
 #include <system_error>
 
 #include "core/error.h"
-#include "streaming/cell_file_source.h"
-#include "streaming/streaming_manager.h"
+#include "streaming/runtime_impl.h"
 
 #ifndef LFGI_VERSION_STRING
 #error "LFGI_VERSION_STRING must be defined by the build"
@@ -17,25 +16,9 @@
 
 namespace lfgi {
 
-struct Runtime::Impl {
-  std::unique_ptr<streaming::CellFileSource> source;
-  std::unique_ptr<streaming::StreamingManager> manager;
-};
+namespace {}  // namespace
 
-namespace {
-
-template <typename F>
-auto asRuntimeError(F&& f) -> decltype(f()) {
-  try {
-    return f();
-  } catch (const RuntimeError&) {
-    throw;
-  } catch (const std::exception& e) {
-    throw RuntimeError(e.what());
-  }
-}
-
-void checkConfig(const RuntimeConfig& c) {
+void checkRuntimeConfig(const RuntimeConfig& c) {
   if (c.world.empty())
     throw RuntimeError("lfgi runtime: RuntimeConfig::world is empty (a baked world directory)");
   if (c.memoryBudgetBytes == 0)
@@ -59,6 +42,8 @@ void checkConfig(const RuntimeConfig& c) {
         "{}: no world.json (not a world directory; `lfgi world generate` makes one)", c.world.string()));
 }
 
+namespace {
+
 glm::vec3 vec(const float* v) {
   return {v[0], v[1], v[2]};
 }
@@ -77,23 +62,52 @@ void checkFrame(const Frame& f) {
 
 }  // namespace
 
+std::unique_ptr<Runtime::Impl> Runtime::Impl::open(const RuntimeConfig& config,
+                                                   std::unique_ptr<gpu::Context> virContext) {
+  auto impl = std::make_unique<Impl>();
+  impl->config = config;
+  impl->virContext = std::move(virContext);
+  streaming::CellFileSourceOptions so;
+  so.worldDir = config.world;
+  so.decoder = streaming::DecoderChoice::Cpu;
+  impl->source = std::make_unique<streaming::CellFileSource>(so);
+  streaming::CellSource* source = impl->source.get();
+  if (config.virVisibility) {
+    if (!impl->virContext) fail("lfgi runtime: virVisibility needs a Vulkan device");
+    streaming::VirRelightOptions vo;
+    vo.relightByVir = false;  // time of day from the baked keys; visibility from the geometry
+    vo.maxRange = impl->source->layout().cellSize;  // as `lfgi render --probes codec`
+    impl->vir = std::make_unique<streaming::VirRelightSource>(
+        *impl->source, *impl->virContext, vo,
+        streaming::neighbourhoodSurfelProvider(streaming::worldSurfelProvider(config.world),
+                                               impl->source->layout()));
+    source = impl->vir.get();
+  }
+  streaming::StreamingConfig sc;
+  sc.memoryBudgetBytes = config.memoryBudgetBytes;
+  sc.decodeRadius = config.decodeRadius;
+  sc.keepRadius = config.keepRadius;
+  sc.ioThreads = config.ioThreads;
+  sc.activateBudgetMs = config.activateBudgetMs;
+  sc.validate();
+  impl->manager = std::make_unique<streaming::StreamingManager>(*source, sc);
+  return impl;
+}
+
 std::unique_ptr<Runtime> Runtime::open(const RuntimeConfig& config) {
-  checkConfig(config);
+  checkRuntimeConfig(config);
   return asRuntimeError([&] {
-    auto impl = std::make_unique<Impl>();
-    streaming::CellFileSourceOptions so;
-    so.worldDir = config.world;
-    so.decoder = streaming::DecoderChoice::Cpu;
-    impl->source = std::make_unique<streaming::CellFileSource>(so);
-    streaming::StreamingConfig sc;
-    sc.memoryBudgetBytes = config.memoryBudgetBytes;
-    sc.decodeRadius = config.decodeRadius;
-    sc.keepRadius = config.keepRadius;
-    sc.ioThreads = config.ioThreads;
-    sc.activateBudgetMs = config.activateBudgetMs;
-    sc.validate();
-    impl->manager = std::make_unique<streaming::StreamingManager>(*impl->source, sc);
-    return std::unique_ptr<Runtime>(new Runtime(std::move(impl)));
+    std::unique_ptr<gpu::Context> ctx;
+    if (config.virVisibility) {
+      try {
+        ctx = gpu::createContext();
+      } catch (const Error& e) {
+        throw RuntimeError(fmt::format(
+            "lfgi runtime: VIR visibility (RuntimeConfig::virVisibility) needs a Vulkan device: {}",
+            e.what()));
+      }
+    }
+    return std::unique_ptr<Runtime>(new Runtime(Impl::open(config, std::move(ctx))));
   });
 }
 
@@ -110,6 +124,8 @@ FrameReport Runtime::update(const Frame& frame) {
     in.timeOfDayHours = frame.timeOfDayHours;
     in.dtSeconds = frame.dtSeconds;
     const streaming::FrameStats s = impl_->manager->update(in);
+    impl_->camera = in.position;
+    impl_->timeOfDayHours = in.timeOfDayHours;
     FrameReport r;
     r.frame = s.frame;
     r.residentCells = s.resident;

@@ -1,11 +1,13 @@
 // The public runtime API (include/lfgi/runtime.h) as a host sees it: the test binary links lfgi::runtime
 // (the shared library) for the API and lfgi_core / lfgi_worlds only to write its test world.
 #include "lfgi/runtime.h"
+#include "lfgi/runtime_vulkan.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <filesystem>
+#include <mutex>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -14,6 +16,9 @@
 
 #include "core/cell_file.h"
 #include "core/half.h"
+#include "gpu/buffer.h"
+#include "gpu/context.h"
+#include "gpu/gbuffer_pass.h"
 #include "worlds/world_cells.h"
 
 namespace lfgi {
@@ -116,6 +121,102 @@ TEST(Runtime, BadInputsGiveNamedErrors) {
   // A world that was never baked.
   fs::remove_all(c.world / "baked");
   EXPECT_NE(errorOf(c).find("no cell-file directory"), std::string::npos) << errorOf(c);
+}
+
+// The host's device as lfgi takes it (the test's own gpu::Context plays the host).
+VulkanDevice hostDevice(const gpu::Context& ctx, std::mutex* queueMutex) {
+  return {ctx.instance, ctx.physicalDevice,       ctx.device,
+          ctx.queue,    ctx.queueFamily,          true,
+          true,         ctx.features.shaderInt64, ctx.features.shaderBufferInt64Atomics,
+          queueMutex};
+}
+
+template <typename F>
+std::string errorText(F&& f) {
+  try {
+    f();
+  } catch (const RuntimeError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Runtime, ShadesOnAHostDeviceItNeverCreatesOrDestroys) {
+  const std::unique_ptr<gpu::Context> host = gpu::createContext();
+  std::mutex queueMutex;
+  RuntimeConfig c;
+  c.world = makeWorld("host_device");
+  c.ioThreads = 0;
+  c.decodeRadius = 40.0f;
+  c.keepRadius = 60.0f;
+  // The device features the contract names.
+  VulkanDevice bad = hostDevice(*host, &queueMutex);
+  bad.int64AtomicsEnabled = false;
+  EXPECT_NE(errorText([&] { Runtime::open(c, bad); }).find("shaderBufferInt64Atomics"), std::string::npos);
+  RuntimeConfig threaded = c;
+  threaded.ioThreads = 2;
+  EXPECT_NE(errorText([&] { Runtime::open(threaded, hostDevice(*host, nullptr)); }).find("queueMutex"),
+            std::string::npos);
+  {
+    const std::unique_ptr<Runtime> rt = Runtime::open(c, hostDevice(*host, &queueMutex));
+    bad = hostDevice(*host, &queueMutex);
+    bad.pushDescriptorEnabled = false;
+    EXPECT_NE(errorText([&] { VulkanShading::create(*rt, bad); }).find("VK_KHR_push_descriptor"),
+              std::string::npos);
+    bad = hostDevice(*host, &queueMutex);
+    bad.maintenance4Enabled = false;
+    EXPECT_NE(errorText([&] { VulkanShading::create(*rt, bad); }).find("maintenance4"), std::string::npos);
+    const std::unique_ptr<VulkanShading> shading = VulkanShading::create(*rt, hostDevice(*host, &queueMutex));
+    Frame f;
+    f.position[0] = 20.0f, f.position[1] = 10.0f, f.position[2] = 20.0f;
+    for (int i = 0; i < 120; ++i) {
+      ASSERT_EQ(rt->update(f).failedCells, 0);
+      shading->upload();
+    }
+    EXPECT_GT(shading->deviceBytes(), 0u);
+    // A host G-buffer of 4 points in different cells, Lambertian white: diffuse = albedo / pi x pi L = L.
+    gpu::GBufferHost g;
+    g.width = 4;
+    g.height = 1;
+    for (glm::vec3 p :
+         {glm::vec3(10, 2, 10), glm::vec3(50, 3, 40), glm::vec3(40, 5, 12), glm::vec3(9, 1, 55)}) {
+      g.position.push_back(glm::vec4(p, 10.0f));
+      g.normal.push_back(glm::vec4(0.0f, 1.0f, 0.0f, 1.0f));
+      g.albedo.push_back(glm::vec4(1.0f, 1.0f, 1.0f, 0.0f));
+      g.emission.push_back(glm::vec4(0.0f));
+    }
+    gpu::GBuffer gb = gpu::createGBuffer(*host, 4, 1);
+    gpu::writeGBuffer(*host, g, gb);
+    gpu::Buffer diffuse = gpu::createStorageBuffer(*host, 4 * sizeof(glm::vec4));
+    const ShadeTarget target{4,
+                             1,
+                             gb.position.handle(),
+                             gb.normal.handle(),
+                             gb.albedo.handle(),
+                             gb.emission.handle(),
+                             diffuse.handle(),
+                             VK_NULL_HANDLE};
+    const View view{{30.0f, 20.0f, 30.0f}, {30.0f, 0.0f, 31.0f}, 60.0f};
+    gpu::submitAndWait(*host, [&](VkCommandBuffer cmd) {  // the host's command buffer on its queue
+      shading->record(cmd, target, view);
+      gpu::memoryBarrier(cmd);
+    });
+    std::vector<glm::vec4> out(4);
+    gpu::readback<glm::vec4>(*host, diffuse, out);
+    for (const glm::vec4& v : out)
+      for (int k = 0; k < 3; ++k) EXPECT_NEAR(v[k], kRadiance, 0.01f);
+    ShadeTarget noDiffuse = target;
+    noDiffuse.diffuse = VK_NULL_HANDLE;
+    EXPECT_NE(errorText([&] { shading->record(VK_NULL_HANDLE, noDiffuse, view); }).find("diffuse"),
+              std::string::npos);
+  }
+  // lfgi is gone; the host's device is not: it still runs work, and no validation error was raised.
+  gpu::Buffer b = gpu::createStorageBuffer(*host, 64);
+  gpu::fillBuffer(*host, b, 7u);
+  std::vector<uint32_t> words(16);
+  gpu::readback<uint32_t>(*host, b, words);
+  EXPECT_EQ(words[3], 7u);
+  EXPECT_EQ(host->validationErrors.load(), 0u);
 }
 
 TEST(Runtime, ReportsItsVersion) {

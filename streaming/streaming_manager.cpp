@@ -162,6 +162,7 @@ void StreamingManager::finishRelight(int i, FrameStats& stats) {
     slot.litWeather = st.weather;
   } else {
     std::swap(slot.field, st.field);  // the old lighting stays in the staging field for reuse
+    slot.version = ++fieldVersions_;
     slot.litTimeOfDay = st.timeOfDay;
     slot.litWeather = st.weather;
     if (config_.relightFadeSeconds > 0.0f) {  // blend from the old lighting, still in st.field
@@ -432,6 +433,7 @@ void StreamingManager::activateLoaded(const FrameInput& in, FrameStats& stats) {
     Slot& slot = slots_[size_t(best)];
     if (onActivate) onActivate(slot.cell, slot.field);
     slot.state = SlotState::Active;
+    slot.version = ++fieldVersions_;
     slot.fade = config_.fadeSeconds > 0.0f ? 0.0f : 1.0f;
     slot.litTimeOfDay = in.timeOfDayHours;
     slot.litWeather = in.weather;
@@ -521,8 +523,17 @@ float StreamingManager::fade(glm::ivec2 cell) const {
 namespace {
 
 // Irradiance of field f at p for normal n: trilinear over probes, bilinear within the octahedral map.
-glm::vec3 sampleField(const ProbeField& f, glm::vec3 p, glm::vec3 n) {
+// Trilinear over the active probes of p's cube (probes inside solid left out, the weights renormalised over
+// the others, as the GPU shading pass does); false when all 8 are inactive.
+bool sampleField(const ProbeField& f, glm::vec3 p, glm::vec3 n, glm::vec3& out) {
   TrilinearProbes tri = f.grid.trilinear(p);
+  float sum = 0.0f;
+  for (int k = 0; k < 8; ++k)
+    if (!f.isActive(tri.indices[size_t(k)]))
+      tri.weights[size_t(k)] = 0.0f;
+    else
+      sum += tri.weights[size_t(k)];
+  if (!(sum > 0.0f)) return false;
   const int m = f.irradianceResolution, bm = octBorderedSize(m);
   thread_local std::vector<float> bordered;  // one probe's irradiance map with its border, reused
   bordered.resize(octBorderedFloats(m, 3));
@@ -537,17 +548,20 @@ glm::vec3 sampleField(const ProbeField& f, glm::vec3 p, glm::vec3 n) {
     octSampleBilinear(bordered.data(), m, 3, n, v);
     e += tri.weights[size_t(k)] * glm::vec3(v[0], v[1], v[2]);
   }
-  return e;
+  out = e / sum;
+  return true;
 }
 
 }  // namespace
 
-glm::vec3 StreamingManager::sampleCell(int s, glm::vec3 p, glm::vec3 n) const {
+bool StreamingManager::sampleCell(int s, glm::vec3 p, glm::vec3 n, glm::vec3& out) const {
   const Slot& slot = slots_[size_t(s)];
-  const glm::vec3 e = sampleField(slot.field, p, n);
-  if (slot.blendFrom < 0) return e;
-  const float b = slot.relightBlend;
-  return b * e + (1.0f - b) * sampleField(staging_[size_t(slot.blendFrom)].field, p, n);
+  glm::vec3 e(0.0f), before(0.0f);
+  if (!sampleField(slot.field, p, n, e)) return false;
+  out = e;
+  if (slot.blendFrom >= 0 && sampleField(staging_[size_t(slot.blendFrom)].field, p, n, before))
+    out = slot.relightBlend * e + (1.0f - slot.relightBlend) * before;
+  return true;
 }
 
 float StreamingManager::relightBlend(glm::ivec2 cell) const {
@@ -559,6 +573,16 @@ const ProbeField* StreamingManager::previousLighting(glm::ivec2 cell) const {
   if (!isResident(cell)) return nullptr;
   const Slot& slot = slots_[size_t(cellSlot_[size_t(layout_.linear(cell))])];
   return slot.blendFrom >= 0 ? &staging_[size_t(slot.blendFrom)].field : nullptr;
+}
+
+const ProbeField* StreamingManager::residentField(glm::ivec2 cell) const {
+  if (!isResident(cell)) return nullptr;
+  return &slots_[size_t(cellSlot_[size_t(layout_.linear(cell))])].field;
+}
+
+uint64_t StreamingManager::fieldVersion(glm::ivec2 cell) const {
+  if (!isResident(cell)) return 0;
+  return slots_[size_t(cellSlot_[size_t(layout_.linear(cell))])].version;
 }
 
 // The cell's value at p: full field blended with the (bilinear-over-cell-centres) fallback by fade.
@@ -575,13 +599,14 @@ glm::vec3 StreamingManager::cellValue(glm::ivec2 cell, glm::vec3 p, glm::vec3 n,
     fb += w * shIrradiance(fallback_[size_t(layout_.linear(c))], n);
   }
   int s = layout_.contains(cell) ? cellSlot_[size_t(layout_.linear(cell))] : -1;
-  if (s < 0 || slots_[size_t(s)].state != SlotState::Active) {
-    fallbackWeight = 1.0f;
+  glm::vec3 e(0.0f);
+  if (s < 0 || slots_[size_t(s)].state != SlotState::Active || !sampleCell(s, p, n, e)) {
+    fallbackWeight = 1.0f;  // not resident, or every probe around p inside solid
     return fb;
   }
   float f = slots_[size_t(s)].fade;
   fallbackWeight = 1.0f - f;
-  return f * sampleCell(s, p, n) + (1.0f - f) * fb;
+  return f * e + (1.0f - f) * fb;
 }
 
 IrradianceSample StreamingManager::sample(glm::vec3 p, glm::vec3 n) const {

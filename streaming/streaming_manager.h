@@ -149,9 +149,9 @@ class StreamingManager {
 
   FrameStats update(const FrameInput& input);
 
-  // Irradiance at world point p for unit normal n from resident cells (trilinear over probes, nearest
-  // irradiance texel; no visibility term: this is the CPU view used for statistics and tests, the GPU
-  // shading pass applies Chebyshev weights) blended with fallbacks by fade.
+  // Irradiance at world point p for unit normal n from resident cells (trilinear over the active probes,
+  // renormalised; all 8 inside solid: the fallback; no visibility term: this is the CPU view used for
+  // statistics and tests, the GPU shading pass applies Chebyshev weights) blended with fallbacks by fade.
   IrradianceSample sample(glm::vec3 p, glm::vec3 n) const;
 
   bool isResident(glm::ivec2 cell) const;  // active (visible, maybe still fading in)
@@ -161,6 +161,11 @@ class StreamingManager {
   // GPU shading pass reads after onRelight: lerp(previousLighting, field, relightBlend).
   float relightBlend(glm::ivec2 cell) const;
   const ProbeField* previousLighting(glm::ivec2 cell) const;  // null when relightBlend is 1
+  // The resident (active) field of the cell, null when it is not resident. Valid until the next update().
+  const ProbeField* residentField(glm::ivec2 cell) const;
+  // Changes whenever the cell's resident field does (activation, relight swap); 0 when not resident. A GPU
+  // copy of the field made at version v is current while fieldVersion stays v.
+  uint64_t fieldVersion(glm::ivec2 cell) const;
   int slotCount() const { return int(slots_.size()); }
   int stagingCount() const { return int(staging_.size()); }
   const std::vector<StreamingEvent>& events() const { return events_; }
@@ -183,6 +188,7 @@ class StreamingManager {
     bool stale = false;  // relightOnActivate: relight at the first chance
     int blendFrom = -1;  // staging index holding the lighting before the last swap, or -1
     float relightBlend = 1.0f;
+    uint64_t version = 0;  // fieldVersion(): set from fieldVersions_ at activation and relight swap
     float priority = 0.0f;
     bool cancelled = false;
     int relight = -1;   // staging index of the relight reading this slot's field, or -1
@@ -222,7 +228,8 @@ class StreamingManager {
   void countResidency(FrameStats& stats) const;
   void freeSlot(int slot);
   void record(StreamingEventType type, glm::ivec2 cell);
-  glm::vec3 sampleCell(int slot, glm::vec3 p, glm::vec3 n) const;
+  // The slot's field at p (with its relight cross-fade); false when every probe around p is inside solid.
+  bool sampleCell(int slot, glm::vec3 p, glm::vec3 n, glm::vec3& out) const;
   void endBlend(int slot);
   glm::vec3 cellValue(glm::ivec2 cell, glm::vec3 p, glm::vec3 n, float& fallbackWeight) const;
   void ioWorker();
@@ -231,6 +238,7 @@ class StreamingManager {
   StreamingConfig config_;
   WorldLayout layout_;
   std::vector<ShL1> fallback_;
+  uint64_t fieldVersions_ = 0;
   float fallbackTimeOfDay_ =
       std::numeric_limits<float>::quiet_NaN();  // fallback_ read at (NaN: not since construction)
   std::vector<int32_t> cellSlot_;               // per cell: slot index or -1

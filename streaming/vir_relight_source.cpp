@@ -74,6 +74,20 @@ SurfelProvider worldSurfelProvider(const std::filesystem::path& worldDir) {
   };
 }
 
+SurfelProvider neighbourhoodSurfelProvider(SurfelProvider inner, const WorldLayout& layout) {
+  return [inner = std::move(inner), layout](glm::ivec2 cell) {
+    CellSurfels out = inner(cell);
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const glm::ivec2 c = cell + glm::ivec2(dx, dz);
+        if ((dx == 0 && dz == 0) || !layout.contains(c)) continue;
+        const CellSurfels next = inner(c);
+        out.surfels.insert(out.surfels.end(), next.surfels.begin(), next.surfels.end());
+      }
+    return out;
+  };
+}
+
 void VirRelightOptions::validate() const {
   worlds::validateSkyState(sky);
   if (!(weather >= 0.0f && weather <= 1.0f)) fail("VirRelightOptions.weather = {} outside [0, 1]", weather);
@@ -147,6 +161,10 @@ std::span<const glm::vec3> VirRelightSource::offsetsFor(glm::ivec2 cell, const C
 
 void VirRelightSource::load(glm::ivec2 cell, ProbeField& out) {
   inner_.load(cell, out);
+  regenerateMoments(cell, out);
+}
+
+void VirRelightSource::regenerateMoments(glm::ivec2 cell, ProbeField& out) {
   if (!options_.momentsOnLoad || out.probeCount() == 0) return;
   const auto t0 = Clock::now();
   std::lock_guard gpuLock(gpuMutex_);
@@ -156,8 +174,11 @@ void VirRelightSource::load(glm::ivec2 cell, ProbeField& out) {
   vo.noSurfelsIsSky = true;
   vo.checkInterrupt = false;
   gpu::VirFieldStats st;
-  relighter_->regenerateMoments(cs->surfels, offsetsFor(cell, *cs, size_t(out.probeCount())), vo, out,
-                                scratch_, &st);
+  const std::span<const glm::vec3> offsets = offsetsFor(cell, *cs, size_t(out.probeCount()));
+  relighter_->regenerateMoments(cs->surfels, offsets, vo, out, scratch_, &st);
+  // The probes sit where their moments were seen (the decode's field has no offsets): shading reads
+  // probePosition, so it must be the splat's position.
+  out.offsets.assign(offsets.begin(), offsets.end());
   const double ms = msSince(t0);
   spdlog::debug("streaming: VIR moments of cell {},{}: {} probes, {:.0f} ms", cell.x, cell.y, st.probes, ms);
   std::lock_guard lock(cacheMutex_);
@@ -172,6 +193,11 @@ void VirRelightSource::relightWeatherInto(glm::ivec2 cell, const ProbeField& cur
     fail("cell {},{}: outside the {}x{} world", cell.x, cell.y, lay.cells.x, lay.cells.y);
   if (!(weather >= 0.0f && weather <= 1.0f))
     fail("cell {},{}: weather (overcast) {} outside [0, 1]", cell.x, cell.y, weather);
+  if (!options_.relightByVir) {
+    inner_.relightWeatherInto(cell, current, out, timeOfDayHours, weather);
+    regenerateMoments(cell, out);  // the inner decode's moments are not trusted, as at load
+    return;
+  }
   const auto t0 = Clock::now();
   worlds::SkyState state = options_.sky;
   state.timeOfDayHours = std::clamp(std::fmod(std::fmod(timeOfDayHours, 24.0f) + 24.0f, 24.0f), 0.0f, 24.0f);

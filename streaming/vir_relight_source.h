@@ -74,6 +74,11 @@ using SurfelProvider = std::function<CellSurfels(glm::ivec2 cell)>;
 // ~0.1-1 s, once per cached cell). Reads world.json at construction (lfgi::Error naming it).
 SurfelProvider worldSurfelProvider(const std::filesystem::path& worldDir);
 
+// The cell's probe offsets with the surfels of the cell and its 8 neighbours (those inside the layout), so
+// a border probe's moments see the walls next door (what `lfgi render --probes codec` splats). inner is
+// called once per cell asked for, 9 times in all.
+SurfelProvider neighbourhoodSurfelProvider(SurfelProvider inner, const WorldLayout& layout);
+
 struct VirRelightOptions {
   worlds::SkyState sky{};  // latitude, day, turbidity; time of day and overcast come per relight
   float weather = 0.0f;    // overcast for relightInto without one (setWeather changes it)
@@ -88,6 +93,9 @@ struct VirRelightOptions {
   bool gatherChebyshev = true;
   // Regenerate a loaded field's distance moments from the cell's surfels (see the header comment).
   bool momentsOnLoad = true;
+  // Relight by VIR (steps 1-3 above). False: the inner source relights (its own time-of-day keys) and, with
+  // momentsOnLoad, the relit field's moments are regenerated as at load (the installed runtime's choice).
+  bool relightByVir = true;
   // Throws lfgi::Error naming the bad field.
   void validate() const;
 };
@@ -124,6 +132,8 @@ class VirRelightSource final : public CellSource {
 
  private:
   std::shared_ptr<const CellSurfels> surfelsOf(glm::ivec2 cell);
+  // load()'s second stage: out's distance moments from the cell's surfels (options_.momentsOnLoad).
+  void regenerateMoments(glm::ivec2 cell, ProbeField& out);
   // cs's offsets when they match a grid of `count` probes, else none (warned).
   static std::span<const glm::vec3> offsetsFor(glm::ivec2 cell, const CellSurfels& cs, size_t count);
 

@@ -50,6 +50,12 @@ struct RuntimeConfig {
   float keepRadius = 224.0f;      // m: resident cells farther than this are dropped (> decodeRadius)
   int ioThreads = 2;              // lfgi's IO threads, 0..64 (0: loads inline in update())
   double activateBudgetMs = 2.0;  // game-thread time per frame for making cells visible
+  // Visibility (the probes' distance moments, so light does not cross walls) regenerated from each cell's
+  // geometry by VIR when it loads (docs/ARCHITECTURE.md, "Where visibility comes from"), on lfgi's IO
+  // threads on a Vulkan device: lfgi's own compute device with open(config), the host's with
+  // open(config, device) (lfgi/runtime_vulkan.h). false: the codec's decoded visibility, which for the
+  // shipped SH codec is none (light leaks through walls); no Vulkan device is then needed for open(config).
+  bool virVisibility = true;
 };
 
 struct Frame {
@@ -75,10 +81,16 @@ struct GiSample {
   bool missing = false;                      // outside the world: no light at all
 };
 
+class VulkanShading;
+struct VulkanDevice;  // lfgi/runtime_vulkan.h
+
 class LFGI_API Runtime {
  public:
-  // Throws RuntimeError (see the contract above).
+  // Throws RuntimeError (see the contract above; with virVisibility, also when no Vulkan device exists).
   static std::unique_ptr<Runtime> open(const RuntimeConfig& config);
+  // The same on the host's device (lfgi/runtime_vulkan.h): lfgi creates no device; VIR visibility runs on
+  // device.queue from lfgi's IO threads under device.queueMutex.
+  static std::unique_ptr<Runtime> open(const RuntimeConfig& config, const VulkanDevice& device);
   ~Runtime();
   Runtime(const Runtime&) = delete;
   Runtime& operator=(const Runtime&) = delete;
@@ -96,6 +108,7 @@ class LFGI_API Runtime {
   float cellSize() const;
 
  private:
+  friend class VulkanShading;  // lfgi/runtime_vulkan.h
   struct Impl;
   explicit Runtime(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
