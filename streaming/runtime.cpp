@@ -44,10 +44,6 @@ void checkRuntimeConfig(const RuntimeConfig& c) {
 
 namespace {
 
-glm::vec3 vec(const float* v) {
-  return {v[0], v[1], v[2]};
-}
-
 void checkFrame(const Frame& f) {
   for (int i = 0; i < 3; ++i)
     if (!std::isfinite(f.position[i]) || !std::isfinite(f.direction[i]) || !std::isfinite(f.velocity[i]))
@@ -118,9 +114,9 @@ FrameReport Runtime::update(const Frame& frame) {
   checkFrame(frame);
   return asRuntimeError([&] {
     streaming::FrameInput in;
-    in.position = vec(frame.position);
-    in.direction = vec(frame.direction);
-    in.velocity = vec(frame.velocity);
+    in.position = vec3Of(frame.position);
+    in.direction = vec3Of(frame.direction);
+    in.velocity = vec3Of(frame.velocity);
     in.timeOfDayHours = frame.timeOfDayHours;
     in.dtSeconds = frame.dtSeconds;
     const streaming::FrameStats s = impl_->manager->update(in);
@@ -145,7 +141,7 @@ void Runtime::sample(std::span<const float> positions, std::span<const float> no
         positions.size(), normals.size(), out.size()));
   for (size_t i = 0; i < out.size(); ++i) {
     const streaming::IrradianceSample s =
-        impl_->manager->sample(vec(positions.data() + 3 * i), vec(normals.data() + 3 * i));
+        impl_->manager->sample(vec3Of(positions.data() + 3 * i), vec3Of(normals.data() + 3 * i));
     out[i] = GiSample{{s.irradiance.x, s.irradiance.y, s.irradiance.z}, s.fallbackWeight, s.missing};
   }
 }

@@ -26,6 +26,11 @@ struct Runtime::Impl {
   static std::unique_ptr<Impl> open(const RuntimeConfig& config, std::unique_ptr<gpu::Context> virContext);
 };
 
+// The public API's float[3] as a vector.
+inline glm::vec3 vec3Of(const float* v) {
+  return {v[0], v[1], v[2]};
+}
+
 // RuntimeError naming the first bad RuntimeConfig field or a world directory without world.json.
 void checkRuntimeConfig(const RuntimeConfig& config);
 

@@ -51,10 +51,6 @@ gpu::HostDevice hostDevice(const VulkanDevice& d) {
   return h;
 }
 
-glm::vec3 vec(const float* v) {
-  return {v[0], v[1], v[2]};
-}
-
 }  // namespace
 
 struct VulkanShading::Impl {
@@ -240,6 +236,11 @@ void checkView(const View& v) {
         fmt::format("lfgi VulkanShading: View::verticalFovDeg = {} (0 to 180, exclusive)", v.verticalFovDeg));
 }
 
+shared::GpuCamera gpuCamera(const View& v, const ShadeTarget& t) {
+  return gpu::makeGpuCamera(vec3Of(v.position), vec3Of(v.target), v.verticalFovDeg, int(t.width),
+                            int(t.height));
+}
+
 gpu::GBuffer borrowedGBuffer(const ShadeTarget& t) {
   const VkDeviceSize bytes = VkDeviceSize(t.width) * t.height * 16;
   gpu::GBuffer g;
@@ -292,8 +293,7 @@ void VulkanShading::record(VkCommandBuffer cmd, const ShadeTarget& target, const
   asRuntimeError([&] {
     const VkDeviceSize bytes = VkDeviceSize(target.width) * target.height * 16;
     impl_->ensureScratch(bytes);
-    const shared::GpuCamera camera = gpu::makeGpuCamera(
-        vec(view.position), vec(view.target), view.verticalFovDeg, int(target.width), int(target.height));
+    const shared::GpuCamera camera = gpuCamera(view, target);
     worlds::SkyState sky;
     sky.timeOfDayHours = impl_->rt.timeOfDayHours;
     gpu::ShadingOptions options;
@@ -318,9 +318,8 @@ void VulkanShading::recordWorldGBuffer(VkCommandBuffer cmd, const ShadeTarget& t
   checkView(view);
   asRuntimeError([&] {
     const streaming::WorldLayout& l = impl_->rt.manager->layout();
-    impl_->ensureWorldScene(glm::clamp(l.cellOf(vec(view.target)), glm::ivec2(0), l.cells - 1));
-    const shared::GpuCamera camera = gpu::makeGpuCamera(
-        vec(view.position), vec(view.target), view.verticalFovDeg, int(target.width), int(target.height));
+    impl_->ensureWorldScene(glm::clamp(l.cellOf(vec3Of(view.target)), glm::ivec2(0), l.cells - 1));
+    const shared::GpuCamera camera = gpuCamera(view, target);
     impl_->gbuffer->recordCamera(cmd, camera, int(target.width), int(target.height), impl_->worldScene);
     gpu::GBuffer g = borrowedGBuffer(target);
     impl_->gbuffer->record(cmd, impl_->worldScene, g);
