@@ -7,6 +7,7 @@
 #define XXH_INLINE_ALL
 #include <xxhash.h>
 
+#include "core/cell_file_meta.h"
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/sh_l1_q8.h"
@@ -97,7 +98,9 @@ openvdb::Vec3s toVdb(glm::vec3 v) {
 
 // ---- encode ---------------------------------------------------------------------------------------------
 
-std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::CellFileOverride> overrides) {
+}  // namespace
+
+openvdb::MetaMap cellmeta::fields(const CellFile& cell, std::span<const detail::CellFileOverride> overrides) {
   cell.validate("encodeCellFile");
   initOpenVdb();
   openvdb::MetaMap m;
@@ -159,7 +162,13 @@ std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::Cell
   m.insertMeta("bake_model", openvdb::StringMetadata(cell.stats.model));
 
   applyOverrides(m, overrides);
+  return m;
+}
 
+namespace {
+
+std::vector<std::byte> encode(const CellFile& cell, std::span<const detail::CellFileOverride> overrides) {
+  const openvdb::MetaMap m = cellmeta::fields(cell, overrides);
   openvdb::MaskGrid::Ptr grid = openvdb::MaskGrid::create();
   grid->setName(kGridName);
   {
@@ -515,16 +524,24 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
                         CellFileBytes* bytesByPart) {
   // 1. Envelope (size, trailer, checksum), then 2. the OpenVDB parse of bytes our writer produced.
   const OpenedStream opened = vdbfile::open(bytes, name, kTrailerMagic, kCellFileMaxBytes, "cell file");
-  const openvdb::MetaMap::Ptr& meta = opened.meta;
   const openvdb::GridPtrVecPtr& grids = opened.grids;
-
   // 3. Fields, each checked on its own and against the others.
-  MetaReader r(*meta, name);
+  CellFileBytes parts;
+  CellFile c = cellmeta::decode(
+      *opened.meta, name,
+      [&](int64_t probeCount, CellFile& cell) { readTopology(grids, name, probeCount, cell); }, parts);
+  parts.total = bytes.size();
+  if (bytesByPart) *bytesByPart = parts;
+  return c;
+}
+
+CellFile cellmeta::decode(const openvdb::MetaMap& meta, const std::string& name,
+                          const TopologyReader& topology, CellFileBytes& parts) {
+  MetaReader r(meta, name);
   const int64_t version = readVersion(r, name);
   CellFile c;
   const int64_t probeCount = readGridFields(r, name, c);
-  readTopology(grids, name, probeCount, c);
-  CellFileBytes parts;
+  topology(probeCount, c);
   readModel(r, name, version, probeCount, c, parts);
   readFallback(r, name, version, probeCount, c, parts);
 
@@ -534,9 +551,7 @@ CellFile decodeCellFile(std::span<const std::byte> bytes, const std::string& nam
   c.stats.model = r.get<std::string>("bake_model");
 
   c.validate(name);
-  parts.total = bytes.size();
   parts.version = int(version);
-  if (bytesByPart) *bytesByPart = parts;
   return c;
 }
 

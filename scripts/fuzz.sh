@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (tests/fuzz: cell-file reader, Draco surfel decoder, world manifest parser)
+# Builds the libFuzzer targets (tests/fuzz: cell-file and region-file readers, Draco surfel decoder, world manifest parser)
 # with clang + AddressSanitizer + UndefinedBehaviorSanitizer + fuzzer coverage, writes the seed corpora from
 # small valid inputs, and fuzzes each target for a bounded time. Any crash, sanitizer report, leak, timeout
 # or out-of-memory fails the script; the input is saved as BUILD/fuzz_artifacts/<target>-crash-* (fix the
@@ -7,7 +7,8 @@
 # Skips (exit 0, with a message) when clang or libFuzzer's runtime is not installed.
 # Usage: scripts/fuzz.sh [BUILD_DIR]     (default build-fuzz-clang)
 # Environment: LFGI_FUZZ_SECONDS (cell reader; default 60, the others get a third each), LFGI_JOBS,
-# LFGI_FUZZ_TARGETS (default "lfgi_fuzz_cell_file lfgi_fuzz_world_manifest"; add lfgi_fuzz_surfels).
+# LFGI_FUZZ_TARGETS (default "lfgi_fuzz_cell_file lfgi_fuzz_region_file lfgi_fuzz_world_manifest"; add
+# lfgi_fuzz_surfels).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${1:-$root/build-fuzz-clang}"
@@ -31,10 +32,10 @@ launcher=()
 if command -v ccache >/dev/null 2>&1; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache); fi
 cmake -S "$root" -B "$build" -G Ninja "${launcher[@]}" -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLFGI_FUZZ=ON -DLFGI_SANITIZE=address,undefined -DLFGI_BUILD_TESTS=OFF >/dev/null
-all=(lfgi_fuzz_cell_file lfgi_fuzz_surfels lfgi_fuzz_world_manifest)
+all=(lfgi_fuzz_cell_file lfgi_fuzz_region_file lfgi_fuzz_surfels lfgi_fuzz_world_manifest)
 # The surfel decoder is built but not fuzzed by default: libFuzzer finds, within seconds, 261-byte blobs on
 # which Draco 1.5.5's kd-tree decoder runs for seconds (tests/fuzz/findings/, not fixed yet).
-read -r -a targets <<<"${LFGI_FUZZ_TARGETS:-lfgi_fuzz_cell_file lfgi_fuzz_world_manifest}"
+read -r -a targets <<<"${LFGI_FUZZ_TARGETS:-lfgi_fuzz_cell_file lfgi_fuzz_region_file lfgi_fuzz_world_manifest}"
 cmake --build "$build" -j "$jobs" --target "${all[@]}" lfgi_fuzz_seeds
 echo "fuzz: build took $(( $(date +%s) - start )) s"
 
@@ -49,6 +50,7 @@ summary=()
 for t in "${targets[@]}"; do
   case "$t" in
     lfgi_fuzz_cell_file) dir=cell; secs="$seconds" ;;
+    lfgi_fuzz_region_file) dir=region; secs=$(( (seconds + 2) / 3 )) ;;
     lfgi_fuzz_surfels) dir=surfels; secs=$(( (seconds + 2) / 3 )) ;;
     lfgi_fuzz_world_manifest) dir=manifest; secs=$(( (seconds + 2) / 3 )) ;;
   esac

@@ -1,5 +1,5 @@
 // Writes the fuzz targets' seed corpora (small valid inputs) so nothing binary is committed:
-//   lfgi_fuzz_seeds OUT_DIR  ->  OUT_DIR/cell/*, OUT_DIR/surfels/*, OUT_DIR/manifest/*
+//   lfgi_fuzz_seeds OUT_DIR  ->  OUT_DIR/cell/*, OUT_DIR/region/*, OUT_DIR/surfels/*, OUT_DIR/manifest/*
 // Cell seeds come in both of fuzz_cell_file.cpp's forms: 0x00 + whole file, 0x01 + OpenVDB stream only.
 #include <cstdio>
 #include <filesystem>
@@ -11,6 +11,7 @@
 #include "core/file_util.h"
 #include "core/generator_cpu.h"
 #include "core/half.h"
+#include "core/region_file.h"
 #include "worlds/surfels.h"
 
 namespace {
@@ -84,6 +85,14 @@ int main(int argc, char** argv) {
     writeCellSeeds(out / "cell", "int8_latents8", smallCell(false, false, 8));
     writeCellSeeds(out / "cell", "fp16_latents4", smallCell(false, false, 4));
     writeCellSeeds(out / "cell", "position_latents", smallCell(false, true, 8));
+
+    // Regions: one cell, and two cells of different kinds (fields common to both and per-cell ones).
+    CellFile second = smallCell(true, false, 8);
+    second.cellZ = 1;
+    const CellFile one = smallCell(false, false, 8);
+    const std::vector<CellFile> two = {one, second};
+    writeFileAtomic(out / "region" / "one_cell", encodeRegionFile({0, 0}, 2, std::span(&one, 1)));
+    writeFileAtomic(out / "region" / "two_cells", encodeRegionFile({0, 0}, 2, two));
 
     worlds::TriangleMesh m;
     m.addBox({0, 0, 0}, {1, 1, 1}, m.addMaterial({}));
