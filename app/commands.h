@@ -208,8 +208,21 @@ struct WorldBakeOptions {
   // the same inputs give byte-identical files in any process (Slurm vs single-process, interrupted vs
   // uninterrupted bakes). Default on; --record-training-time stores the wall-clock training seconds.
   bool reproducible = true;
+  // After a bake that is not one share of an array: pack OUT/cells into OUT/regions (core/cell_store.h),
+  // regionCells x regionCells cells per region file; 0: no packing. Array shares run `lfgi pack` once all
+  // shares are done (packing from concurrent shares would race on regions.json).
+  int regionCells = 8;
 };
 int runWorldBake(const WorldBakeOptions& options);
+
+// `lfgi pack`: WORLD/baked/cells -> WORLD/baked/regions (core/cell_store.h packRegions); prints what was
+// written and the container bytes per cell.
+struct PackOptions {
+  std::string world;
+  std::string outDir;  // default WORLD/baked
+  int regionCells = 8;
+};
+int runPack(const PackOptions& options);
 
 // `lfgi bake-status` (app/bake_status_command.cpp): cells done / stale / missing / failed / corrupt of a
 // world bake against its current inputs (same flags as bake), ETA from the measured cell seconds by kind;

@@ -128,7 +128,8 @@ struct FlySources {
   std::string sourceText;
 };
 
-// Cell files when --world DIR has DIR/baked/cells, else synthetic cells; --relight vir wraps either.
+// Baked cells when --world DIR has DIR/baked/cells (read from DIR/baked/regions when packed), else
+// synthetic cells; --relight vir wraps either.
 void openCellSources(const FlyOptions& opt, FlySources& cs) {
   streaming::SyntheticSourceOptions& src = cs.src;
   src.layout = {{0.0f, 0.0f}, 64.0f, {64, 64}};
@@ -164,10 +165,10 @@ void openCellSources(const FlyOptions& opt, FlySources& cs) {
   cs.source = cs.virSource ? static_cast<streaming::CellSource*>(cs.virSource.get()) : &inner;
   cs.sourceText =
       cs.fileSource
-          ? fmt::format(
-                "cell files from {} ({} valid, {} missing, {} corrupt; {} decode at load, --decoder {})",
-                cs.cellsDir.string(), cs.fileSource->validCells(), cs.fileSource->missingCells(),
-                cs.fileSource->corruptCells(), cs.fileSource->selection().backend, opt.decoder)
+          ? fmt::format("{} from {} ({} valid, {} missing, {} corrupt; {} decode at load, --decoder {})",
+                        cs.fileSource->store().kind(), cs.fileSource->store().dir().string(),
+                        cs.fileSource->validCells(), cs.fileSource->missingCells(),
+                        cs.fileSource->corruptCells(), cs.fileSource->selection().backend, opt.decoder)
           : std::string("synthetic analytic cells (raw FP32 probe fields) on the world's cell layout");
   if (cs.virSource) cs.sourceText += "; relight: VIR of the world's surfels on the GPU";
   std::printf("source: %s\n", cs.sourceText.c_str());
@@ -260,7 +261,8 @@ void addCellSizes(nlohmann::ordered_json& j, const FlySources& cs, const streami
       for (int x = 0; x < src.layout.cells.x; ++x)
         if (const auto& inf = cs.fileSource->info({x, z}); inf.fieldBytes == cellBytes)
           cellProbes = size_t(inf.probes);
-    j["cell_files"] = {{"dir", cs.cellsDir.string()},
+    j["cell_files"] = {{"dir", cs.fileSource->store().dir().string()},
+                       {"storage", cs.fileSource->store().kind()},
                        {"valid", cs.fileSource->validCells()},
                        {"missing", cs.fileSource->missingCells()},
                        {"corrupt", cs.fileSource->corruptCells()}};

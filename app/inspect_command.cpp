@@ -1,9 +1,11 @@
-// `lfgi inspect CELLFILE`: what a cell file holds and what each part costs (docs/docs/DESIGN.md §3), and
+// `lfgi inspect FILE`: what a cell file (or a region file, .lfgr) holds and what each part costs
+// (docs/DESIGN.md §3), and
 // the hidden `lfgi debug-write-cell`, which writes a small synthetic cell file for the CLI tests and for
 // trying inspect without a bake.
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -12,6 +14,7 @@
 #include "core/error.h"
 #include "core/generator_cpu.h"
 #include "core/half.h"
+#include "core/region_file.h"
 
 namespace lfgi::app {
 
@@ -33,9 +36,54 @@ std::string latentText(const CellFile& c) {
   return fmt::format("stored per probe, {}-bit", g.latents.bits);
 }
 
+// A region file (core/region_file.h): its cells and where its bytes go.
+int inspectRegion(const InspectOptions& options) {
+  const RegionFile f = RegionFile::open(options.file);
+  const RegionFileBytes b = f.bytesByPart();
+  nlohmann::ordered_json cells = nlohmann::json::array();
+  int64_t probes = 0;
+  for (size_t i = 0; i < f.cells().size(); ++i) {
+    const CellFile c = f.readCell(i);
+    probes += c.activeProbeCount();
+    cells.push_back({{"cell", {c.cellX, c.cellZ}},
+                     {"probes", c.activeProbeCount()},
+                     {"record_bytes", f.cells()[i].length},
+                     {"model", c.stats.model}});
+  }
+  const size_t n = f.cells().size();
+  nlohmann::ordered_json j;
+  j["file"] = options.file;
+  j["region"] = {f.region().x, f.region().y};
+  j["cells_per_side"] = f.cellsPerSide();
+  j["bytes"] = {{"total", b.total()},        {"head", b.head},
+                {"records", b.records},      {"light_field", b.payload},
+                {"probe_masks", b.topology}, {"container_per_cell", b.containerPerCell(n)}};
+  j["probes"] = probes;
+  j["bytes_per_probe"] = probes ? double(b.total()) / double(probes) : 0.0;
+  j["cells"] = cells;
+  if (options.json) {
+    std::printf("%s\n", j.dump(2).c_str());
+    return 0;
+  }
+  std::printf("%s: region (%d, %d), %zu of %dx%d cells, %lld probes\n", options.file.c_str(), f.region().x,
+              f.region().y, n, f.cellsPerSide(), f.cellsPerSide(), (long long)probes);
+  std::printf(
+      "bytes: %llu = head %llu + records %llu; light field %llu, probe masks %llu, container %.1f B/cell; "
+      "%.2f B/probe all-in\n",
+      (unsigned long long)b.total(), (unsigned long long)b.head, (unsigned long long)b.records,
+      (unsigned long long)b.payload, (unsigned long long)b.topology, b.containerPerCell(n),
+      j["bytes_per_probe"].get<double>());
+  for (const auto& c : cells)
+    std::printf("  cell (%d, %d): %lld probes, %llu B, %s\n", c["cell"][0].get<int>(),
+                c["cell"][1].get<int>(), (long long)c["probes"].get<int64_t>(),
+                (unsigned long long)c["record_bytes"].get<uint64_t>(), c["model"].get<std::string>().c_str());
+  return 0;
+}
+
 }  // namespace
 
 int runInspect(const InspectOptions& options) {
+  if (std::filesystem::path(options.file).extension() == ".lfgr") return inspectRegion(options);
   CellFileBytes bytes;
   CellFile c = readCellFile(options.file, &bytes);
   const int64_t probes = c.activeProbeCount();

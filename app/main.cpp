@@ -28,6 +28,7 @@ struct CliOptions {
   lfgi::app::VirCommandOptions vir;
   lfgi::app::RenderCommandOptions render;
   lfgi::app::WorldBakeOptions bake;
+  lfgi::app::PackOptions pack;
   lfgi::app::BakeStatusOptions bakeStatus;
   lfgi::app::FlyOptions fly, profile;
   lfgi::app::InspectOptions inspect;
@@ -47,6 +48,7 @@ struct Subcommands {
   CLI::App* vir = nullptr;
   CLI::App* render = nullptr;
   CLI::App* bake = nullptr;
+  CLI::App* pack = nullptr;
   CLI::App* bakeStatus = nullptr;
   CLI::App* fly = nullptr;
   CLI::App* profile = nullptr;
@@ -391,6 +393,22 @@ void addBakeCommands(CLI::App& app, CliOptions& opt, Subcommands& cmd) {
   bakeCmd->add_flag(
       "--record-training-time{false}", bakeOpt.reproducible,
       "Store the wall-clock training seconds in each cell file (files then differ between runs)");
+  bakeCmd
+      ->add_option("--region-cells", bakeOpt.regionCells,
+                   "After the bake, pack the cells into OUT/regions with NxN cells per region file (0: "
+                   "no packing; array shares never pack: run lfgi pack after the array)")
+      ->check(CLI::Range(0, 64))
+      ->capture_default_str();
+  CLI::App* packCmd = app.add_subcommand(
+      "pack",
+      "Pack a baked world's cell files into region files (OUT/regions: regions.json + content-"
+      "addressed .lfgr files, what streaming reads); rewrites only regions that changed");
+  cmd.pack = packCmd;
+  packCmd->add_option("--world", opt.pack.world, "World directory (lfgi world generate)")->required();
+  packCmd->add_option("--out", opt.pack.outDir, "Bake directory (default WORLD/baked)");
+  packCmd->add_option("--region-cells", opt.pack.regionCells, "Cells per region side")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
   lfgi::app::BakeStatusOptions& statusOpt = opt.bakeStatus;
   CLI::App* statusCmd =
       app.add_subcommand("bake-status",
@@ -546,6 +564,7 @@ int runSubcommand(const CLI::App& app, const CliOptions& opt, const Subcommands&
     if (*cmd.render) return lfgi::app::runRender(opt.render);
     if (*cmd.fly) return lfgi::app::runFly(opt.fly);
     if (*cmd.bake) return lfgi::app::runWorldBake(opt.bake);
+    if (*cmd.pack) return lfgi::app::runPack(opt.pack);
     if (*cmd.bakeStatus) return lfgi::app::runBakeStatus(opt.bakeStatus);
     if (*cmd.profile) return lfgi::app::runFly(opt.profile);
     if (*cmd.inspect) return lfgi::app::runInspect(opt.inspect);

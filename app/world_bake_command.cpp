@@ -10,7 +10,9 @@
 // Bookkeeping (bake/bake_records.h): cells/cell_X_Z.json per baked cell (kind, seconds by stage, bytes,
 // host, time), cells/cell_X_Z.failed per failed cell; a failed cell does not stop the others, the exit
 // code is 1 when any failed.
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
@@ -22,6 +24,7 @@
 #include "app/world_bake_command.h"
 #include "bake/bake_records.h"
 #include "core/cell_file.h"
+#include "core/cell_store.h"
 #include "core/error.h"
 #include "core/progress.h"
 #include "core/quantize.h"
@@ -250,7 +253,27 @@ int runWorldBake(const WorldBakeOptions& opt) {
     run.progress.update(run.done);
   }
   progress.finish();
-  return reportBake(run, cells.size());
+  const int code = reportBake(run, cells.size());
+  if (opt.arraySize > 0 || opt.regionCells == 0) return code;
+  return std::max(code, runPack({opt.world, out.string(), opt.regionCells}));
+}
+
+int runPack(const PackOptions& opt) {
+  const worlds::WorldParams params = worlds::readWorldManifest(opt.world);
+  const int cells = int(std::lround(params.sizeM / params.cellM));
+  const fs::path out = opt.outDir.empty() ? fs::path(opt.world) / "baked" : fs::path(opt.outDir);
+  const auto t0 = std::chrono::steady_clock::now();
+  const PackStats s = packRegions(out / "cells", out / "regions", {cells, cells}, opt.regionCells);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  for (const std::string& e : s.skipped) std::fprintf(stderr, "pack: left out: %s\n", e.c_str());
+  std::printf(
+      "pack: %d cells in %d regions of %dx%d (%d written, %d unchanged, %d removed), %llu bytes "
+      "(%llu written) in %.1f s: light field %llu B, probe masks %llu B, container %.1f B/cell -> %s\n",
+      s.cells, s.regions, opt.regionCells, opt.regionCells, s.written, s.unchanged, s.removed,
+      (unsigned long long)s.bytes, (unsigned long long)s.bytesWritten, seconds,
+      (unsigned long long)s.parts.payload, (unsigned long long)s.parts.topology,
+      s.parts.containerPerCell(size_t(s.cells)), (out / "regions").string().c_str());
+  return s.skipped.empty() ? 0 : 1;
 }
 
 }  // namespace lfgi::app

@@ -78,6 +78,7 @@ class CellFilesStore final : public CellStore {
   std::string where(glm::ivec2 cell) const override { return path(cell).string(); }
   const fs::path& dir() const override { return dir_; }
   const char* kind() const override { return "cell files"; }
+  const char* missing() const override { return "no cell file"; }
 
  private:
   fs::path path(glm::ivec2 cell) const { return dir_ / cellFileName(cell); }
@@ -114,6 +115,7 @@ class RegionStore final : public CellStore {
   }
   const fs::path& dir() const override { return dir_; }
   const char* kind() const override { return "regions"; }
+  const char* missing() const override { return "in no region"; }
 
  private:
   // The region's opened head, cached (a failed open is not cached: the next read retries and reports).
@@ -143,6 +145,7 @@ void packOneRegion(glm::ivec2 region, std::vector<CellFile>& cells, int side, co
   const std::vector<std::byte> bytes = encodeRegionFile(region, side, cells);
   const std::string name = regionFileName(region, bytes);
   const fs::path path = regionsDir / name;
+  fs::create_directories(regionsDir);
   std::error_code ec;
   if (fs::exists(path, ec) && fs::file_size(path, ec) == bytes.size() && readFileBytes(path) == bytes) {
     ++stats.unchanged;
@@ -239,7 +242,6 @@ std::unique_ptr<CellStore> openRegions(const fs::path& regionsDir) {
 PackStats packRegions(const fs::path& cellsDir, const fs::path& regionsDir, glm::ivec2 worldCells, int side) {
   if (side < 1 || side > kRegionMaxCellsPerSide)
     fail("packRegions: {} cells per region side, 1 to {} allowed", side, kRegionMaxCellsPerSide);
-  fs::create_directories(regionsDir);
   RegionIndex index;
   index.cellsPerSide = side;
   PackStats stats;

@@ -63,6 +63,8 @@ class CellStore {
   // The directory, and what it holds ("cell files" / "regions").
   virtual const std::filesystem::path& dir() const = 0;
   virtual const char* kind() const = 0;
+  // What a cell that has() denies is, in messages ("no cell file", "in no region").
+  virtual const char* missing() const = 0;
 };
 
 std::unique_ptr<CellStore> openCellFiles(const std::filesystem::path& cellsDir);

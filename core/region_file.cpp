@@ -328,8 +328,10 @@ std::vector<std::byte> encodeRegion(glm::ivec2 region, int side, std::span<const
         fail("encodeRegionFile: field '{}' has different types in different cells", name);
   std::map<std::string, size_t> index;
   std::vector<std::string> common;
-  for (const auto& [name, type] : table) {
-    index[name] = index.size();
+  for (const auto& entry : table) {
+    const std::string& name = entry.first;
+    const size_t next = index.size();
+    index[name] = next;
     const auto& first = enc[0].fields;
     const bool same = std::all_of(enc.begin(), enc.end(), [&](const EncodedCell& e) {
       auto it = e.fields.find(name);

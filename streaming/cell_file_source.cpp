@@ -45,17 +45,17 @@ size_t fieldBytesFor(int64_t probes, int n, int m) {
 // The semantic checks of a cell file against the world it is streamed into (readCellFile has checked
 // the file against itself).
 void checkCellFits(const CellFile& c, glm::ivec2 cell, uint64_t worldSeed, const WorldLayout& layout,
-                   const fs::path& path) {
+                   const std::string& where) {
   if (c.cellX != cell.x || c.cellZ != cell.y)
-    fail("{}: holds cell {},{}, expected {},{}", path.string(), c.cellX, c.cellZ, cell.x, cell.y);
+    fail("{}: holds cell {},{}, expected {},{}", where, c.cellX, c.cellZ, cell.x, cell.y);
   if (c.worldSeed != worldSeed)
-    fail("{}: baked for world seed {}, the world's seed is {}", path.string(), c.worldSeed, worldSeed);
+    fail("{}: baked for world seed {}, the world's seed is {}", where, c.worldSeed, worldSeed);
   const glm::vec2 lo = layout.cellMin(cell), hi = lo + layout.cellSize;
   const glm::vec3 a = c.grid.origin, b = c.grid.boxMax();
   const float eps = 1e-3f * layout.cellSize;
   if (a.x < lo.x - eps || a.z < lo.y - eps || b.x > hi.x + eps || b.z > hi.y + eps)
-    fail("{}: probe box x [{}, {}] z [{}, {}] is not inside the cell's square x [{}, {}] z [{}, {}]",
-         path.string(), a.x, b.x, a.z, b.z, lo.x, hi.x, lo.y, hi.y);
+    fail("{}: probe box x [{}, {}] z [{}, {}] is not inside the cell's square x [{}, {}] z [{}, {}]", where,
+         a.x, b.x, a.z, b.z, lo.x, hi.x, lo.y, hi.y);
 }
 
 // Kernel K[t][s] = max(0, n_t . w_s) * omega_s of bruteForceIrradiance, per (n, m), built once.
@@ -308,9 +308,7 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
   const int cells = int(std::lround(params.sizeM / params.cellM));
   layout_ = {{0.0f, 0.0f}, float(params.cellM), {cells, cells}};
   worldSeed_ = params.seed;
-  std::error_code ec;
-  if (!fs::is_directory(options_.cellsDir, ec))
-    fail("{}: no cell-file directory (bake the world with `lfgi bake` first)", options_.cellsDir.string());
+  openStore();
 
   const size_t N = size_t(cells) * size_t(cells);
   info_.assign(N, {});
@@ -321,19 +319,34 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
   const int maxGeneratorN = scanCellFiles(cells, probeWeights, probeLatents);
   if (validCells_ == 0)
     fail("{}: none of the world's {} cells has a readable cell file ({} missing, {} corrupt)",
-         options_.cellsDir.string(), N, missingCells_, corruptCells_);
+         store_->dir().string(), N, missingCells_, corruptCells_);
   sizeSlots(maxGeneratorN);
   fillMissingFallbacks(cells);
   for (const auto& range : keyRange_)
     fallbackFollowsTimeOfDay_ = fallbackFollowsTimeOfDay_ || range.second > 1;
   if (missingCells_ > 0)
     spdlog::warn(
-        "streaming: {} of {} cells have no cell file in {} (they stream their neighbours' mean fallback)",
-        missingCells_, N, options_.cellsDir.string());
-  spdlog::info("streaming: cell files in {}: {} valid, {} missing, {} corrupt; slot {} bytes",
-               options_.cellsDir.string(), validCells_, missingCells_, corruptCells_, maxCellBytes_);
+        "streaming: {} of {} cells are not stored in {} (they stream their neighbours' mean fallback)",
+        missingCells_, N, store_->dir().string());
+  spdlog::info("streaming: {} in {}: {} valid, {} missing, {} corrupt; slot {} bytes", store_->kind(),
+               store_->dir().string(), validCells_, missingCells_, corruptCells_, maxCellBytes_);
   chooseDecoder(probeWeights, probeLatents);
   samples_.reserve(4096);
+}
+
+void CellFileSource::openStore() {
+  if (options_.regionsDir.empty()) options_.regionsDir = options_.cellsDir.parent_path() / "regions";
+  std::error_code ec;
+  const bool regions =
+      options_.storage == CellStorage::Regions ||
+      (options_.storage == CellStorage::Auto && fs::exists(options_.regionsDir / "regions.json", ec));
+  if (regions) {
+    store_ = openRegions(options_.regionsDir);
+    return;
+  }
+  if (!fs::is_directory(options_.cellsDir, ec))
+    fail("{}: no cell-file directory (bake the world with `lfgi bake` first)", options_.cellsDir.string());
+  store_ = openCellFiles(options_.cellsDir);
 }
 
 // Reads every cell file once: its info_ entry, its fallback keys, the counts; returns the largest generator
@@ -348,19 +361,19 @@ int CellFileSource::scanCellFiles(int cells, std::optional<GeneratorWeights>& pr
     for (int x = 0; x < cells; ++x) {
       const glm::ivec2 c{x, z};
       CellFileInfo& inf = info_[size_t(layout_.linear(c))];
-      const fs::path path = cellPath(c);
-      if (!fs::exists(path, ec)) {
+      const std::string path = store_->where(c);
+      if (!store_->has(c)) {
         inf.state = CellFileState::Missing;
-        inf.error = fmt::format("{}: no cell file", path.string());
+        inf.error = fmt::format("{}: {}", path, store_->missing());
         ++missingCells_;
         continue;
       }
       try {
-        CellFile file = readCellFile(path);
+        CellFile file = store_->read(c);
         checkCellFits(file, c, worldSeed_, layout_, path);
         // A shared-model cell is valid only with its world's shared model (loaded once, hash checked).
         if (file.generator && file.generator->shared)
-          checkSharedReference(*file.generator, sharedFor(file, path), path.string());
+          checkSharedReference(*file.generator, sharedFor(file, path), path);
         cellFileFallbackKeys(file, options_.weather, hours, keySh);
         keyRange_[size_t(layout_.linear(c))] = {uint32_t(keyHours_.size()), uint32_t(hours.size())};
         keyHours_.insert(keyHours_.end(), hours.begin(), hours.end());
@@ -374,8 +387,8 @@ int CellFileSource::scanCellFiles(int cells, std::optional<GeneratorWeights>& pr
         inf.resolution = inf.network ? file.generator->weights.arch.outputResolution() : 0;
         if (inf.network) maxGeneratorN = std::max(maxGeneratorN, inf.resolution);
         if (inf.network && options_.decoder == DecoderChoice::Auto && !probeWeights && inf.activeProbes > 0) {
-          probeWeights = resolveCellWeights(*file.generator, sharedFor(file, path), path.string());
-          cellLatents(file, file.active, probeLatents, path.string());
+          probeWeights = resolveCellWeights(*file.generator, sharedFor(file, path), path);
+          cellLatents(file, file.active, probeLatents, path);
         }
         ++validCells_;
       } catch (const Error& e) {
@@ -459,7 +472,7 @@ void CellFileSource::chooseDecoder(const std::optional<GeneratorWeights>& probeW
   gpuBackend_ = dynamic_cast<GpuGeneratorBackend*>(backend_.get());
 }
 
-const ResolvedSharedModel* CellFileSource::sharedFor(const CellFile& file, const fs::path& path) {
+const ResolvedSharedModel* CellFileSource::sharedFor(const CellFile& file, const std::string& path) {
   if (!file.generator || !file.generator->shared) return nullptr;
   std::call_once(sharedOnce_, [&] {  // usually during construction; any thread may be first
     std::error_code ec;
@@ -476,7 +489,7 @@ const ResolvedSharedModel* CellFileSource::sharedFor(const CellFile& file, const
     }
   });
   if (!shared_)
-    fail("{}: refers to shared model {:016x}, which cannot be used: {}", path.string(),
+    fail("{}: refers to shared model {:016x}, which cannot be used: {}", path,
          file.generator->shared->modelHash, sharedError_);
   return &*shared_;
 }
@@ -486,8 +499,8 @@ std::vector<CellFileSource::DecodeSample> CellFileSource::decodeSamples() const 
   return samples_;
 }
 
-fs::path CellFileSource::cellPath(glm::ivec2 cell) const {
-  return options_.cellsDir / fmt::format("cell_{}_{}.vdb", cell.x, cell.y);
+std::string CellFileSource::where(glm::ivec2 cell) const {
+  return store_->where(cell);
 }
 
 ShL1 CellFileSource::keyFallback(glm::ivec2 cell, float timeOfDayHours) const {
@@ -503,16 +516,15 @@ ShL1 CellFileSource::fallback(glm::ivec2 cell) const {
 }
 
 void CellFileSource::readAndDecode(glm::ivec2 cell, float timeOfDayHours, ProbeField& out) {
-  const fs::path path = cellPath(cell);
+  const std::string path = store_->where(cell);
   const auto t0 = Clock::now();
-  std::error_code ec;
-  if (!fs::exists(path, ec)) fail("{}: no cell file", path.string());
-  const CellFile file = readCellFile(path);
+  if (!store_->has(cell)) fail("{}: {}", path, store_->missing());
+  const CellFile file = store_->read(cell);
   checkCellFits(file, cell, worldSeed_, layout_, path);
   const auto t1 = Clock::now();
   readUs_.fetch_add(usSince(t0));
   decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution,
-                  options_.shOnlyResolution, out, path.string(), backend_.get(), sharedFor(file, path));
+                  options_.shOnlyResolution, out, path, backend_.get(), sharedFor(file, path));
   recordDecode(t1, file);
 }
 
@@ -537,10 +549,10 @@ bool CellFileSource::dependsOnTimeOfDay(glm::ivec2 cell) const {
 
 bool CellFileSource::relight(glm::ivec2 cell, ProbeField& field, float timeOfDayHours) {
   if (!layout_.contains(cell) || !dependsOnTimeOfDay(cell)) return true;
-  const fs::path path = cellPath(cell);
+  const std::string path = store_->where(cell);
   try {
     const auto t0 = Clock::now();
-    const CellFile file = readCellFile(path);
+    const CellFile file = store_->read(cell);
     checkCellFits(file, cell, worldSeed_, layout_, path);
     if (!file.generator && file.fallback.keyCount() <= 1) return true;
     const auto t1 = Clock::now();
@@ -548,9 +560,9 @@ bool CellFileSource::relight(glm::ivec2 cell, ProbeField& field, float timeOfDay
     // In place: past readCellFile's checks and this size check, decoding cannot fail halfway.
     if (file.grid.probeCount() != field.probeCount() ||
         decodedResolution(file, options_.shOnlyResolution) != field.resolution)
-      fail("{}: changed size since the cell was loaded", path.string());
+      fail("{}: changed size since the cell was loaded", path);
     decodeCellField(file, timeOfDayHours, options_.weather, options_.irradianceResolution,
-                    options_.shOnlyResolution, field, path.string(), backend_.get(), sharedFor(file, path));
+                    options_.shOnlyResolution, field, path, backend_.get(), sharedFor(file, path));
     recordDecode(t1, file);
     return true;
   } catch (const Error& e) {

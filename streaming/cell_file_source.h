@@ -1,5 +1,8 @@
-// CellFileSource: the streaming manager's cells from baked cell files (`lfgi bake`: WORLD/baked/cells/
-// cell_X_Z.vdb, core/cell_file.h) instead of an analytic field.
+// CellFileSource: the streaming manager's cells from a baked world (`lfgi bake`: WORLD/baked/cells/
+// cell_X_Z.vdb, core/cell_file.h, packed into WORLD/baked/regions/, core/region_file.h) instead of an
+// analytic field. The cells are read through a core/cell_store.h CellStore (options.storage: the regions
+// when they exist, else the cell files); "cell file" below means the cell as stored either way, and
+// errors name the file (and, in a region, the cell).
 //
 // Construction (game thread, once): the layout comes from the world manifest (worlds::readWorldManifest:
 // cells of cellM metres from (0, 0)). Every cell file is read once through readCellFile (its checksum
@@ -50,15 +53,22 @@
 
 #include "core/cell_fallback.h"
 #include "core/cell_file.h"
+#include "core/cell_store.h"
 #include "core/shared_model.h"
 #include "streaming/cell_source.h"
 #include "streaming/generator_backend.h"
 
 namespace lfgi::streaming {
 
+// Where the cells come from (core/cell_store.h): Auto reads regions when regionsDir holds regions.json
+// (what `lfgi bake` packs after baking), else the cell files.
+enum class CellStorage : uint8_t { Auto, CellFiles, Regions };
+
 struct CellFileSourceOptions {
-  std::filesystem::path worldDir;  // holds world.json (the layout)
-  std::filesystem::path cellsDir;  // empty: worldDir / "baked" / "cells"
+  std::filesystem::path worldDir;    // holds world.json (the layout)
+  std::filesystem::path cellsDir;    // empty: worldDir / "baked" / "cells"
+  std::filesystem::path regionsDir;  // empty: cellsDir's parent / "regions"
+  CellStorage storage = CellStorage::Auto;
   // The world's shared model (core/shared_model.h) that version-3 cells refer to; empty: cellsDir's
   // parent / "shared_model.vdb" (where `lfgi bake --codec shared` writes it).
   std::filesystem::path sharedModel;
@@ -114,7 +124,10 @@ class CellFileSource final : public CellSource {
   // of resident cells would remove it.
   bool relight(glm::ivec2 cell, ProbeField& field, float timeOfDayHours);
 
-  std::filesystem::path cellPath(glm::ivec2 cell) const;
+  // Names the cell's storage in messages: its cell file, or "<region file>: cell (x, z)".
+  std::string where(glm::ivec2 cell) const;
+  // The storage read (cell files or regions) and its directory.
+  const CellStore& store() const { return *store_; }
   const CellFileInfo& info(glm::ivec2 cell) const { return info_[size_t(layout_.linear(cell))]; }
   int validCells() const { return validCells_; }
   int missingCells() const { return missingCells_; }
@@ -143,9 +156,10 @@ class CellFileSource final : public CellSource {
   // first use, normally during construction, and immutable afterwards. Throws lfgi::Error naming the cell
   // file and the shared model file when it is missing or unreadable (a wrong hash is resolveCellWeights'
   // error).
-  const ResolvedSharedModel* sharedFor(const CellFile& file, const std::filesystem::path& path);
+  const ResolvedSharedModel* sharedFor(const CellFile& file, const std::string& path);
   ShL1 keyFallback(glm::ivec2 cell, float timeOfDayHours) const;
   // Stages of construction, in order.
+  void openStore();
   int scanCellFiles(int cells, std::optional<GeneratorWeights>& probeWeights,
                     std::vector<float>& probeLatents);
   void sizeSlots(int maxGeneratorN);
@@ -154,6 +168,7 @@ class CellFileSource final : public CellSource {
                      const std::vector<float>& probeLatents);
 
   CellFileSourceOptions options_;
+  std::unique_ptr<CellStore> store_;
   WorldLayout layout_;
   uint64_t worldSeed_ = 0;
   // Fallback keys of every cell: cell i's are keyHours_ / keySh_ [first, first + count) of keyRange_[i],

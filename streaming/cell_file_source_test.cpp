@@ -14,6 +14,7 @@
 
 #include <fmt/format.h>
 
+#include "core/cell_store.h"
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/generator_cpu.h"
@@ -21,6 +22,7 @@
 #include "core/octahedral.h"
 #include "core/probe_codecs.h"
 #include "core/quantize.h"
+#include "core/region_file.h"
 #include "generator_test_util.h"
 #include "gpu/context.h"
 #include "streaming/streaming_manager.h"
@@ -294,6 +296,47 @@ TEST(CellFileSource, RelightReDecodesGeneratorCellsUnderTheNewTimeOfDay) {
   EXPECT_THROW(source.relightInto({1, 1}, gen, staged, 20.0f), Error);
   EXPECT_FALSE(source.relight({1, 1}, gen, 20.0f));
   EXPECT_EQ(gen.irradiance, fresh.irradiance);
+}
+
+TEST(CellFileSource, RegionsStreamTheSameCellsAsTheCellFiles) {
+  const fs::path world = makeWorld("regions");
+  fs::remove(cellFile(world, 2, 2));  // a missing cell stays missing in its region
+  const PackStats packed = packRegions(world / "baked" / "cells", world / "baked" / "regions", {3, 3}, 2);
+  EXPECT_EQ(packed.cells, 8);
+  CellFileSourceOptions fromFiles = options(world);
+  fromFiles.storage = CellStorage::CellFiles;
+  CellFileSource files(fromFiles);
+  CellFileSource regions(options(world));  // Auto: regions.json is there
+  EXPECT_STREQ(regions.store().kind(), "regions");
+  EXPECT_STREQ(files.store().kind(), "cell files");
+  EXPECT_EQ(regions.validCells(), 8);
+  EXPECT_EQ(regions.missingCells(), 1);
+  EXPECT_EQ(regions.maxCellBytes(), files.maxCellBytes());
+  for (int z = 0; z < 3; ++z)
+    for (int x = 0; x < 3; ++x) {
+      const ShL1 a = files.fallback({x, z}), b = regions.fallback({x, z});
+      for (int k = 0; k < 4; ++k) EXPECT_EQ(a.c[size_t(k)], b.c[size_t(k)]) << x << "," << z;
+      if (x == 2 && z == 2) continue;
+      ProbeField fa, fb;
+      files.load({x, z}, fa);
+      regions.load({x, z}, fb);
+      ASSERT_EQ(fa.radiance.size(), fb.radiance.size());
+      EXPECT_TRUE(sameBits(fa.radiance.data(), fb.radiance.data(), fa.radiance.size())) << x << "," << z;
+      EXPECT_TRUE(sameBits(fa.irradiance.data(), fb.irradiance.data(), fa.irradiance.size()))
+          << x << "," << z;
+      EXPECT_TRUE(sameBits(fa.distance.data(), fb.distance.data(), fa.distance.size())) << x << "," << z;
+    }
+  // A corrupt record: that cell alone falls back, named by its region file and cell.
+  const RegionIndex index = readRegionIndex(world / "baked" / "regions");
+  const fs::path region = world / "baked" / "regions" / index.regions[0].file;
+  flipByte(region, size_t(RegionFile::open(region).cells()[1].offset + 20));
+  CellFileSource broken(options(world));
+  EXPECT_EQ(broken.validCells(), 7);
+  EXPECT_EQ(broken.corruptCells(), 1);
+  EXPECT_EQ(broken.info({1, 0}).state, CellFileState::Corrupt);
+  EXPECT_NE(broken.info({1, 0}).error.find(index.regions[0].file + ": cell (1, 0): corrupt"),
+            std::string::npos)
+      << broken.info({1, 0}).error;
 }
 
 TEST(CellFileSource, MissingAndCorruptFilesGetTheirNeighboursFallback) {
