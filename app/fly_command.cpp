@@ -24,6 +24,7 @@
 #include "gpu/context.h"
 #include "streaming/cell_file_source.h"
 #include "streaming/flythrough.h"
+#include "streaming/http_region_source.h"
 #include "streaming/vir_relight_source.h"
 #include "worlds/world_cells.h"
 
@@ -134,9 +135,13 @@ void openCellSources(const FlyOptions& opt, FlySources& cs) {
   streaming::SyntheticSourceOptions& src = cs.src;
   src.layout = {{0.0f, 0.0f}, 64.0f, {64, 64}};
   cs.cellsDir = std::filesystem::path(opt.world) / "baked" / "cells";
-  if (!opt.world.empty() && std::filesystem::is_directory(cs.cellsDir)) {
+  const bool url = streaming::isHttpUrl(opt.world);
+  if (!opt.world.empty() && (url || std::filesystem::is_directory(cs.cellsDir))) {
     streaming::CellFileSourceOptions fso;
-    fso.worldDir = opt.world;
+    if (url)
+      fso.worldUrl = opt.world;
+    else
+      fso.worldDir = opt.world;
     fso.decoder = streaming::parseDecoderChoice(opt.decoder);
     cs.fileSource = std::make_unique<streaming::CellFileSource>(fso);
     src.layout = cs.fileSource->layout();
@@ -153,7 +158,8 @@ void openCellSources(const FlyOptions& opt, FlySources& cs) {
   streaming::CellSource& inner =
       cs.fileSource ? static_cast<streaming::CellSource&>(*cs.fileSource) : *cs.synthetic;
   if (opt.relight == "vir") {
-    if (opt.world.empty()) fail("--relight vir needs --world DIR (the surfels come from the world's cells)");
+    if (opt.world.empty() || url)
+      fail("--relight vir needs --world DIR, a local world (the surfels come from the world's cells)");
     cs.ctx = gpu::createContext();
     streaming::VirRelightOptions vo;
     vo.weather = opt.weatherStart;
@@ -166,7 +172,7 @@ void openCellSources(const FlyOptions& opt, FlySources& cs) {
   cs.sourceText =
       cs.fileSource
           ? fmt::format("{} from {} ({} valid, {} missing, {} corrupt; {} decode at load, --decoder {})",
-                        cs.fileSource->store().kind(), cs.fileSource->store().dir().string(),
+                        cs.fileSource->store().kind(), cs.fileSource->store().location(),
                         cs.fileSource->validCells(), cs.fileSource->missingCells(),
                         cs.fileSource->corruptCells(), cs.fileSource->selection().backend, opt.decoder)
           : std::string("synthetic analytic cells (raw FP32 probe fields) on the world's cell layout");
@@ -261,7 +267,7 @@ void addCellSizes(nlohmann::ordered_json& j, const FlySources& cs, const streami
       for (int x = 0; x < src.layout.cells.x; ++x)
         if (const auto& inf = cs.fileSource->info({x, z}); inf.fieldBytes == cellBytes)
           cellProbes = size_t(inf.probes);
-    j["cell_files"] = {{"dir", cs.fileSource->store().dir().string()},
+    j["cell_files"] = {{"dir", cs.fileSource->store().location()},
                        {"storage", cs.fileSource->store().kind()},
                        {"valid", cs.fileSource->validCells()},
                        {"missing", cs.fileSource->missingCells()},

@@ -434,7 +434,9 @@ void addBakeCommands(CLI::App& app, CliOptions& opt, Subcommands& cmd) {
 
 // The flags of fly and profile.
 void addFlyOptions(CLI::App* c, lfgi::app::FlyOptions& o) {
-  c->add_option("--world", o.world, "World directory (cell layout); default: 4096 m with 64 m cells");
+  c->add_option("--world", o.world,
+                "World directory or http(s):// URL of one served by a static server (cell layout, baked "
+                "cells); default: 4096 m with 64 m cells");
   c->add_option("--path", o.path, "Camera path: loop or line")->capture_default_str();
   c->add_option("--speed", o.speed, "Camera speed, m/s")
       ->check(CLI::Range(0.0, 10000.0))

@@ -1,6 +1,7 @@
 #include "core/cell_store.h"
 
 #include <algorithm>
+#include <cstring>
 #include <set>
 
 #include <fmt/format.h>
@@ -76,7 +77,7 @@ class CellFilesStore final : public CellStore {
     return readCellFile(path(cell));
   }
   std::string where(glm::ivec2 cell) const override { return path(cell).string(); }
-  const fs::path& dir() const override { return dir_; }
+  std::string location() const override { return dir_.string(); }
   const char* kind() const override { return "cell files"; }
   const char* missing() const override { return "no cell file"; }
 
@@ -87,9 +88,30 @@ class CellFilesStore final : public CellStore {
 
 // ---- regions --------------------------------------------------------------------------------------------
 
+class DirectorySource final : public RegionSource {
+ public:
+  explicit DirectorySource(fs::path dir) : dir_(std::move(dir)) {}
+  std::vector<std::byte> readAll(const std::string& name, size_t maxBytes) const override {
+    const fs::path path = dir_ / name;
+    std::error_code ec;
+    if (!fs::exists(path, ec)) fail("{}: no such file", path.string());
+    const uint64_t size = fs::file_size(path, ec);
+    if (!ec && size > maxBytes) fail("{}: {} bytes, more than the limit {}", path.string(), size, maxBytes);
+    return readFileBytes(path);
+  }
+  std::vector<std::byte> readRange(const std::string& name, uint64_t offset, uint64_t length) const override {
+    return readFileRange(dir_ / name, offset, length);
+  }
+  std::string locate(const std::string& name) const override { return (dir_ / name).string(); }
+
+ private:
+  fs::path dir_;
+};
+
 class RegionStore final : public CellStore {
  public:
-  explicit RegionStore(fs::path dir) : dir_(std::move(dir)), index_(readRegionIndex(dir_)) {}
+  explicit RegionStore(std::shared_ptr<const RegionSource> source)
+      : source_(std::move(source)), index_(readRegionIndex(*source_)) {}
 
   bool has(glm::ivec2 cell) const override {
     const RegionIndexEntry* e = index_.find(regionOf(cell, index_.cellsPerSide));
@@ -102,7 +124,7 @@ class RegionStore final : public CellStore {
   }
   CellFile read(glm::ivec2 cell) const override {
     const RegionIndexEntry* e = index_.find(regionOf(cell, index_.cellsPerSide));
-    if (!e) fail("{}: no region holds cell ({}, {})", (dir_ / kIndexName).string(), cell.x, cell.y);
+    if (!e) fail("{}: no region holds cell ({}, {})", source_->locate(kIndexName), cell.x, cell.y);
     const std::shared_ptr<const RegionFile> f = region(*e);
     const int i = f->find(cell.x, cell.y);
     if (i < 0) fail("{}: cell ({}, {}) is not in the region", f->name(), cell.x, cell.y);
@@ -110,30 +132,40 @@ class RegionStore final : public CellStore {
   }
   std::string where(glm::ivec2 cell) const override {
     const RegionIndexEntry* e = index_.find(regionOf(cell, index_.cellsPerSide));
-    const fs::path file = e ? dir_ / e->file : dir_ / kIndexName;
-    return fmt::format("{}: cell ({}, {})", file.string(), cell.x, cell.y);
+    return fmt::format("{}: cell ({}, {})", source_->locate(e ? e->file : kIndexName), cell.x, cell.y);
   }
-  const fs::path& dir() const override { return dir_; }
+  std::string location() const override {
+    const std::string index = source_->locate(kIndexName);
+    return index.substr(0, index.size() - std::strlen(kIndexName) - 1);
+  }
   const char* kind() const override { return "regions"; }
   const char* missing() const override { return "in no region"; }
 
  private:
   // The region's opened head, cached (a failed open is not cached: the next read retries and reports).
+  // The index's byte count stands for the file size (one request fewer over HTTP); the head's index must
+  // tile exactly that many bytes.
   std::shared_ptr<const RegionFile> region(const RegionIndexEntry& e) const {
+    {
+      const std::lock_guard lock(mutex_);
+      auto it = open_.find({e.region.x, e.region.y});
+      if (it != open_.end()) return it->second;
+    }
+    const std::string where = source_->locate(e.file);
+    std::shared_ptr<const RegionSource> src = source_;
+    const std::string file = e.file;
+    auto f = std::make_shared<const RegionFile>(RegionFile::open(
+        [src, file](uint64_t offset, uint64_t length) { return src->readRange(file, offset, length); },
+        e.bytes, where));
+    if (f->region() != e.region || f->cellsPerSide() != index_.cellsPerSide)
+      fail("{}: holds region ({}, {}) of {} cells per side; {} names region ({}, {}) of {}", where,
+           f->region().x, f->region().y, f->cellsPerSide(), kIndexName, e.region.x, e.region.y,
+           index_.cellsPerSide);
     const std::lock_guard lock(mutex_);
-    auto it = open_.find({e.region.x, e.region.y});
-    if (it != open_.end()) return it->second;
-    const fs::path path = dir_ / e.file;
-    auto f = std::make_shared<const RegionFile>(RegionFile::open(path));
-    if (f->region() != e.region || f->cellsPerSide() != index_.cellsPerSide || f->fileBytes() != e.bytes)
-      fail("{}: holds region ({}, {}) of {} cells per side, {} bytes; {} names region ({}, {}), {}, {} bytes",
-           path.string(), f->region().x, f->region().y, f->cellsPerSide(), f->fileBytes(), kIndexName,
-           e.region.x, e.region.y, index_.cellsPerSide, e.bytes);
-    open_.emplace(std::pair(e.region.x, e.region.y), f);
-    return f;
+    return open_.emplace(std::pair(e.region.x, e.region.y), f).first->second;
   }
 
-  fs::path dir_;
+  std::shared_ptr<const RegionSource> source_;
   RegionIndex index_;
   mutable std::mutex mutex_;
   mutable std::map<std::pair<int, int>, std::shared_ptr<const RegionFile>> open_;
@@ -207,16 +239,21 @@ RegionIndex parseRegionIndex(const std::string& text, const std::string& name) {
   return index;
 }
 
-RegionIndex readRegionIndex(const fs::path& dir) {
-  const fs::path path = dir / kIndexName;
-  std::error_code ec;
-  if (!fs::exists(path, ec))
-    fail("{}: no region index (pack the world's cells with `lfgi pack`)", path.string());
-  const std::vector<std::byte> bytes = readFileBytes(path);
-  if (bytes.size() > (size_t(64) << 20))
-    fail("{}: {} bytes, more than an index can be", path.string(), bytes.size());
+RegionIndex readRegionIndex(const RegionSource& source) {
+  const std::vector<std::byte> bytes = source.readAll(kIndexName, size_t(64) << 20);
   return parseRegionIndex(std::string(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
-                          path.string());
+                          source.locate(kIndexName));
+}
+
+void checkIndexExists(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::exists(dir / kIndexName, ec))
+    fail("{}: no region index (pack the world's cells with `lfgi pack`)", (dir / kIndexName).string());
+}
+
+RegionIndex readRegionIndex(const fs::path& dir) {
+  checkIndexExists(dir);
+  return readRegionIndex(DirectorySource(dir));
 }
 
 void writeRegionIndex(const fs::path& dir, const RegionIndex& index) {
@@ -235,8 +272,17 @@ std::unique_ptr<CellStore> openCellFiles(const fs::path& cellsDir) {
   return std::make_unique<CellFilesStore>(cellsDir);
 }
 
+std::shared_ptr<const RegionSource> directoryRegionSource(const fs::path& dir) {
+  return std::make_shared<DirectorySource>(dir);
+}
+
 std::unique_ptr<CellStore> openRegions(const fs::path& regionsDir) {
-  return std::make_unique<RegionStore>(regionsDir);
+  checkIndexExists(regionsDir);
+  return openRegions(directoryRegionSource(regionsDir));
+}
+
+std::unique_ptr<CellStore> openRegions(std::shared_ptr<const RegionSource> source) {
+  return std::make_unique<RegionStore>(std::move(source));
 }
 
 PackStats packRegions(const fs::path& cellsDir, const fs::path& regionsDir, glm::ivec2 worldCells, int side) {

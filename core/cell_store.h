@@ -44,11 +44,29 @@ struct RegionIndex {
   const RegionIndexEntry* find(glm::ivec2 region) const;
 };
 
-// dir/regions.json; throws lfgi::Error naming the file and the bad field.
+class RegionSource;
+
+// dir/regions.json (or a source's); throws lfgi::Error naming the file and the bad field.
 RegionIndex readRegionIndex(const std::filesystem::path& dir);
+RegionIndex readRegionIndex(const RegionSource& source);
 RegionIndex parseRegionIndex(const std::string& text, const std::string& name);
 // Atomic (temp file + rename).
 void writeRegionIndex(const std::filesystem::path& dir, const RegionIndex& index);
+
+// Where a regions directory's files come from: a local directory (directoryRegionSource), or an HTTP
+// server with range requests (streaming/http_region_source.h). Thread-safe.
+class RegionSource {
+ public:
+  virtual ~RegionSource() = default;
+  // A whole small file (regions.json), at most maxBytes; throws lfgi::Error naming it.
+  virtual std::vector<std::byte> readAll(const std::string& name, size_t maxBytes) const = 0;
+  // Exactly `length` bytes at `offset` of the file; throws lfgi::Error naming it.
+  virtual std::vector<std::byte> readRange(const std::string& name, uint64_t offset,
+                                           uint64_t length) const = 0;
+  // The file's path or URL, for messages.
+  virtual std::string locate(const std::string& name) const = 0;
+};
+std::shared_ptr<const RegionSource> directoryRegionSource(const std::filesystem::path& dir);
 
 // Reads a world's cells, every check of the format included. Thread-safe.
 class CellStore {
@@ -60,8 +78,8 @@ class CellStore {
   virtual CellFile read(glm::ivec2 cell) const = 0;
   // Names the cell's storage in messages: the cell file, or "<region file>: cell (x, z)".
   virtual std::string where(glm::ivec2 cell) const = 0;
-  // The directory, and what it holds ("cell files" / "regions").
-  virtual const std::filesystem::path& dir() const = 0;
+  // The directory or URL, and what it holds ("cell files" / "regions").
+  virtual std::string location() const = 0;
   virtual const char* kind() const = 0;
   // What a cell that has() denies is, in messages ("no cell file", "in no region").
   virtual const char* missing() const = 0;
@@ -71,6 +89,7 @@ std::unique_ptr<CellStore> openCellFiles(const std::filesystem::path& cellsDir);
 // Regions of dir/regions.json; a region's head is read on its first use and kept (a few KB per region).
 // Throws lfgi::Error for a missing or bad index.
 std::unique_ptr<CellStore> openRegions(const std::filesystem::path& regionsDir);
+std::unique_ptr<CellStore> openRegions(std::shared_ptr<const RegionSource> source);
 
 struct PackStats {
   int regions = 0;                   // regions in the index

@@ -1,5 +1,6 @@
 #include "core/file_util.h"
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -23,6 +24,25 @@ std::vector<std::byte> readFileBytes(const std::filesystem::path& path) {
   if (size > 0 && !in.read(reinterpret_cast<char*>(bytes.data()), size))
     fail("{}: read failed after {} of {} bytes", path.string(), in.gcount(), size);
   return bytes;
+}
+
+std::vector<std::byte> readFileRange(const std::filesystem::path& path, uint64_t offset, uint64_t length) {
+  std::vector<std::byte> out(static_cast<size_t>(length));
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) fail("{}: cannot open for reading ({})", path.string(), std::strerror(errno));
+  size_t done = 0;
+  while (done < out.size()) {
+    const ssize_t n = ::pread(fd, out.data() + done, out.size() - done, off_t(offset + done));
+    if (n <= 0) {
+      const int err = errno;
+      ::close(fd);
+      fail("{}: cannot read {} bytes at offset {} ({})", path.string(), length, offset,
+           n == 0 ? "the file ends first" : std::strerror(err));
+    }
+    done += size_t(n);
+  }
+  ::close(fd);
+  return out;
 }
 
 void writeViaTempFile(const std::filesystem::path& path,

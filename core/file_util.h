@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <span>
@@ -14,6 +15,9 @@ namespace lfgi {
 
 // Reads a whole file. Throws lfgi::Error("<path>: <reason>") if it cannot be opened or read.
 std::vector<std::byte> readFileBytes(const std::filesystem::path& path);
+// Reads exactly `length` bytes at `offset` (positioned reads; safe from several threads). Throws
+// lfgi::Error("<path>: <reason>") when the file is shorter or cannot be read.
+std::vector<std::byte> readFileRange(const std::filesystem::path& path, uint64_t offset, uint64_t length);
 
 // Writes bytes atomically (temp file + rename). Creates missing parent directories.
 void writeFileAtomic(const std::filesystem::path& path, std::span<const std::byte> bytes);

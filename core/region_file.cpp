@@ -1,8 +1,5 @@
 #include "core/region_file.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <cstring>
 #include <map>
@@ -13,6 +10,7 @@
 
 #include "core/cell_file_meta.h"
 #include "core/error.h"
+#include "core/file_util.h"
 #include "core/vdb_container.h"
 
 namespace lfgi {
@@ -487,25 +485,6 @@ void readIndex(VarReader& r, RegionFile::Head& h) {
          h.fileBytes);
 }
 
-std::vector<std::byte> readRange(const std::filesystem::path& path, uint64_t offset, uint64_t length) {
-  std::vector<std::byte> out(static_cast<size_t>(length));
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) fail("{}: cannot open: {}", path.string(), std::strerror(errno));
-  size_t done = 0;
-  while (done < out.size()) {
-    const ssize_t n = ::pread(fd, out.data() + done, out.size() - done, off_t(offset + done));
-    if (n <= 0) {
-      const int err = errno;
-      ::close(fd);
-      fail("{}: cannot read {} bytes at offset {}: {}", path.string(), length, offset,
-           n == 0 ? "end of file" : std::strerror(err));
-    }
-    done += size_t(n);
-  }
-  ::close(fd);
-  return out;
-}
-
 }  // namespace
 
 RegionFile RegionFile::open(RangeReader read, uint64_t fileSize, std::string name) {
@@ -543,7 +522,7 @@ RegionFile RegionFile::open(const std::filesystem::path& path) {
   std::error_code ec;
   const uint64_t size = std::filesystem::file_size(path, ec);
   if (ec) fail("{}: cannot read the region file: {}", path.string(), ec.message());
-  return open([path](uint64_t offset, uint64_t length) { return readRange(path, offset, length); }, size,
+  return open([path](uint64_t offset, uint64_t length) { return readFileRange(path, offset, length); }, size,
               path.string());
 }
 
@@ -588,7 +567,12 @@ CellFile RegionFile::decodeRecord(size_t i, CellFileBytes* parts, RegionFileByte
   const Head& h = *head_;
   const RegionCellEntry& e = h.cells.at(i);
   const std::string where = fmt::format("{}: cell ({}, {})", h.name, e.cellX, e.cellZ);
-  const std::vector<std::byte> record = read_(e.offset, e.length);
+  std::vector<std::byte> record;
+  try {
+    record = read_(e.offset, e.length);
+  } catch (const Error& err) {  // the reader's message names the file; add the cell
+    fail("{} (reading cell ({}, {}))", err.what(), e.cellX, e.cellZ);
+  }
   if (record.size() != e.length)
     fail("{}: read {} bytes of a {}-byte record", where, record.size(), e.length);
   const uint64_t actual = xxh3(record);

@@ -18,6 +18,7 @@
 #include "core/sh.h"
 #include "core/shared_model.h"
 #include "streaming/generator_backend.h"
+#include "streaming/http_region_source.h"
 #include "worlds/world_cells.h"
 
 namespace lfgi::streaming {
@@ -100,7 +101,13 @@ void copyProbe(const ProbeField& from, size_t a, ProbeField& to, size_t b) {
 }  // namespace
 
 void CellFileSourceOptions::validate() const {
-  if (worldDir.empty()) fail("CellFileSourceOptions.worldDir is empty");
+  if (worldDir.empty() == worldUrl.empty())
+    fail("CellFileSourceOptions: give one of worldDir and worldUrl (worldDir '{}', worldUrl '{}')",
+         worldDir.string(), worldUrl);
+  if (!worldUrl.empty() && !isHttpUrl(worldUrl))
+    fail("CellFileSourceOptions.worldUrl '{}' is not an http:// or https:// URL", worldUrl);
+  if (!worldUrl.empty() && storage == CellStorage::CellFiles)
+    fail("CellFileSourceOptions: a world served over HTTP is read from its regions, not cell files");
   if (irradianceResolution < 0 || irradianceResolution > 64)
     fail("CellFileSourceOptions.irradianceResolution = {} outside [0, 64]", irradianceResolution);
   if (shOnlyResolution < 0 || shOnlyResolution > 128)
@@ -304,7 +311,7 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
   if (options_.cellsDir.empty()) options_.cellsDir = options_.worldDir / "baked" / "cells";
   if (options_.sharedModel.empty())
     options_.sharedModel = options_.cellsDir.parent_path() / "shared_model.vdb";
-  const worlds::WorldParams params = worlds::readWorldManifest(options_.worldDir);
+  const worlds::WorldParams params = readManifest();
   const int cells = int(std::lround(params.sizeM / params.cellM));
   layout_ = {{0.0f, 0.0f}, float(params.cellM), {cells, cells}};
   worldSeed_ = params.seed;
@@ -319,7 +326,7 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
   const int maxGeneratorN = scanCellFiles(cells, probeWeights, probeLatents);
   if (validCells_ == 0)
     fail("{}: none of the world's {} cells has a readable cell file ({} missing, {} corrupt)",
-         store_->dir().string(), N, missingCells_, corruptCells_);
+         store_->location(), N, missingCells_, corruptCells_);
   sizeSlots(maxGeneratorN);
   fillMissingFallbacks(cells);
   for (const auto& range : keyRange_)
@@ -327,14 +334,32 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
   if (missingCells_ > 0)
     spdlog::warn(
         "streaming: {} of {} cells are not stored in {} (they stream their neighbours' mean fallback)",
-        missingCells_, N, store_->dir().string());
+        missingCells_, N, store_->location());
   spdlog::info("streaming: {} in {}: {} valid, {} missing, {} corrupt; slot {} bytes", store_->kind(),
-               store_->dir().string(), validCells_, missingCells_, corruptCells_, maxCellBytes_);
+               store_->location(), validCells_, missingCells_, corruptCells_, maxCellBytes_);
   chooseDecoder(probeWeights, probeLatents);
   samples_.reserve(4096);
 }
 
+std::string CellFileSource::worldUrl(const std::string& file) const {
+  std::string base = options_.worldUrl;
+  if (base.back() != '/') base += '/';
+  return base + file;
+}
+
+worlds::WorldParams CellFileSource::readManifest() const {
+  if (options_.worldUrl.empty()) return worlds::readWorldManifest(options_.worldDir);
+  const std::string url = worldUrl("world.json");
+  const std::vector<std::byte> text = httpGet(url, size_t(1) << 20);
+  return worlds::parseWorldManifest(std::string_view(reinterpret_cast<const char*>(text.data()), text.size()),
+                                    url);
+}
+
 void CellFileSource::openStore() {
+  if (!options_.worldUrl.empty()) {
+    store_ = openRegions(httpRegionSource(worldUrl("baked/regions")));
+    return;
+  }
   if (options_.regionsDir.empty()) options_.regionsDir = options_.cellsDir.parent_path() / "regions";
   std::error_code ec;
   const bool regions =
@@ -476,7 +501,18 @@ const ResolvedSharedModel* CellFileSource::sharedFor(const CellFile& file, const
   if (!file.generator || !file.generator->shared) return nullptr;
   std::call_once(sharedOnce_, [&] {  // usually during construction; any thread may be first
     std::error_code ec;
-    if (!fs::exists(options_.sharedModel, ec)) {
+    if (!options_.worldUrl.empty()) {
+      try {
+        const std::string url = worldUrl("baked/shared_model.vdb");
+        ResolvedSharedModel m;
+        m.weights =
+            dequantizeWeights(decodeSharedModel(httpGet(url, kCellFileMaxBytes), url, &m.hash).weights);
+        m.name = url;
+        shared_ = std::move(m);
+      } catch (const Error& e) {
+        sharedError_ = e.what();
+      }
+    } else if (!fs::exists(options_.sharedModel, ec)) {
       sharedError_ = fmt::format("{}: no shared model file (bake the world with `lfgi bake --codec shared`)",
                                  options_.sharedModel.string());
     } else {

@@ -57,6 +57,7 @@
 #include "core/shared_model.h"
 #include "streaming/cell_source.h"
 #include "streaming/generator_backend.h"
+#include "worlds/world_cells.h"
 
 namespace lfgi::streaming {
 
@@ -65,7 +66,10 @@ namespace lfgi::streaming {
 enum class CellStorage : uint8_t { Auto, CellFiles, Regions };
 
 struct CellFileSourceOptions {
-  std::filesystem::path worldDir;    // holds world.json (the layout)
+  std::filesystem::path worldDir;  // holds world.json (the layout)
+  // Instead of worldDir: a world served over HTTP (streaming/http_region_source.h): URL/world.json,
+  // URL/baked/regions/ (regions only) and URL/baked/shared_model.vdb for a shared-codec world.
+  std::string worldUrl;
   std::filesystem::path cellsDir;    // empty: worldDir / "baked" / "cells"
   std::filesystem::path regionsDir;  // empty: cellsDir's parent / "regions"
   CellStorage storage = CellStorage::Auto;
@@ -159,7 +163,9 @@ class CellFileSource final : public CellSource {
   const ResolvedSharedModel* sharedFor(const CellFile& file, const std::string& path);
   ShL1 keyFallback(glm::ivec2 cell, float timeOfDayHours) const;
   // Stages of construction, in order.
+  worlds::WorldParams readManifest() const;
   void openStore();
+  std::string worldUrl(const std::string& file) const;
   int scanCellFiles(int cells, std::optional<GeneratorWeights>& probeWeights,
                     std::vector<float>& probeLatents);
   void sizeSlots(int maxGeneratorN);

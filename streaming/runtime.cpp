@@ -8,6 +8,7 @@
 #include <system_error>
 
 #include "core/error.h"
+#include "streaming/http_region_source.h"
 #include "streaming/runtime_impl.h"
 
 #ifndef LFGI_VERSION_STRING
@@ -37,7 +38,8 @@ void checkRuntimeConfig(const RuntimeConfig& c) {
     throw RuntimeError(fmt::format("lfgi runtime: RuntimeConfig::activateBudgetMs = {} (must be finite, > 0)",
                                    c.activateBudgetMs));
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(c.world / "world.json", ec))
+  if (!streaming::isHttpUrl(c.world.string()) &&
+      !std::filesystem::is_regular_file(c.world / "world.json", ec))
     throw RuntimeError(fmt::format(
         "{}: no world.json (not a world directory; `lfgi world generate` makes one)", c.world.string()));
 }
@@ -64,7 +66,16 @@ std::unique_ptr<Runtime::Impl> Runtime::Impl::open(const RuntimeConfig& config,
   impl->config = config;
   impl->virContext = std::move(virContext);
   streaming::CellFileSourceOptions so;
-  so.worldDir = config.world;
+  const bool url = streaming::isHttpUrl(config.world.string());
+  if (url)
+    so.worldUrl = config.world.string();
+  else
+    so.worldDir = config.world;
+  if (url && config.virVisibility)
+    fail(
+        "lfgi runtime: virVisibility regenerates visibility from the world's geometry on disk; {} is served "
+        "over HTTP (set virVisibility = false, or open a local copy)",
+        config.world.string());
   so.decoder = streaming::DecoderChoice::Cpu;
   impl->source = std::make_unique<streaming::CellFileSource>(so);
   streaming::CellSource* source = impl->source.get();

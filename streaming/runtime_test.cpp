@@ -118,6 +118,13 @@ TEST(Runtime, BadInputsGiveNamedErrors) {
   b = c;
   b.ioThreads = 65;
   EXPECT_NE(errorOf(b).find("ioThreads = 65"), std::string::npos) << errorOf(b);
+  // A world on a server: visibility from geometry needs the world on disk; without it, a dead server is
+  // named (port 9 on 127.0.0.1: nothing listens).
+  b = c;
+  b.world = "http://127.0.0.1:9/world";
+  EXPECT_NE(errorOf(b).find("served over HTTP (set virVisibility = false"), std::string::npos) << errorOf(b);
+  b.virVisibility = false;
+  EXPECT_NE(errorOf(b).find("http://127.0.0.1:9/world/world.json: "), std::string::npos) << errorOf(b);
   // A world that was never baked.
   fs::remove_all(c.world / "baked");
   EXPECT_NE(errorOf(c).find("no cell-file directory"), std::string::npos) << errorOf(c);

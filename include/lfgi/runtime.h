@@ -3,7 +3,8 @@
 // target lfgi::runtime); everything else in the source tree is internal.
 //
 // Contract
-//   - Runtime::open reads a world baked by `lfgi bake` (WORLD/world.json + WORLD/baked/cells/*.vdb) and
+//   - Runtime::open reads a world baked by `lfgi bake` (WORLD/world.json + WORLD/baked/regions/, the cells
+//     packed into region files, or WORLD/baked/cells/*.vdb; a local directory or an http(s):// URL) and
 //     keeps every cell's coarse fallback (SH L1) resident from then on, so a point inside the world is
 //     never without light, whatever the streaming does.
 //   - update() once per frame on the game thread: cells near the camera (and its predicted position) are
@@ -44,7 +45,10 @@ class LFGI_API RuntimeError : public std::runtime_error {
 };
 
 struct RuntimeConfig {
-  std::filesystem::path world;                             // world directory: world.json + baked/cells/
+  // The world directory (world.json + baked/regions/ or baked/cells/), or an http(s):// URL of one on a
+  // static server (regions read by range requests; docs/embedding.md "Serving worlds"; needs
+  // virVisibility = false: visibility is regenerated from geometry on disk).
+  std::filesystem::path world;
   std::size_t memoryBudgetBytes = std::size_t(256) << 20;  // decoded light field, > 0
   float decodeRadius = 160.0f;                             // m: cells nearer than this are loaded (> 0)
   float keepRadius = 224.0f;      // m: resident cells farther than this are dropped (> decodeRadius)

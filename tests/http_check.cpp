@@ -1,0 +1,129 @@
+// lfgi_http_check: a baked world streamed from an HTTP server (streaming/http_region_source.h) against the
+// same world on disk; tests/http_serving.sh runs it against nginx on 127.0.0.1.
+//   lfgi_http_check same WORLD_DIR URL     every cell over HTTP is the disk cell: same state, and its load
+//                                           (radiance, irradiance, distance) bit-identical
+//   lfgi_http_check dropped URL COMMAND    opens the world, runs COMMAND (stops the server), then every load
+//                                           must fail with an lfgi::Error naming the URL while the cells'
+//                                           fallbacks stay what they were
+//   lfgi_http_check truncated URL X,Z      cell X,Z's region file is served short: that cell alone is
+//                                           corrupt, with an error naming its URL and the cell
+// Prints what it checked; exit 0 when it holds, 1 otherwise (named), 2 for bad usage.
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+
+#include <spdlog/spdlog.h>
+
+#include "core/error.h"
+#include "streaming/cell_file_source.h"
+
+namespace {
+
+using namespace lfgi;
+using streaming::CellFileSource;
+using streaming::CellFileSourceOptions;
+using streaming::CellFileState;
+using streaming::WorldLayout;
+
+CellFileSourceOptions urlOptions(const std::string& url) {
+  CellFileSourceOptions o;
+  o.worldUrl = url;
+  return o;
+}
+
+bool sameFloats(const std::vector<float>& a, const std::vector<float>& b) {
+  return a.size() == b.size() &&
+         (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0);
+}
+
+int same(const std::string& dir, const std::string& url) {
+  CellFileSourceOptions d;
+  d.worldDir = dir;
+  d.storage = streaming::CellStorage::Regions;
+  CellFileSource disk(d), http(urlOptions(url));
+  const WorldLayout l = disk.layout();
+  int loaded = 0;
+  for (int z = 0; z < l.cells.y; ++z)
+    for (int x = 0; x < l.cells.x; ++x) {
+      if (disk.info({x, z}).state != http.info({x, z}).state)
+        fail("cell {},{}: state differs over HTTP", x, z);
+      if (disk.info({x, z}).state != CellFileState::Valid) continue;
+      ProbeField a, b;
+      disk.load({x, z}, a);
+      http.load({x, z}, b);
+      if (!sameFloats(a.radiance, b.radiance) || !sameFloats(a.irradiance, b.irradiance) ||
+          !sameFloats(a.distance, b.distance))
+        fail("cell {},{}: the field loaded over HTTP differs from the disk's", x, z);
+      ++loaded;
+    }
+  std::printf("same: %d cells loaded over HTTP from %s, bit-identical to %s\n", loaded,
+              http.store().location().c_str(), disk.store().location().c_str());
+  return loaded > 0 ? 0 : 1;
+}
+
+int dropped(const std::string& url, const std::string& command) {
+  CellFileSource http(urlOptions(url));
+  const WorldLayout l = http.layout();
+  std::vector<ShL1> before;
+  for (int z = 0; z < l.cells.y; ++z)
+    for (int x = 0; x < l.cells.x; ++x) before.push_back(http.fallback({x, z}));
+  if (std::system(command.c_str()) != 0) fail("dropped: '{}' failed", command);
+  int failed = 0;
+  std::string example;
+  for (int z = 0; z < l.cells.y; ++z)
+    for (int x = 0; x < l.cells.x; ++x) {
+      if (http.info({x, z}).state != CellFileState::Valid) continue;
+      try {
+        ProbeField f;
+        http.load({x, z}, f);
+      } catch (const Error& e) {
+        if (std::string(e.what()).find(url) == std::string::npos)
+          fail("dropped: error without the URL: {}", e.what());
+        example = e.what();
+        ++failed;
+        continue;
+      }
+      fail("dropped: cell {},{} loaded with the server stopped", x, z);
+    }
+  for (int z = 0, i = 0; z < l.cells.y; ++z)
+    for (int x = 0; x < l.cells.x; ++x, ++i)
+      for (int k = 0; k < 4; ++k)
+        if (http.fallback({x, z}).c[size_t(k)] != before[size_t(i)].c[size_t(k)])
+          fail("dropped: cell {},{}'s fallback changed", x, z);
+  std::printf("dropped: %d loads failed cleanly, fallbacks kept; e.g. %s\n", failed, example.c_str());
+  return failed > 0 ? 0 : 1;
+}
+
+int truncated(const std::string& url, int cx, int cz) {
+  CellFileSource http(urlOptions(url));
+  const auto& inf = http.info({cx, cz});
+  if (inf.state != CellFileState::Corrupt) fail("truncated: cell {},{} is not corrupt", cx, cz);
+  if (inf.error.find(url) == std::string::npos ||
+      inf.error.find(fmt::format("cell ({}, {})", cx, cz)) == std::string::npos)
+    fail("truncated: the error does not name the URL and the cell: {}", inf.error);
+  std::printf("truncated: %d valid, %d corrupt; %s\n", http.validCells(), http.corruptCells(),
+              inf.error.c_str());
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  spdlog::set_level(spdlog::level::err);
+  const std::string mode = argc > 1 ? argv[1] : "";
+  try {
+    if (mode == "same" && argc == 4) return same(argv[2], argv[3]);
+    if (mode == "dropped" && argc == 4) return dropped(argv[2], argv[3]);
+    int x = 0, z = 0;
+    if (mode == "truncated" && argc == 4 && std::sscanf(argv[3], "%d,%d", &x, &z) == 2)
+      return truncated(argv[2], x, z);
+  } catch (const Error& e) {
+    std::fprintf(stderr, "lfgi_http_check: %s\n", e.what());
+    return 1;
+  }
+  std::fprintf(stderr,
+               "usage: lfgi_http_check same WORLD_DIR URL | dropped URL COMMAND | truncated URL X,Z\n");
+  return 2;
+}
