@@ -3,6 +3,7 @@
 # cost model projected to 16, 100 and 400 km^2 (BENCHMARKS.md `bake`).
 #   1. single-process `lfgi bake --reproducible` of the small default world (256 m, 16 cells of 64 m),
 #      timed; its cells/cell_X_Z.json records feed the cost model (`bake_s_per_km2` = this wall time / km2);
+#      the bake packs its cells into region files (`bytes_per_km2` all-in, `container_bytes_per_cell`);
 #   2. determinism: cells 0-3 (row z = 0) baked again as 2 array shares in 2 processes: every file must
 #      be byte-identical to bake 1's (`deterministic`);
 #   3. rebake: a capture-only bake (--error-target 1: SH L1, no training; the count does not depend on the
@@ -34,8 +35,14 @@ mkdir -p "$work"
 ms() { echo $(( $(date +%s%N) / 1000000 )); }  # bash 64-bit arithmetic (mawk's %d caps at 2^31)
 echo "bench bake: 1/4 single-process bake of the default world ($settings)" >&2
 t0=$(ms)
-"$lfgi" bake --world "$work/world" --out "$work/single" "${flags[@]}" --reproducible 2>"$work/single.log"
+"$lfgi" bake --world "$work/world" --out "$work/single" "${flags[@]}" --reproducible 2>"$work/single.log" |
+  tee "$work/single.txt"
 bake_ms=$(( $(ms) - t0 ))
+# The bake packs its cells into region files: "pack: ... N bytes (...) ...: ..., container C B/cell -> DIR"
+region_bytes=$(sed -n 's/^pack: .*), \([0-9]*\) bytes (.*/\1/p' "$work/single.txt")
+container=$(sed -n 's/^pack: .*container \([0-9.]*\) B\/cell.*/\1/p' "$work/single.txt")
+cell_file_bytes=$(cat "$work"/single/cells/*.vdb | wc -c)
+[[ -n "$region_bytes" && -n "$container" ]] || { echo "bench bake: the bake did not pack its cells" >&2; exit 1; }
 echo "bench bake: 2/4 cells 0-3 again in 2 processes" >&2
 for i in 0 1; do
   "$lfgi" bake --world "$work/world" --out "$work/shares" --cells 0-3 --array-index $i --array-size 2 "${flags[@]}" \
@@ -72,6 +79,10 @@ commit="${LFGI_COMMIT:-$(git -C "$(dirname "$0")/.." rev-parse --short HEAD 2>/d
 cat > "$out/summary.json.tmp" <<JSON
 {
   "bake_s_per_km2": $(awk -v ms="$bake_ms" -v a="$km2" 'BEGIN { printf "%.1f", ms / 1000 / a }'),
+  "bytes_per_km2": $(awk -v b="$region_bytes" -v a="$km2" 'BEGIN { printf "%.0f", b / a }'),
+  "bytes_per_km2_note": "region files + regions.json (all-in: light field, probe masks, container) over the world's area",
+  "cell_file_bytes_per_km2": $(awk -v b="$cell_file_bytes" -v a="$km2" 'BEGIN { printf "%.0f", b / a }'),
+  "container_bytes_per_cell": $container,
   "rebake_cells_touched_after_one_cell_edit": $touched,
   "deterministic": $deterministic,
   "measured_on": "small default world (256 m, 16 cells of 64 m, seed 1), single process, $settings",
