@@ -6,6 +6,8 @@
 #   3. the server stopped under an open world: every load fails naming the URL, fallbacks stay
 #      (lfgi_http_check dropped), and a new flight exits 1 naming the URL;
 #   4. a region file served shorter than its index says: only the cut cell is corrupt, named.
+# One nginx process (master_process off), so it serves as the user running the test: no worker switches
+# to "nobody", which could not read a private (0700) temporary directory.
 # Usage: http_serving.sh LFGI HTTP_CHECK BAKED_WORLD_DIR TMP_DIR
 set -euo pipefail
 lfgi="$1" check="$2" world="$3" tmp="$4"
@@ -27,6 +29,7 @@ start() {
     port=$(( 20000 + ($$ * 7 + i * 131) % 40000 ))
     cat > "$tmp/nginx.conf" <<CONF
 worker_processes 1;
+master_process off;
 daemon on;
 pid $tmp/nginx.pid;
 error_log $tmp/logs/error.log;
