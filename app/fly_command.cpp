@@ -158,13 +158,15 @@ void openCellSources(const FlyOptions& opt, FlySources& cs) {
   streaming::CellSource& inner =
       cs.fileSource ? static_cast<streaming::CellSource&>(*cs.fileSource) : *cs.synthetic;
   if (opt.relight == "vir") {
-    if (opt.world.empty() || url)
-      fail("--relight vir needs --world DIR, a local world (the surfels come from the world's cells)");
+    if (opt.world.empty())
+      fail("--relight vir needs --world DIR or URL (the surfels come from the world's cells)");
     cs.ctx = gpu::createContext();
     streaming::VirRelightOptions vo;
     vo.weather = opt.weatherStart;
-    cs.virSource = std::make_unique<streaming::VirRelightSource>(inner, *cs.ctx, vo,
-                                                                 streaming::worldSurfelProvider(opt.world));
+    cs.virSource = std::make_unique<streaming::VirRelightSource>(
+        inner, *cs.ctx, vo,
+        url ? streaming::worldSurfelProvider(cs.fileSource->world())
+            : streaming::worldSurfelProvider(opt.world));
   } else if (opt.relight != "codec") {
     fail("--relight '{}': expected codec or vir", opt.relight);
   }

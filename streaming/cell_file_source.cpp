@@ -311,10 +311,10 @@ CellFileSource::CellFileSource(CellFileSourceOptions options) : options_(std::mo
   if (options_.cellsDir.empty()) options_.cellsDir = options_.worldDir / "baked" / "cells";
   if (options_.sharedModel.empty())
     options_.sharedModel = options_.cellsDir.parent_path() / "shared_model.vdb";
-  const worlds::WorldParams params = readManifest();
-  const int cells = int(std::lround(params.sizeM / params.cellM));
-  layout_ = {{0.0f, 0.0f}, float(params.cellM), {cells, cells}};
-  worldSeed_ = params.seed;
+  world_ = readManifest();
+  const int cells = int(std::lround(world_.sizeM / world_.cellM));
+  layout_ = {{0.0f, 0.0f}, float(world_.cellM), {cells, cells}};
+  worldSeed_ = world_.seed;
   openStore();
 
   const size_t N = size_t(cells) * size_t(cells);

@@ -107,6 +107,8 @@ class CellFileSource final : public CellSource {
   explicit CellFileSource(CellFileSourceOptions options);
 
   WorldLayout layout() const override { return layout_; }
+  // The world's manifest (world.json, from the directory or the URL), read at construction.
+  const worlds::WorldParams& world() const { return world_; }
   // The cell's fallback at the time of day last set (setTimeOfDay): per-key SH floats precomputed at
   // construction, interpolated here (a key scan and a lerp; no allocation). Game thread.
   ShL1 fallback(glm::ivec2 cell) const override;
@@ -175,6 +177,7 @@ class CellFileSource final : public CellSource {
 
   CellFileSourceOptions options_;
   std::unique_ptr<CellStore> store_;
+  worlds::WorldParams world_;
   WorldLayout layout_;
   uint64_t worldSeed_ = 0;
   // Fallback keys of every cell: cell i's are keyHours_ / keySh_ [first, first + count) of keyRange_[i],

@@ -71,11 +71,6 @@ std::unique_ptr<Runtime::Impl> Runtime::Impl::open(const RuntimeConfig& config,
     so.worldUrl = config.world.string();
   else
     so.worldDir = config.world;
-  if (url && config.virVisibility)
-    fail(
-        "lfgi runtime: virVisibility regenerates visibility from the world's geometry on disk; {} is served "
-        "over HTTP (set virVisibility = false, or open a local copy)",
-        config.world.string());
   so.decoder = streaming::DecoderChoice::Cpu;
   impl->source = std::make_unique<streaming::CellFileSource>(so);
   streaming::CellSource* source = impl->source.get();
@@ -86,7 +81,8 @@ std::unique_ptr<Runtime::Impl> Runtime::Impl::open(const RuntimeConfig& config,
     vo.maxRange = impl->source->layout().cellSize;  // as `lfgi render --probes codec`
     impl->vir = std::make_unique<streaming::VirRelightSource>(
         *impl->source, *impl->virContext, vo,
-        streaming::neighbourhoodSurfelProvider(streaming::worldSurfelProvider(config.world),
+        streaming::neighbourhoodSurfelProvider(url ? streaming::worldSurfelProvider(impl->source->world())
+                                                   : streaming::worldSurfelProvider(config.world),
                                                impl->source->layout()));
     source = impl->vir.get();
   }

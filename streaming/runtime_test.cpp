@@ -15,6 +15,7 @@
 #include <fmt/format.h>
 
 #include "core/cell_file.h"
+#include "core/cell_store.h"
 #include "core/half.h"
 #include "gpu/buffer.h"
 #include "gpu/context.h"
@@ -50,7 +51,7 @@ fs::path makeWorld(const std::string& name) {
       c.fallback.shHalf.assign(12, floatToHalfClamped(0.0f));
       for (int ch = 0; ch < 3; ++ch) c.fallback.shHalf[size_t(ch)] = floatToHalfClamped(l0);
       c.stats.model = "no network: SH L1";
-      writeCellFile(dir / "baked" / "cells" / fmt::format("cell_{}_{}.vdb", x, z), c);
+      writeCellFile(dir / "baked" / "cells" / cellFileName({x, z}), c);
     }
   return dir;
 }
@@ -108,7 +109,8 @@ TEST(Runtime, BadInputsGiveNamedErrors) {
   EXPECT_NE(errorOf(b).find("memoryBudgetBytes is 0"), std::string::npos) << errorOf(b);
   b = c;
   b.memoryBudgetBytes = 16;  // less than one cell
-  EXPECT_NE(errorOf(b), "");
+  EXPECT_NE(errorOf(b).find("memoryBudgetBytes = 16 is smaller than one cell"), std::string::npos)
+      << errorOf(b);
   b = c;
   b.decodeRadius = -1.0f;
   EXPECT_NE(errorOf(b).find("decodeRadius = -1"), std::string::npos) << errorOf(b);
@@ -118,13 +120,14 @@ TEST(Runtime, BadInputsGiveNamedErrors) {
   b = c;
   b.ioThreads = 65;
   EXPECT_NE(errorOf(b).find("ioThreads = 65"), std::string::npos) << errorOf(b);
-  // A world on a server: visibility from geometry needs the world on disk; without it, a dead server is
-  // named (port 9 on 127.0.0.1: nothing listens).
+  // A world on a dead server is named, with visibility from geometry or without (port 9 on 127.0.0.1:
+  // nothing listens).
   b = c;
   b.world = "http://127.0.0.1:9/world";
-  EXPECT_NE(errorOf(b).find("served over HTTP (set virVisibility = false"), std::string::npos) << errorOf(b);
-  b.virVisibility = false;
-  EXPECT_NE(errorOf(b).find("http://127.0.0.1:9/world/world.json: "), std::string::npos) << errorOf(b);
+  for (bool vir : {true, false}) {
+    b.virVisibility = vir;
+    EXPECT_NE(errorOf(b).find("http://127.0.0.1:9/world/world.json: "), std::string::npos) << errorOf(b);
+  }
   // A world that was never baked.
   fs::remove_all(c.world / "baked");
   EXPECT_NE(errorOf(c).find("no cell-file directory"), std::string::npos) << errorOf(c);

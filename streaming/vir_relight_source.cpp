@@ -55,23 +55,35 @@ uint64_t lightingHash(const ProbeField& f) {
   return h;
 }
 
+namespace {
+
+CellSurfels generatedSurfels(const worlds::SyntheticWorld& world, worlds::CellCoord c) {
+  worlds::BuiltCell built = worlds::buildCell(world, c);
+  CellSurfels out;
+  out.surfels = std::move(built.surfels);
+  out.offsets = std::move(built.probes.offsets);
+  return out;
+}
+
+}  // namespace
+
 SurfelProvider worldSurfelProvider(const std::filesystem::path& worldDir) {
   auto world = std::make_shared<worlds::SyntheticWorld>(worlds::readWorldManifest(worldDir));
   return [world, worldDir](glm::ivec2 cell) {
     const worlds::CellCoord c{cell.x, cell.y};
     const std::filesystem::path surfelFile =
         worldDir / "cells" / fmt::format("cell_{}_{}.surfels", cell.x, cell.y);
+    if (!std::filesystem::exists(surfelFile)) return generatedSurfels(*world, c);
     CellSurfels out;
-    if (std::filesystem::exists(surfelFile)) {
-      out.surfels = worlds::decodeSurfels(readFileBytes(surfelFile), surfelFile.string());
-      if (auto probes = worlds::readCellProbes(worldDir, c)) out.offsets = std::move(probes->offsets);
-      return out;
-    }
-    worlds::BuiltCell built = worlds::buildCell(*world, c);
-    out.surfels = std::move(built.surfels);
-    out.offsets = std::move(built.probes.offsets);
+    out.surfels = worlds::decodeSurfels(readFileBytes(surfelFile), surfelFile.string());
+    if (auto probes = worlds::readCellProbes(worldDir, c)) out.offsets = std::move(probes->offsets);
     return out;
   };
+}
+
+SurfelProvider worldSurfelProvider(const worlds::WorldParams& params) {
+  auto world = std::make_shared<worlds::SyntheticWorld>(params);
+  return [world](glm::ivec2 cell) { return generatedSurfels(*world, {cell.x, cell.y}); };
 }
 
 SurfelProvider neighbourhoodSurfelProvider(SurfelProvider inner, const WorldLayout& layout) {

@@ -53,6 +53,7 @@
 #include "streaming/cell_source.h"
 #include "worlds/sky.h"
 #include "worlds/surfels.h"
+#include "worlds/synthetic_world.h"
 
 namespace lfgi::streaming {
 
@@ -73,6 +74,9 @@ using SurfelProvider = std::function<CellSurfels(glm::ivec2 cell)>;
 // world (deterministic: the same surfels and probe placement the bake used; costs the cell's generation,
 // ~0.1-1 s, once per cached cell). Reads world.json at construction (lfgi::Error naming it).
 SurfelProvider worldSurfelProvider(const std::filesystem::path& worldDir);
+// A world known by its manifest alone (served over HTTP: CellFileSource::world()): every cell is
+// worlds::buildCell of it, the same surfels and probe placement the bake used.
+SurfelProvider worldSurfelProvider(const worlds::WorldParams& world);
 
 // The cell's probe offsets with the surfels of the cell and its 8 neighbours (those inside the layout), so
 // a border probe's moments see the walls next door (what `lfgi render --probes codec` splats). inner is

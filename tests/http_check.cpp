@@ -7,16 +7,22 @@
 //                                           fallbacks stay what they were
 //   lfgi_http_check truncated URL X,Z      cell X,Z's region file is served short: that cell alone is
 //                                           corrupt, with an error naming its URL and the cell
+//   lfgi_http_check runtime WORLD_DIR URL  lfgi::Runtime with VIR visibility opened on the URL samples
+//                                           the same GI as on the directory, bit for bit, from decoded cells
 // Prints what it checked; exit 0 when it holds, 1 otherwise (named), 2 for bad usage.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
+#include <memory>
 #include <string>
+#include <vector>
 
 #include <spdlog/spdlog.h>
 
 #include "core/error.h"
+#include "lfgi/runtime.h"
 #include "streaming/cell_file_source.h"
 
 namespace {
@@ -108,6 +114,52 @@ int truncated(const std::string& url, int cx, int cz) {
   return 0;
 }
 
+// Every cell resident and faded in: the camera over the world's middle, 64 one-second frames, loads inline.
+std::vector<lfgi::GiSample> runtimeSamples(const std::string& world, std::vector<float>& points) {
+  lfgi::RuntimeConfig c;
+  c.world = world;
+  c.ioThreads = 0;
+  c.activateBudgetMs = 1e6;
+  c.decodeRadius = 1e5f;  // the whole (small) test world
+  c.keepRadius = 2e5f;
+  std::unique_ptr<lfgi::Runtime> rt = lfgi::Runtime::open(c);
+  const float sx = rt->worldSizeX(), sz = rt->worldSizeZ();
+  lfgi::Frame f;
+  f.position[0] = 0.5f * sx, f.position[1] = 20.0f, f.position[2] = 0.5f * sz;
+  f.dtSeconds = 1.0f;
+  for (int i = 0; i < 64; ++i) rt->update(f);
+  const int n = 24;  // a grid of points 1.5 m up, normals up, then sideways
+  points.clear();
+  std::vector<float> normals;
+  for (int k = 0; k < 2; ++k)
+    for (int z = 0; z < n; ++z)
+      for (int x = 0; x < n; ++x) {
+        points.insert(points.end(), {(float(x) + 0.5f) * sx / n, 1.5f, (float(z) + 0.5f) * sz / n});
+        normals.insert(normals.end(), {0.0f, k == 0 ? 1.0f : 0.0f, k == 0 ? 0.0f : 1.0f});
+      }
+  std::vector<lfgi::GiSample> out(points.size() / 3);
+  rt->sample(points, normals, out);
+  return out;
+}
+
+int runtime(const std::string& dir, const std::string& url) {
+  std::vector<float> points;
+  const std::vector<lfgi::GiSample> disk = runtimeSamples(dir, points), http = runtimeSamples(url, points);
+  int decoded = 0;
+  for (size_t i = 0; i < disk.size(); ++i) {
+    if (std::memcmp(disk[i].irradiance, http[i].irradiance, sizeof(disk[i].irradiance)) != 0 ||
+        disk[i].fallbackWeight != http[i].fallbackWeight || disk[i].missing != http[i].missing)
+      fail("runtime: the sample at ({}, {}, {}) differs over HTTP", points[3 * i], points[3 * i + 1],
+           points[3 * i + 2]);
+    if (disk[i].missing) fail("runtime: no light at ({}, {})", points[3 * i], points[3 * i + 2]);
+    decoded += disk[i].fallbackWeight == 0.0f;
+  }
+  std::printf(
+      "runtime: %zu samples with VIR visibility over HTTP bit-identical to disk, %d from decoded cells\n",
+      disk.size(), decoded);
+  return decoded > 0 ? 0 : 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -116,14 +168,17 @@ int main(int argc, char** argv) {
   try {
     if (mode == "same" && argc == 4) return same(argv[2], argv[3]);
     if (mode == "dropped" && argc == 4) return dropped(argv[2], argv[3]);
+    if (mode == "runtime" && argc == 4) return runtime(argv[2], argv[3]);
     int x = 0, z = 0;
     if (mode == "truncated" && argc == 4 && std::sscanf(argv[3], "%d,%d", &x, &z) == 2)
       return truncated(argv[2], x, z);
-  } catch (const Error& e) {
+  } catch (const std::exception& e) {  // lfgi::Error, lfgi::RuntimeError
     std::fprintf(stderr, "lfgi_http_check: %s\n", e.what());
     return 1;
   }
-  std::fprintf(stderr,
-               "usage: lfgi_http_check same WORLD_DIR URL | dropped URL COMMAND | truncated URL X,Z\n");
+  std::fprintf(
+      stderr,
+      "usage: lfgi_http_check same WORLD_DIR URL | dropped URL COMMAND | truncated URL X,Z | runtime "
+      "WORLD_DIR URL\n");
   return 2;
 }

@@ -2,7 +2,9 @@
 # A baked world served like map tiles (docs/embedding.md "Serving worlds"): nginx on 127.0.0.1 serves a copy
 # of the world directory, and the world is streamed over HTTP range requests.
 #   1. every cell loaded over HTTP is bit-identical to the disk's (lfgi_http_check same);
-#   2. `lfgi fly --world URL` flies over it with no pixel missing GI;
+#   2. lfgi::Runtime with VIR visibility samples the same GI over HTTP as from disk (lfgi_http_check
+#      runtime); `lfgi fly --world URL`, with the codec's relight and with --relight vir, flies over it
+#      with no pixel missing GI;
 #   3. the server stopped under an open world: every load fails naming the URL, fallbacks stay
 #      (lfgi_http_check dropped), and a new flight exits 1 naming the URL;
 #   4. a region file served shorter than its index says: only the cut cell is corrupt, named.
@@ -57,6 +59,10 @@ port=$(start)
 url="http://127.0.0.1:$port/world"
 echo "http_serving: nginx $("$nginx" -v 2>&1 | sed 's/.*\///') on $url"
 "$check" same "$world" "$url"
+"$check" runtime "$world" "$url"
+out=$("$lfgi" fly --world "$url" --relight vir --seconds 1 --out "$tmp/fly_vir" 2>&1) || { echo "$out"; exit 1; }
+echo "$out" | grep -E ", 0 with missing GI" >/dev/null ||
+  { echo "$out"; echo "http_serving: the VIR flight over HTTP has pixels missing GI" >&2; exit 1; }
 out=$("$lfgi" fly --world "$url" --seconds 2 --out "$tmp/fly" 2>&1) || { echo "$out"; exit 1; }
 echo "$out" | grep -E "^source: regions from $url/baked/regions \(4 valid, 0 missing, 0 corrupt" >/dev/null ||
   { echo "$out"; echo "http_serving: the flight did not stream the served regions" >&2; exit 1; }

@@ -46,8 +46,8 @@ class LFGI_API RuntimeError : public std::runtime_error {
 
 struct RuntimeConfig {
   // The world directory (world.json + baked/regions/ or baked/cells/), or an http(s):// URL of one on a
-  // static server (regions read by range requests; docs/embedding.md "Serving worlds"; needs
-  // virVisibility = false: visibility is regenerated from geometry on disk).
+  // static server (regions read by range requests; docs/embedding.md "Serving worlds"; with virVisibility
+  // the cells' geometry is generated from the served world.json, as the bake did).
   std::filesystem::path world;
   std::size_t memoryBudgetBytes = std::size_t(256) << 20;  // decoded light field, > 0
   float decodeRadius = 160.0f;                             // m: cells nearer than this are loaded (> 0)
