@@ -44,6 +44,7 @@
 #include "bake/shading_inputs.h"
 #include "bake/shading_view.h"
 #include "core/cell_file.h"
+#include "core/cell_store.h"
 #include "core/error.h"
 #include "core/image.h"
 #include "core/progress.h"
@@ -275,9 +276,9 @@ void decodeCellFiles(RenderState& st, WorldProbes& w) {
   for (size_t k = 0; k < built.size(); ++k) {
     const worlds::CellCoord cc = built[k].layout.cell;
     const bool centre = cc.x == c.x && cc.z == c.z;
-    const fs::path path = centre && !opt.cellFile.empty() ? fs::path(opt.cellFile)
-                                                          : fs::path(opt.world) / "baked" / "cells" /
-                                                                fmt::format("cell_{}_{}.vdb", cc.x, cc.z);
+    const fs::path path = centre && !opt.cellFile.empty()
+                              ? fs::path(opt.cellFile)
+                              : fs::path(opt.world) / "baked" / "cells" / cellFileName({cc.x, cc.z});
     if (!fs::is_regular_file(path)) {
       if (centre)
         fail(

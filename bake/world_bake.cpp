@@ -10,6 +10,7 @@
 
 #include "bake/embree_scene.h"
 #include "core/cell_fallback.h"
+#include "core/cell_store.h"
 #include "core/error.h"
 #include "core/half.h"
 #include "core/metrics.h"
@@ -78,7 +79,7 @@ CaptureOptions worldBakeCaptureOptions(const worlds::SyntheticWorld& world,
 }
 
 fs::path cellFilePath(const fs::path& outDir, worlds::CellCoord c) {
-  return outDir / "cells" / fmt::format("cell_{}_{}.vdb", c.x, c.z);
+  return outDir / "cells" / cellFileName({c.x, c.z});
 }
 
 std::vector<worlds::CellCoord> arrayShare(const std::vector<worlds::CellCoord>& cells, int index, int size) {

@@ -103,8 +103,7 @@ fs::path makeWorld(const std::string& name) {
   fs::create_directories(dir / "baked" / "cells");
   worlds::writeWorldManifest(dir, worlds::WorldParams{kSeed, 3 * kCell, kCell});
   for (int z = 0; z < 3; ++z)
-    for (int x = 0; x < 3; ++x)
-      writeCellFile(dir / "baked" / "cells" / fmt::format("cell_{}_{}.vdb", x, z), makeCell(x, z));
+    for (int x = 0; x < 3; ++x) writeCellFile(dir / "baked" / "cells" / cellFileName({x, z}), makeCell(x, z));
   return dir;
 }
 
@@ -115,7 +114,7 @@ CellFileSourceOptions options(const fs::path& world) {
 }
 
 fs::path cellFile(const fs::path& world, int x, int z) {
-  return world / "baked" / "cells" / fmt::format("cell_{}_{}.vdb", x, z);
+  return world / "baked" / "cells" / cellFileName({x, z});
 }
 
 void flipByte(const fs::path& file, size_t at) {
@@ -701,7 +700,7 @@ TEST(CellFileStreaming, CorruptAndMissingFilesMidFlightKeepTheFallback) {
   ASSERT_EQ(m.failures().size(), 2u);
   for (const CellFailure& e : m.failures()) {
     EXPECT_TRUE(e.cell == glm::ivec2(2, 1) || e.cell == glm::ivec2(2, 0)) << e.cell.x << "," << e.cell.y;
-    EXPECT_NE(e.error.find(fmt::format("cell_{}_{}.vdb", e.cell.x, e.cell.y)), std::string::npos) << e.error;
+    EXPECT_NE(e.error.find(cellFileName(e.cell)), std::string::npos) << e.error;
   }
   EXPECT_FALSE(m.isResident({2, 1}));
   EXPECT_TRUE(m.isResident({2, 2}));
