@@ -10,6 +10,7 @@
 // Bookkeeping (bake/bake_records.h): cells/cell_X_Z.json per baked cell (kind, seconds by stage, bytes,
 // host, time), cells/cell_X_Z.failed per failed cell; a failed cell does not stop the others, the exit
 // code is 1 when any failed.
+#include <unistd.h>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -118,6 +119,7 @@ struct BakeRun {
   const fs::path& out;
   const std::optional<ResolvedSharedModel>& shared;
   Progress& progress;
+  size_t total = 0;  // cells of this run
   size_t done = 0, skipped = 0, networks = 0;
   size_t bytesTotal = 0;
   std::vector<worlds::CellCoord> failed;
@@ -147,6 +149,9 @@ CellOutcome bakeOneCell(BakeRun& run, const worlds::CellCoord c) {
   }
   if (state == bake::CellBakeState::Stale) spdlog::info("{}: inputs changed, rebaking", file.string());
   if (state == bake::CellBakeState::Corrupt) spdlog::warn("rebaking: {}", why);
+  if (settings.stageProgress)  // a log (Slurm, CI): where the bake is before the cell's own lines
+    std::fprintf(stderr, "cell %d,%d (%s): baking, %zu of %zu cells done\n", c.x, c.z,
+                 std::string(worlds::cellKindName(run.world.cellKind(c))).c_str(), run.done, run.total);
   const uint64_t inputHash = inputs.inputHash;
   bake::CellBakeReport report;
   CellFile cf;
@@ -157,8 +162,8 @@ CellOutcome bakeOneCell(BakeRun& run, const worlds::CellCoord c) {
     // Interrupted mid-cell: that cell is not written (bakeCell throws rather than return a partial
     // model).
     std::fprintf(stderr,
-                 "\nbake: interrupted during cell %d,%d (not written) after %zu cells; run the same "
-                 "command again to resume\n",
+                 "\nbake: interrupted during cell %d,%d (not written; its training checkpoints are kept) "
+                 "after %zu cells; run the same command again to resume\n",
                  c.x, c.z, run.done);
     return CellOutcome::kInterrupted;
   }
@@ -166,6 +171,7 @@ CellOutcome bakeOneCell(BakeRun& run, const worlds::CellCoord c) {
   writeCellFile(file, cf);
   CellFileBytes bytes;
   readCellFile(file, &bytes);  // read back through every check: what we wrote is what a reader accepts
+  if (!settings.checkpointDir.empty()) bake::removeCellCheckpoints(settings.checkpointDir, c);
   bake::CellBakeRecord record;
   record.cell = c;
   record.kind = run.world.cellKind(c);
@@ -212,19 +218,23 @@ int reportBake(const BakeRun& run, size_t cellCount) {
 
 }  // namespace
 
-int runWorldBake(const WorldBakeOptions& opt) {
-  const worlds::SyntheticWorld world(worlds::readWorldManifest(opt.world));
-  const std::vector<worlds::CellCoord> cells = selectBakeCells(world, opt);
-  const bake::WorldBakeSettings& settings = opt.settings;
-  settings.validate();
-  const fs::path out = opt.outDir.empty() ? fs::path(opt.world) / "baked" : fs::path(opt.outDir);
+int runWorldBake(const WorldBakeOptions& options) {
+  const worlds::SyntheticWorld world(worlds::readWorldManifest(options.world));
+  const std::vector<worlds::CellCoord> cells = selectBakeCells(world, options);
+  options.settings.validate();
+  const fs::path out = options.outDir.empty() ? fs::path(options.world) / "baked" : fs::path(options.outDir);
   fs::create_directories(out / "cells");
+  // How this run works (not hashed): checkpoints beside the cell files, stage lines in a log.
+  WorldBakeOptions opt = options;
+  opt.settings.checkpointDir = out / "cells";
+  opt.settings.stageProgress = ::isatty(STDERR_FILENO) != 1;
+  const bake::WorldBakeSettings& settings = opt.settings;
 
   InterruptGuard guard;
   std::optional<ResolvedSharedModel> shared;
   if (settings.sharedCodec() && !prepareSharedModel(world, settings, out, shared)) return 130;
   Progress progress("bake", cells.size(), "cells");
-  BakeRun run{opt, world, out, shared, progress};
+  BakeRun run{opt, world, out, shared, progress, cells.size()};
   for (const worlds::CellCoord c : cells) {
     if (InterruptGuard::interrupted()) {
       std::fprintf(stderr, "bake: interrupted after %zu cells; run the same command again to resume\n",

@@ -4,6 +4,7 @@
 #include <torch/torch.h>
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -364,10 +365,11 @@ double irradianceError(const Data& d, Forward&& forward) {
   return den > 0.0 ? std::sqrt(num / den) : (num > 0.0 ? INFINITY : 0.0);
 }
 
-// Checkpoints (atomic; meta = [fingerprint, step]). openCheckpoint: the step of the checkpoint at path,
-// nullopt if there is none; throws if it is unreadable or of other data or options.
+// Checkpoints (atomic; meta = [fingerprint, step, bits of the last step's loss]). openCheckpoint: the
+// step of the checkpoint at path (and its loss), nullopt if there is none; throws if it is unreadable or
+// of other data or options.
 std::optional<int> openCheckpoint(const std::filesystem::path& path, uint64_t fp,
-                                  torch::serialize::InputArchive& ar) {
+                                  torch::serialize::InputArchive& ar, double* loss = nullptr) {
   if (path.empty() || !std::filesystem::exists(path)) return std::nullopt;
   try {
     ar.load_from(path.string());
@@ -376,22 +378,26 @@ std::optional<int> openCheckpoint(const std::filesystem::path& path, uint64_t fp
   }
   torch::Tensor meta;
   ar.read("meta", meta);
-  if (meta.numel() != 2 || uint64_t(meta[0].item<int64_t>()) != fp)
+  if (meta.numel() != 3 || uint64_t(meta[0].item<int64_t>()) != fp)
     fail("{}: checkpoint of other training data or options (delete it to start over)", path.string());
+  if (loss) *loss = std::bit_cast<double>(meta[2].item<int64_t>());
   return int(meta[1].item<int64_t>());
 }
 
-void saveCheckpointArchive(const std::filesystem::path& path, uint64_t fp, int step,
+void saveCheckpointArchive(const std::filesystem::path& path, uint64_t fp, int step, double loss,
                            torch::serialize::OutputArchive& ar) {
-  ar.write("meta", torch::tensor(std::vector<int64_t>{int64_t(fp), int64_t(step)}, torch::kLong));
+  ar.write("meta",
+           torch::tensor(std::vector<int64_t>{int64_t(fp), int64_t(step), std::bit_cast<int64_t>(loss)},
+                         torch::kLong));
   writeViaTempFile(path, [&](const std::filesystem::path& tmp) { ar.save_to(tmp.string()); });
 }
 
-// After the training loop: an interrupted run writes its checkpoint; a finished one removes it (nothing is
+// After the training loop: an interrupted run writes its checkpoint, and so does a finished one the caller
+// keeps (GeneratorTrainingOptions::keepFinishedCheckpoint); any other finished one removes it (nothing is
 // left to resume; its result goes to the caller, the cell file).
 template <typename Save>
-void closeCheckpoint(bool interrupted, const std::filesystem::path& path, Save&& save) {
-  if (interrupted) {
+void closeCheckpoint(bool interrupted, bool keepFinished, const std::filesystem::path& path, Save&& save) {
+  if (interrupted || (keepFinished && !path.empty())) {
     save();
   } else if (!path.empty()) {
     std::error_code ec;
@@ -584,7 +590,7 @@ void loadGeneratorCheckpoint(torch::serialize::InputArchive& ar, const Generator
 }
 
 void saveGeneratorCheckpoint(const GeneratorTrainingOptions& o, GeneratorModel m, bool stored, uint64_t fp,
-                             int step) {
+                             int step, double loss) {
   if (o.checkpoint.empty()) return;
   torch::serialize::OutputArchive out, g, og;
   m.gen->save(g);
@@ -599,7 +605,7 @@ void saveGeneratorCheckpoint(const GeneratorTrainingOptions& o, GeneratorModel m
     m.discOpt.save(dog);
     out.write("discOpt", dog);
   }
-  saveCheckpointArchive(o.checkpoint, fp, step, out);
+  saveCheckpointArchive(o.checkpoint, fp, step, loss, out);
 }
 
 // Discriminator step on real captures vs the current (detached) outputs, then the generator's
@@ -649,14 +655,15 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
 
   const uint64_t fp = fingerprint(set, o, d);
   int step = 0;
+  double err = INFINITY, loss = 0.0;
   TrainedGenerator result;
   torch::serialize::InputArchive ar;
-  if (std::optional<int> resumed = openCheckpoint(o.checkpoint, fp, ar)) {
+  if (std::optional<int> resumed = openCheckpoint(o.checkpoint, fp, ar, &loss)) {
     step = *resumed;
     loadGeneratorCheckpoint(ar, o, m, stored);
     result.report.resumedFromStep = step;
   }
-  auto saveCheckpoint = [&]() { saveGeneratorCheckpoint(o, m, stored, fp, step); };
+  auto saveCheckpoint = [&]() { saveGeneratorCheckpoint(o, m, stored, fp, step, loss); };
 
   // Latents as the decoder will see them: on the int8 / 4-bit grid with quantization in the loop.
   auto inputs = [&](const torch::Tensor& idx) {
@@ -671,7 +678,6 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
   BatchSchedule schedule(d.S, o.batchSize, o.seed);
   std::optional<Progress> progress;
   if (o.showProgress) progress.emplace("train generator", size_t(o.maxSteps), "steps", size_t(step));
-  double err = INFINITY, loss = 0.0;
   int stepsThisCall = 0;
   bool done = false;
   // Divergence guard: the state of the last finite evaluation (at first the starting weights). A
@@ -714,7 +720,8 @@ TrainedGenerator trainGenerator(const GeneratorTrainingSet& set, const Generator
     }
   }
   if (progress) progress->finish();
-  closeCheckpoint(result.report.interrupted, o.checkpoint, saveCheckpoint);
+  const bool keep = o.keepFinishedCheckpoint && !result.report.diverged && step == o.maxSteps;
+  closeCheckpoint(result.report.interrupted, keep, o.checkpoint, saveCheckpoint);
 
   result.weights = exportWeights(gen, o.arch);
   if (stored) result.latents = toVector(fakeQuantize(latents, o.latentQuantBits));
@@ -856,7 +863,8 @@ void loadSharedCheckpoint(torch::serialize::InputArchive& ar, SharedModel& m, to
   opt.load(og);
 }
 
-void saveSharedCheckpoint(SharedModel& m, torch::optim::Adam& opt, bool frozen, uint64_t fp, int step) {
+void saveSharedCheckpoint(SharedModel& m, torch::optim::Adam& opt, bool frozen, uint64_t fp, int step,
+                          double loss) {
   const GeneratorTrainingOptions& o = m.so.training;
   if (o.checkpoint.empty()) return;
   torch::serialize::OutputArchive out, og;
@@ -871,7 +879,7 @@ void saveSharedCheckpoint(SharedModel& m, torch::optim::Adam& opt, bool frozen, 
   }
   opt.save(og);
   out.write("opt", og);
-  saveCheckpointArchive(o.checkpoint, fp, step, out);
+  saveCheckpointArchive(o.checkpoint, fp, step, loss, out);
 }
 
 // One step's loss: each cell's reconstruction and priors on its batch, averaged over the cells.
@@ -958,14 +966,15 @@ SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const Ge
 
   const uint64_t fp = sharedFingerprint(sets, data, frozen, so);
   int step = 0;
+  double err = INFINITY, loss = 0.0;
   SharedGenerator result;
   torch::serialize::InputArchive ar;
-  if (std::optional<int> resumed = openCheckpoint(o.checkpoint, fp, ar)) {
+  if (std::optional<int> resumed = openCheckpoint(o.checkpoint, fp, ar, &loss)) {
     step = *resumed;
     loadSharedCheckpoint(ar, m, opt, frozen);
     result.report.resumedFromStep = step;
   }
-  auto saveCheckpoint = [&]() { saveSharedCheckpoint(m, opt, frozen, fp, step); };
+  auto saveCheckpoint = [&]() { saveSharedCheckpoint(m, opt, frozen, fp, step, loss); };
   auto evaluate = [&]() { return m.evaluate(); };
 
   std::vector<BatchSchedule> schedules;
@@ -982,7 +991,6 @@ SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const Ge
   std::optional<Progress> progress;
   const char* label = frozen ? "fit cell adapter" : "pretrain shared generator";
   if (o.showProgress) progress.emplace(label, size_t(o.maxSteps), "steps", size_t(step));
-  double err = INFINITY, loss = 0.0;
   int stepsThisCall = 0;
   bool done = false;
   while (step < o.maxSteps && !done) {
@@ -1009,7 +1017,7 @@ SharedGenerator trainShared(std::span<const GeneratorTrainingSet> sets, const Ge
     }
   }
   if (progress) progress->finish();
-  closeCheckpoint(result.report.interrupted, o.checkpoint, saveCheckpoint);
+  closeCheckpoint(result.report.interrupted, false, o.checkpoint, saveCheckpoint);
 
   result.weights = exportWeights(m.gen, o.arch);
   reportSharedCells(result, m, sets, step, loss);
@@ -1269,7 +1277,7 @@ std::optional<CellModelChoice> noNetworkChoice(const GeneratorTrainingSet& set,
     c.bytes = 4 * c.lighting.size();
     c.reachedTarget = c.error.irradianceRelativeRms <= target;
     choice.attempts.push_back(
-        SizingAttempt{kind, {}, c.bytes, c.error.irradianceRelativeRms, secondsSince(ts), 0});
+        SizingAttempt{kind, {}, c.bytes, c.error.irradianceRelativeRms, secondsSince(ts), 0, 0});
     fits.push_back(std::move(c));
   }
   auto finish = [&](CellModelChoice c) {
@@ -1338,7 +1346,8 @@ CellModelChoice chooseCellModel(const GeneratorTrainingSet& set, std::span<const
     c.bytes = generatorBytes(to.arch, P);
     c.reachedTarget = g.report.reachedTarget;
     choice.attempts.push_back(SizingAttempt{CellModelKind::kGenerator, to.arch, c.bytes,
-                                            c.error.irradianceRelativeRms, g.report.seconds, g.report.steps});
+                                            c.error.irradianceRelativeRms, g.report.seconds, g.report.steps,
+                                            g.report.resumedFromStep});
     const bool interrupted = g.report.interrupted;
     // A diverged network (or a non-finite error) is kept only when there is nothing else at all.
     const bool usable = !g.report.diverged && std::isfinite(c.error.irradianceRelativeRms);

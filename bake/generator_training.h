@@ -109,8 +109,12 @@ struct GeneratorTrainingOptions {
   float range = 0.0f;                // 0: 1.5 x the 95th percentile of texel mean distances (>= 1 m)
   std::filesystem::path checkpoint;  // empty: no checkpoints, no resume
   int checkpointEvery = 500;
-  int stopAfterSteps = 0;     // > 0: return (checkpointed, interrupted = true) after this many
-                              // steps of this call, as an interrupt would (for resume tests)
+  int stopAfterSteps = 0;  // > 0: return (checkpointed, interrupted = true) after this many
+                           // steps of this call, as an interrupt would (for resume tests)
+  // trainGenerator: a run that took all maxSteps (not diverged) leaves its final state at `checkpoint`
+  // instead of removing it, so a rerun returns the same model without training (chooseCellModel's
+  // finished candidates, when a bake resumes a cell's search); the caller removes it.
+  bool keepFinishedCheckpoint = false;
   bool showProgress = false;  // progress and errors on stderr
   // Quantizer in the loop: 0 off; 4 or 8: Stored latents pass through straight-through fake
   // quantization (core/quantize.h's symmetric per-dimension grid) in every forward pass, and the
@@ -258,6 +262,7 @@ struct SizingAttempt {
   double irradianceRelativeRms = 0.0;
   double seconds = 0.0;
   int steps = 0;
+  int resumedFromStep = 0;  // kGenerator: the checkpoint's step it resumed from (0: trained from the start)
 };
 
 // What the cell writer stores about the chosen model.

@@ -197,6 +197,46 @@ TEST(GeneratorTraining, ResumedRunEndsBitIdenticalToAnUninterruptedOne) {
   EXPECT_FALSE(std::filesystem::exists(ckpt));  // a finished run leaves nothing to resume
 }
 
+// A model search interrupted twice (stopAfterSteps stands in for Ctrl-C) and rerun each time: finished
+// candidates come back from their kept checkpoints without training, the interrupted one resumes, and the
+// choice is the uninterrupted search's, bit for bit.
+TEST(GeneratorTraining, SizingResumesItsSearchFromCheckpoints) {
+  ModelSizingOptions so;
+  so.irradianceErrorTarget = 1e-6;  // never met: both candidates train all 60 steps
+  so.noNetworkKinds = {};           // generators only: the best of the two is the choice
+  so.training = tinyOptions();
+  GeneratorArch small = tinyOptions().arch, big = small;
+  small.convChannels = {8, kGeneratorChannels};
+  so.candidates = {small, big};
+  const CellModelChoice whole = chooseCellModel(tinyCell().set, {}, so);
+  const std::filesystem::path prefix = tmpDir() / "search.train";
+  for (int i = 0; i < 2; ++i) std::filesystem::remove(prefix.string() + ".candidate" + std::to_string(i));
+  so.training.checkpoint = prefix;
+  so.training.keepFinishedCheckpoint = true;
+  so.training.stopAfterSteps = 40;
+  std::vector<CellModelChoice> runs;
+  for (int run = 0; run < 3; ++run) runs.push_back(chooseCellModel(tinyCell().set, {}, so));
+  // Run 1: candidate 0 stops at 40. Run 2: it resumes to 60, candidate 1 stops at 40. Run 3: candidate 0
+  // is its kept final state (resumed at 60, no step), candidate 1 resumes to 60.
+  ASSERT_EQ(runs[0].attempts.size(), 1u);
+  ASSERT_EQ(runs[1].attempts.size(), 2u);
+  ASSERT_EQ(runs[2].attempts.size(), 2u);
+  EXPECT_EQ(runs[0].attempts[0].steps, 40);
+  EXPECT_EQ(runs[1].attempts[0].resumedFromStep, 40);
+  EXPECT_EQ(runs[1].attempts[1].steps, 40);
+  EXPECT_EQ(runs[2].attempts[0].resumedFromStep, 60);
+  EXPECT_EQ(runs[2].attempts[1].resumedFromStep, 40);
+  EXPECT_EQ(runs[2].attempts[1].steps, 60);
+  const CellModelChoice& last = runs[2];
+  ASSERT_TRUE(last.generator && whole.generator);
+  EXPECT_TRUE(sameWeights(*whole.generator, *last.generator));
+  EXPECT_EQ(whole.error.irradianceRelativeRms, last.error.irradianceRelativeRms);
+  for (size_t i = 0; i < whole.attempts.size(); ++i)
+    EXPECT_EQ(whole.attempts[i].irradianceRelativeRms, last.attempts[i].irradianceRelativeRms) << i;
+  for (int i = 0; i < 2; ++i)  // kept for the caller to remove once the cell is written
+    EXPECT_TRUE(std::filesystem::exists(prefix.string() + ".candidate" + std::to_string(i))) << i;
+}
+
 TEST(GeneratorTraining, CheckpointOfOtherOptionsIsRefused) {
   const GeneratorTrainingSet& set = tinyCell().set;
   GeneratorTrainingOptions o = tinyOptions();

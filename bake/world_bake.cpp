@@ -82,6 +82,23 @@ fs::path cellFilePath(const fs::path& outDir, worlds::CellCoord c) {
   return outDir / "cells" / cellFileName({c.x, c.z});
 }
 
+fs::path cellCheckpointPrefix(const fs::path& dir, worlds::CellCoord c, uint64_t inputHash) {
+  return dir / fmt::format("cell_{}_{}.{:016x}.train", c.x, c.z, inputHash);
+}
+
+int removeCellCheckpoints(const fs::path& dir, worlds::CellCoord c) {
+  const std::string prefix = fmt::format("cell_{}_{}.", c.x, c.z);
+  int removed = 0;
+  std::error_code ec;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind(prefix, 0) == 0 && name.find(".train.candidate") != std::string::npos &&
+        fs::remove(e.path(), ec))
+      ++removed;
+  }
+  return removed;
+}
+
 std::vector<worlds::CellCoord> arrayShare(const std::vector<worlds::CellCoord>& cells, int index, int size) {
   if (size < 1 || index < 0 || index >= size)
     fail("--array-index {} outside [0, --array-size {})", index, size);
@@ -232,7 +249,7 @@ GeneratorTrainingSet captureCell(const worlds::SyntheticWorld& world, CellBakeIn
   const EmbreeScene scene(std::move(in.sceneMesh), fmt::format("cell {},{}", in.cell.x, in.cell.z));
   return captureTrainingSet(scene, probes.positions, in.built.probes.grid.origin,
                             in.built.probes.grid.boxMax(), parseLightingKeys(settings.keys),
-                            worldBakeCaptureOptions(world, settings), {}, false);
+                            worldBakeCaptureOptions(world, settings), {}, settings.stageProgress);
 }
 
 // Fit options of a cell against the shared model (and, with pre-training steps, the pre-training's).
@@ -247,6 +264,7 @@ SharedTrainingOptions sharedFitOptions(const WorldBakeSettings& settings, int st
   o.training.seed = settings.seed;
   o.training.threads = settings.threads;
   o.training.latentQuantBits = quantBits;
+  o.training.showProgress = settings.stageProgress;
   // FiLM on the linear layer's C0 channels only: bench/codec's shared_adapter setting (bake/OVERVIEW.md).
   o.adapterStages = 1;
   o.adapterQuantBits = quantBits;
@@ -258,13 +276,19 @@ uint64_t sampleOrderKey(uint64_t seed, worlds::CellCoord c) {
   return ContentHasher().addValue(seed).addValue(c.x).addValue(c.z).digest();
 }
 
-ModelSizingOptions cellSizingOptions(const WorldBakeSettings& settings) {
+ModelSizingOptions cellSizingOptions(const WorldBakeSettings& settings, worlds::CellCoord c,
+                                     uint64_t inputHash) {
   ModelSizingOptions sizing;
   sizing.irradianceErrorTarget = settings.errorTarget;
   sizing.noNetworkKinds = {CellModelKind::kShL1};  // the cell file stores one SH L1 per cell
   sizing.training.maxSteps = settings.maxSteps;
   sizing.training.seed = settings.seed;
   sizing.training.threads = settings.threads;
+  sizing.training.showProgress = settings.stageProgress;
+  if (!settings.checkpointDir.empty()) {
+    sizing.training.checkpoint = cellCheckpointPrefix(settings.checkpointDir, c, inputHash);
+    sizing.training.keepFinishedCheckpoint = true;  // finished candidates resume without training
+  }
   sizing.training.validate();
   if (!settings.modelWidths.empty() || !settings.modelLatents.empty()) {
     auto listed = [](const std::vector<int>& v, int x) {
@@ -371,7 +395,7 @@ void encodeCellCodec(worlds::CellCoord c, const GeneratorTrainingSet& set,
     }
     return;
   }
-  const ModelSizingOptions sizing = cellSizingOptions(settings);
+  const ModelSizingOptions sizing = cellSizingOptions(settings, c, cf.inputHash);
   CellBakeReport r;
   // Shared codec: a simple cell still stores no network; every other cell fits the shared model below.
   std::optional<CellModelChoice> noNetwork;

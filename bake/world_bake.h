@@ -62,6 +62,12 @@ struct WorldBakeSettings {
   // measures it). Enters the input hash (with the shared model's weights hash), so switching codec rebakes.
   std::string codec = "sh-l1";
   int sharedSteps = 3000;  // --codec shared: pre-training steps of the shared model
+  // How the bake runs, not what it makes (not in the input hash): the per-cell codec's model search keeps
+  // each candidate's training checkpoint in checkpointDir (cellCheckpointPrefix; empty: none), so an
+  // interrupted cell resumes its search where it stopped (removeCellCheckpoints once the cell is
+  // written); stageProgress prints progress lines of each cell's capture and training to stderr.
+  std::filesystem::path checkpointDir;
+  bool stageProgress = false;
   bool sharedCodec() const { return codec == "shared"; }
   // Throws lfgi::Error naming the bad setting (keys are parsed here too).
   void validate() const;
@@ -78,6 +84,13 @@ CaptureOptions worldBakeCaptureOptions(const worlds::SyntheticWorld& world,
 
 // out/cells/cell_X_Z.vdb
 std::filesystem::path cellFilePath(const std::filesystem::path& outDir, worlds::CellCoord c);
+// dir/cell_X_Z.<input hash>.train: the model search's checkpoints are this plus ".candidateI" (named by the
+// input hash, so a cell whose inputs changed never resumes another's training).
+std::filesystem::path cellCheckpointPrefix(const std::filesystem::path& dir, worlds::CellCoord c,
+                                           uint64_t inputHash);
+// Removes cell c's training checkpoints from dir, of every input hash (after its cell file is written);
+// returns how many.
+int removeCellCheckpoints(const std::filesystem::path& dir, worlds::CellCoord c);
 
 // Contiguous share `index` of `size` of the cells (Slurm job arrays): shares differ by at most one cell.
 std::vector<worlds::CellCoord> arrayShare(const std::vector<worlds::CellCoord>& cells, int index, int size);

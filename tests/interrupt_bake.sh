@@ -4,7 +4,10 @@
 # no wall-clock time by default), and leave no temporary files behind.
 #   SIGINT:  exit 130 and a "run the same command again to resume" message; the cell in flight is not
 #            written (a half-trained model under the final input hash would be skipped by every rerun).
+#            Its model search's training checkpoints stay (cells/cell_X_Z.train.candidateI) and the rerun
+#            resumes from them, then removes them.
 #   SIGKILL: nothing to clean up beyond what atomic writes guarantee.
+# With stderr going to a file, the log has a line per cell before it bakes and the training's own lines.
 # Usage: tests/interrupt_bake.sh LFGI_BINARY WORLD_DIR WORK_DIR   (WORLD_DIR: the cli_world fixture)
 set -uo pipefail
 lfgi="$1"
@@ -60,8 +63,16 @@ after_int=$(cells "$work/sigint")
 [[ "$after_int" -eq "$done_before" ]] ||
   die "SIGINT: $after_int cell files after the interrupt, $done_before were finished before it (the cell in flight was written)"
 echo "interrupt_bake: SIGINT after $done_before cells: exit 130, resume message, $after_int cell files"
+grep -q "^cell [0-9]*,[0-9]* ([a-z]*): baking, $done_before of $total cells done" "$work/sigint.log" ||
+  die "SIGINT: no line naming the cell in flight in the log"
+grep -q "train generator" "$work/sigint.log" || die "SIGINT: no training progress in the log"
+ckpts=$(find "$work/sigint/cells" -name '*.train.candidate*' | wc -l)
+[[ "$ckpts" -ge 1 ]] || die "SIGINT: the interrupted cell left no training checkpoint"
 "$lfgi" "${args[@]}" --out "$work/sigint" >>"$work/sigint.log" 2>&1 || die "SIGINT: the rerun failed"
 grep -q "($after_int already baked" "$work/sigint.log" || die "SIGINT: the rerun did not skip the $after_int finished cells"
+left=$(find "$work/sigint/cells" -name '*.train.candidate*' | wc -l)
+[[ "$left" -eq 0 ]] || die "SIGINT: $left training checkpoints left after the rerun"
+echo "interrupt_bake: SIGINT kept $ckpts training checkpoint(s); the rerun resumed and removed them"
 
 # SIGKILL in the middle of the first cell, and again in the middle of a later one.
 interrupt "$work/sigkill" KILL 0 1.0
