@@ -201,16 +201,6 @@ int captureOne(const fs::path& out, const std::string& name, const std::string& 
   return 0;
 }
 
-float medianLuminance(const Image& img) {
-  std::vector<float> lum;
-  lum.reserve(size_t(img.width) * size_t(img.height));
-  for (int y = 0; y < img.height; ++y)
-    for (int x = 0; x < img.width; ++x)
-      lum.push_back(0.2126f * img.at(x, y, 0) + 0.7152f * img.at(x, y, 1) + 0.0722f * img.at(x, y, 2));
-  std::nth_element(lum.begin(), lum.begin() + long(lum.size() / 2), lum.end());
-  return std::max(lum[lum.size() / 2], 1e-12f);
-}
-
 }  // namespace
 
 int runCapture(const CaptureCommandOptions& opt) {

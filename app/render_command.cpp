@@ -59,17 +59,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-float medianLuminance(const Image& img, const std::string& layer) {
-  const int r = img.channelIndex(layer + "R"), g = img.channelIndex(layer + "G"),
-            b = img.channelIndex(layer + "B");
-  std::vector<float> lum;
-  for (int y = 0; y < img.height; ++y)
-    for (int x = 0; x < img.width; ++x)
-      lum.push_back(0.2126f * img.at(x, y, r) + 0.7152f * img.at(x, y, g) + 0.0722f * img.at(x, y, b));
-  std::nth_element(lum.begin(), lum.begin() + long(lum.size() / 2), lum.end());
-  return std::max(lum[lum.size() / 2], 1e-12f);
-}
-
 fs::path withSuffix(const fs::path& exr, const std::string& suffix, const std::string& ext) {
   fs::path p = exr;
   p.replace_filename(exr.stem().string() + suffix + ext);

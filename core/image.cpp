@@ -207,4 +207,18 @@ void writePng(const std::filesystem::path& path, const Image& image, float expos
   });
 }
 
+float medianLuminance(const Image& image, std::string_view layer) {
+  const std::string l(layer);
+  const int r = image.channelIndex(l + "R"), g = image.channelIndex(l + "G"), b = image.channelIndex(l + "B");
+  if (r < 0 || g < 0 || b < 0) fail("medianLuminance: the image has no {}R, {}G, {}B channels", l, l, l);
+  if (image.width <= 0 || image.height <= 0) fail("medianLuminance: empty image");
+  std::vector<float> lum;
+  lum.reserve(size_t(image.width) * size_t(image.height));
+  for (int y = 0; y < image.height; ++y)
+    for (int x = 0; x < image.width; ++x)
+      lum.push_back(0.2126f * image.at(x, y, r) + 0.7152f * image.at(x, y, g) + 0.0722f * image.at(x, y, b));
+  std::nth_element(lum.begin(), lum.begin() + long(lum.size() / 2), lum.end());
+  return std::max(lum[lum.size() / 2], 1e-12f);
+}
+
 }  // namespace lfgi

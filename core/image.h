@@ -62,6 +62,10 @@ enum class ToneMap {
   kReinhard,    // x / (1 + x), Reinhard et al. 2002
 };
 
+// Median Rec. 709 luminance of the layer's R, G, B channels (layer "" or e.g. "indirect."), at least
+// 1e-12 (auto exposure: log2(0.18 / median)). Throws lfgi::Error for an empty image or a missing channel.
+float medianLuminance(const Image& image, std::string_view layer = "");
+
 // Writes an 8-bit sRGB PNG for viewing: linear value * 2^exposureEv, tone-mapped per channel, sRGB OETF
 // (IEC 61966-2-1), rounded. Uses channels layer + "R", layer + "G", layer + "B" (layer "" or e.g.
 // "indirect."); an image with exactly one channel and no such channels is written as grey. NaN writes
