@@ -172,6 +172,8 @@ struct FlyOptions {
   float weatherStart = 0.0f, weatherEnd = 0.0f;  // overcast sweep
   std::string outDir;
   bool profile = false;
+  std::string render;   // "WxH": draw frames on the device (app/fly_render.h); empty: none
+  int renderEvery = 1;  // render every N-th frame
 };
 int runFly(const FlyOptions& options);
 

@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "app/commands.h"
+#include "app/fly_render.h"
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/progress.h"
@@ -60,7 +61,7 @@ std::string framesCsv(const std::vector<streaming::FlythroughFrame>& frames) {
 constexpr const char* kProfileGnuplot = R"(set datafile separator ','
 set terminal pngcairo size 1100,800 font ',10' noenhanced
 set output png
-set multiplot layout 3,1 title 'lfgi streaming profile: '.title
+set multiplot layout rows,1 title 'lfgi streaming profile: '.title
 set xlabel 'frame'
 set ylabel 'MB'
 set y2label 'cells'
@@ -83,7 +84,12 @@ plot dir.'/frames.csv' every ::1 using 1:14 with lines title 'IO (loads finished
 set ylabel 'fallback fraction of visible samples'
 set yrange [0:1]
 plot dir.'/frames.csv' every ::1 using 1:21 with lines lw 2 title 'fallback fraction', 0.01 with lines dt 2 title '1 %'
-unset multiplot
+)";
+// With --render: the rendered frames' device time (GPU timestamps) per flight frame.
+constexpr const char* kRenderGnuplot = R"(set ylabel 'device ms'
+set autoscale y
+plot dir.'/render_frames.csv' every ::1 using 2:4 with linespoints title 'G-buffer (GPU)', \
+     '' every ::1 using 2:5 with linespoints lw 2 title 'probe shading (GPU)'
 )";
 
 // The decoder used, what `auto` measured, and the flight's generator-cell decodes (ms per load, probes/s).
@@ -287,17 +293,20 @@ void addCellSizes(nlohmann::ordered_json& j, const FlySources& cs, const streami
 // gnuplot writes the chart under a temporary name (file_util.h): a failed or killed run never leaves a
 // partial profile.png. Returns whether the chart was written.
 bool writeProfileChart(const FlyOptions& opt, const std::filesystem::path& out,
-                       const streaming::FlythroughOptions& fo) {
+                       const streaming::FlythroughOptions& fo, bool render) {
   bool charts = false;
   try {
     writeViaTempFile(out / "profile.png", [&](const std::filesystem::path& tmp) {
       const std::string cmd = fmt::format(
-          "gnuplot -e \"dir='{}'; png='{}'; title='{} m/s, {} s'; budget_mb={}; activate_budget_ms={}\" - "
-          "2>&1",
-          out.string(), tmp.string(), opt.speed, opt.seconds, opt.budgetMb, fo.streaming.activateBudgetMs);
+          "gnuplot -e \"dir='{}'; png='{}'; title='{} m/s, {} s'; budget_mb={}; activate_budget_ms={}; "
+          "rows={}\" - 2>&1",
+          out.string(), tmp.string(), opt.speed, opt.seconds, opt.budgetMb, fo.streaming.activateBudgetMs,
+          render ? 4 : 3);
       FILE* gp = popen(cmd.c_str(), "w");
       if (!gp) fail("gnuplot: cannot start");
       std::fputs(kProfileGnuplot, gp);
+      if (render) std::fputs(kRenderGnuplot, gp);
+      std::fputs("unset multiplot\n", gp);
       if (pclose(gp) != 0) fail("gnuplot failed");
     });
     charts = true;
@@ -306,12 +315,31 @@ bool writeProfileChart(const FlyOptions& opt, const std::filesystem::path& out,
   return charts;
 }
 
+// summary.html's rendered-flight section (empty without --render).
+std::string renderHtml(const nlohmann::ordered_json& j) {
+  if (!j.contains("render") || j["render"]["frames"].get<size_t>() == 0) return "";
+  const nlohmann::ordered_json& r = j["render"];
+  const std::string video = r["video"].get<std::string>();
+  return fmt::format(
+      "<h2>Rendered flight: {} frames at {}x{} on {}</h2>\n<img src='{}'>\n<p>{}; frames in "
+      "<code>frames/</code>. GPU ms p50 / p99: G-buffer {:.2f} / {:.2f}, probe shading {:.2f} / {:.2f} "
+      "({:.2f} ms per megapixel, {:.2f} x the G-buffer); {} surface pixels missing GI.</p>\n",
+      r["frames"].get<size_t>(), r["width"].get<int>(), r["height"].get<int>(),
+      r["device"].get<std::string>(), r["strip"].get<std::string>(),
+      video.empty() ? r["video_note"].get<std::string>() : fmt::format("<a href='{0}'>{0}</a>", video),
+      r["gpu_gbuffer_ms_p50"].get<double>(), r["gpu_gbuffer_ms_p99"].get<double>(),
+      r["gpu_shade_ms_p50"].get<double>(), r["gpu_shade_ms_p99"].get<double>(),
+      r["shade_ms_per_mpixel"].get<double>(), r["shade_to_gbuffer_ratio_p50"].get<double>(),
+      r["pixels_missing_gi"].get<long>());
+}
+
 // `lfgi profile`: trace.json, profile.png and summary.html beside frames.csv + summary.json.
 void writeProfile(const FlyOptions& opt, const std::filesystem::path& out, const TraceWriter& trace,
                   const streaming::FlythroughOptions& fo, const streaming::FlythroughSummary& s, double km2,
                   const nlohmann::ordered_json& j) {
   trace.save(out / "trace.json");
-  const bool charts = writeProfileChart(opt, out, fo);
+  const bool charts =
+      writeProfileChart(opt, out, fo, j.contains("render") && j["render"]["frames"].get<size_t>() > 0);
   if (!charts) spdlog::warn("gnuplot failed or is missing: no profile.png (install gnuplot-nox)");
   std::string html = fmt::format(
       "<!doctype html><meta charset=utf-8><title>lfgi streaming profile</title>\n"
@@ -328,22 +356,57 @@ void writeProfile(const FlyOptions& opt, const std::filesystem::path& out, const
       "<tr><td>peak resident / budget</td><td>{:.1f} MB / {:.1f} MB</td></tr>\n"
       "<tr><td>cells loaded / evicted / relit / failed</td><td>{} / {} / {} / {}</td></tr>\n"
       "<tr><td>peak RSS</td><td>{:.1f} MB</td></tr></table>\n"
-      "<p>Cells: {}</p>\n<img src='profile.png' width=1100>\n",
+      "<p>Cells: {}</p>\n{}<img src='profile.png' width=1100>\n",
       opt.speed, opt.seconds, km2, s.frames, s.framesMissingGi, 100.0 * s.fallbackFraction, s.p50FrameMs,
       s.p95FrameMs, s.p99FrameMs, s.p99IoMs, s.p99ActivateMs, s.p99RelightMs, s.p99ShadeMs,
       double(s.peakBytesResident) / 1e6, double(fo.streaming.memoryBudgetBytes) / 1e6, s.cellsRequested,
-      s.cellsEvicted, s.cellsRelit, s.cellsFailed, peakRssMb(), j["source"].get<std::string>());
+      s.cellsEvicted, s.cellsRelit, s.cellsFailed, peakRssMb(), j["source"].get<std::string>(),
+      renderHtml(j));
   writeFileAtomic(out / "summary.html", html);
   std::printf("profile: %s (trace.json for Perfetto, profile.png, summary.html)\n", out.string().c_str());
 }
 
 }  // namespace
 
+// --render: the frame renderer over the baked cells (null without --render).
+std::unique_ptr<FlyRenderer> makeRenderer(const FlyOptions& opt, const FlySources& cs,
+                                          const streaming::FlythroughOptions& fo,
+                                          const std::filesystem::path& out, TraceWriter* trace) {
+  if (opt.render.empty()) return nullptr;
+  if (!cs.fileSource)
+    fail(
+        "--render needs a baked --world (DIR with baked/ or a URL): synthetic cells have no geometry to "
+        "draw");
+  FlyRenderOptions ro;
+  parseRenderSize(opt.render, ro.width, ro.height);
+  ro.every = opt.renderEvery;
+  ro.shadeDistance = fo.shadeDistance;
+  ro.fps = opt.fps;
+  ro.plannedFrames = std::max(1, int(std::lround(double(opt.seconds) * opt.fps)));
+  ro.outDir = out;
+  return std::make_unique<FlyRenderer>(ro, *cs.fileSource, fo.streaming.keepRadius, trace);
+}
+
+nlohmann::ordered_json finishRender(FlyRenderer& renderer, const std::filesystem::path& out) {
+  nlohmann::ordered_json r = renderer.finish();
+  if (r["frames"].get<size_t>() == 0) return r;
+  std::printf(
+      "render: %zu frames %dx%d on %s, %ld pixels missing GI, GPU shade p50 %.2f ms (%.2f x the G-buffer), "
+      "strip %s, video %s\n",
+      r["frames"].get<size_t>(), r["width"].get<int>(), r["height"].get<int>(),
+      r["device"].get<std::string>().c_str(), r["pixels_missing_gi"].get<long>(),
+      r["gpu_shade_ms_p50"].get<double>(), r["shade_to_gbuffer_ratio_p50"].get<double>(),
+      (out / r["strip"].get<std::string>()).string().c_str(),
+      r["video"].get<std::string>().empty() ? r["video_note"].get<std::string>().c_str()
+                                            : (out / r["video"].get<std::string>()).string().c_str());
+  return r;
+}
+
 int runFly(const FlyOptions& opt) {
   FlySources sources;
   openCellSources(opt, sources);
   const streaming::SyntheticSourceOptions& src = sources.src;
-  const streaming::FlythroughOptions fo = flythroughOptions(opt, sources.virSource != nullptr);
+  streaming::FlythroughOptions fo = flythroughOptions(opt, sources.virSource != nullptr);
 
   const std::filesystem::path out =
       opt.outDir.empty() ? (opt.profile ? "out/profile" : "out/fly") : opt.outDir;
@@ -351,6 +414,11 @@ int runFly(const FlyOptions& opt) {
   std::vector<streaming::FlythroughFrame> frames;
   frames.reserve(size_t(opt.seconds * opt.fps) + 1);
   TraceWriter trace;
+  std::unique_ptr<FlyRenderer> renderer = makeRenderer(opt, sources, fo, out, opt.profile ? &trace : nullptr);
+  if (renderer)
+    fo.onFrame = [&](const streaming::FlythroughFrame& f, const streaming::StreamingManager& m) {
+      renderer->frame(f, m);
+    };
   InterruptGuard guard;
   spdlog::info("fly-through: {} x {} cells of {} m, {} m/s, {} s at {} fps, budget {} MB, {} IO threads",
                src.layout.cells.x, src.layout.cells.y, src.layout.cellSize, opt.speed, opt.seconds, opt.fps,
@@ -363,6 +431,7 @@ int runFly(const FlyOptions& opt) {
       double(src.layout.cells.x) * src.layout.cells.y * src.layout.cellSize * src.layout.cellSize / 1e6;
   nlohmann::ordered_json j = summaryJson(opt, sources, fo, s, km2);
   addCellSizes(j, sources, fo);
+  if (renderer) j["render"] = finishRender(*renderer, out);
   writeFileAtomic(out / "frames.csv", framesCsv(frames));
   writeFileAtomic(out / "summary.json", j.dump(2) + "\n");
   std::printf(

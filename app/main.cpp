@@ -473,6 +473,12 @@ void addFlyOptions(CLI::App* c, lfgi::app::FlyOptions& o) {
                 "Time of day at the end of the flight, hours (= --tod-start: no relight)")
       ->check(CLI::Range(0.0, 24.0))
       ->capture_default_str();
+  c->add_option("--render", o.render,
+                "Draw the flight on the Vulkan device at WIDTHxHEIGHT (e.g. 320x180): PNG frames, strip.png, "
+                "flight.mp4, GPU times; needs a baked --world");
+  c->add_option("--render-every", o.renderEvery, "With --render: draw every N-th frame")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
   c->add_option("--relight", o.relight,
                 "Relight of resident cells: codec (re-decode) or vir (GPU VIR relight of the world's "
                 "surfels; needs --world)")

@@ -6,7 +6,8 @@
 #   3. lfgi bake     the whole world baked with the shipped codec (SH L1 int8 per probe, cell files)
 #   4. lfgi render   a city view shaded from captured probes and from the baked cells, each compared with
 #                    the path-traced reference
-#   5. lfgi profile  the streaming manager flying over the baked world (Perfetto trace, charts)
+#   5. lfgi profile  the streaming manager flying over the baked world (Perfetto trace, charts), every
+#                    30th frame rendered on the device from the streamed cells (strip, video)
 # About 3.5 minutes after the build on 2 cores. Every step is resumable or cheap to rerun.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -24,14 +25,15 @@ report="$out/report.md"
 "$lfgi" vir --world "$world" --cell 3,1 --time 15.5 --resolution 16 --bounces 2 --out "$out/vir" | tee "$out/vir.txt"
 # The shipped codec (the bake's default, sh-l1) at demo capture settings (the defaults, resolution 16 and
 # 16 spp, take ~6 min here: a city cell's 15 k probes capture in ~80 s); a rerun skips cells already baked.
-"$lfgi" bake --world "$world" --resolution 8 --spp 8 --bounces 3 2> >(grep -v '^bake \[' >&2) |
+"$lfgi" bake --world "$world" --resolution 8 --spp 8 --bounces 3 2> >(grep -v -E '^(bake|capture|train generator) \[' >&2) |
   tee "$out/bake.txt"
 "$lfgi" inspect "$world/baked/cells/cell_3_1.vdb" | tee "$out/cell_3_1_inspect.txt"
 view=(--world "$world" --cell 1,1 --camera 60,30,60,100,4,100 --fov 60 --time 15.5 --size 240x135 --spp 16
   --reference-spp 16 --compare)
 "$lfgi" render "${view[@]}" --out "$out/render/city.exr" | tee "$out/render.txt"
 "$lfgi" render "${view[@]}" --probes codec --out "$out/render/city_codec.exr" | tee "$out/render_codec.txt"
-"$lfgi" profile --world "$world" --seconds 20 --speed 50 --out "$out/profile" | tee "$out/profile.txt"
+"$lfgi" profile --world "$world" --seconds 20 --speed 50 --render 320x180 --render-every 30 --out "$out/profile" |
+  tee "$out/profile.txt"
 
 {
   echo
@@ -67,6 +69,18 @@ view=(--world "$world" --cell 1,1 --camera 60,30,60,100,4,100 --fov 60 --time 15
   echo '```'; cat "$out/profile.txt"; echo '```'
   echo
   echo "![memory, time and fallback per frame](profile/profile.png)"
+  echo
+  echo "The flight as the player sees it: every 30th frame drawn on the device from the streamed cells"
+  echo "(G-buffer of the world's geometry, probe shading with the SH L1 fallback where cells are not"
+  echo "resident; profile/frames/, GPU times in profile/render_frames.csv)."
+  echo
+  echo "![rendered flight, 8 frames](profile/strip.png)"
+  echo
+  if [[ -f "$out/profile/flight.mp4" ]]; then
+    echo "Video: [profile/flight.mp4](profile/flight.mp4)"
+  else
+    echo "No video (ffmpeg is missing); the frames are in profile/frames/."
+  fi
   echo
   echo "Open profile/trace.json in https://ui.perfetto.dev; profile/summary.html is the one-page summary."
 } >> "$report"

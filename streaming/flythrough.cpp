@@ -295,6 +295,8 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
     in.velocity = glm::vec3(fwd2.x, 0.0f, fwd2.y) * o.speed;
     in.timeOfDayHours = fr.timeOfDay;
     in.weather = o.weatherStart + (o.weatherEnd - o.weatherStart) * float(f) / float(std::max(1, frames - 1));
+    fr.direction = in.direction;
+    fr.weather = in.weather;
     in.dtSeconds = float(dt);
     const double frameStartUs = trace ? trace->nowUs() : 0.0;
     auto t0 = Clock::now();
@@ -303,6 +305,7 @@ FlythroughSummary runFlythrough(CellSource& source, const FlythroughOptions& o,
     fr.frameMs = msSince(t0);
     if (trace) traceFrame(*trace, fr, f, frameStartUs);
     accumulateFrame(fr, ft, sum);
+    if (o.onFrame) o.onFrame(fr, manager);
     if (perFrame) perFrame(fr);
     progress.update(size_t(f + 1));
     ++sum.frames;

@@ -19,6 +19,8 @@
 
 namespace lfgi::streaming {
 
+struct FlythroughFrame;
+
 struct FlythroughOptions {
   std::string path = "loop";  // "loop" (closed spline over the world) or "line" (west -> east)
   float speed = 50.0f;        // m/s
@@ -40,6 +42,9 @@ struct FlythroughOptions {
   // StreamingManager::onRelight for the flight: game-thread hook after a relit field is swapped in (the
   // re-decode itself is the source's relightInto, run by the manager); empty: none.
   std::function<void(glm::ivec2 cell, ProbeField& field, float timeOfDayHours)> onRelight;
+  // Game-thread hook after each frame's update and visible samples, with the manager in that frame's state
+  // (`lfgi fly --render` draws the frame here); empty: none. Its time is not in FlythroughFrame::frameMs.
+  std::function<void(const FlythroughFrame&, const StreamingManager&)> onFrame;
   // Throws lfgi::Error naming the bad option.
   void validate() const;
 };
@@ -49,7 +54,9 @@ struct FlythroughFrame {
   int index = 0;  // flight frame, 0-based (stats.frame also counts preload updates)
   double timeS = 0.0;
   glm::vec3 position{0.0f};
+  glm::vec3 direction{0.0f, 0.0f, -1.0f};  // view direction (unit)
   float timeOfDay = 0.0f;
+  float weather = 0.0f;
   int visibleSamples = 0;
   int fallbackSamples = 0;  // samples with fallback weight > 1 %
   int missingSamples = 0;   // samples with no GI at all (must be 0)
