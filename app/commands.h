@@ -172,8 +172,10 @@ struct FlyOptions {
   float weatherStart = 0.0f, weatherEnd = 0.0f;  // overcast sweep
   std::string outDir;
   bool profile = false;
-  std::string render;   // "WxH": draw frames on the device (app/fly_render.h); empty: none
-  int renderEvery = 1;  // render every N-th frame
+  std::string render;           // "WxH": draw frames on the device (app/fly_render.h); empty: none
+  int renderEvery = 1;          // render every N-th frame
+  int renderReference = 0;      // rendered frames also path-traced and compared (0: none)
+  int renderReferenceSpp = 16;  // their samples per pixel
 };
 int runFly(const FlyOptions& options);
 

@@ -383,6 +383,8 @@ std::unique_ptr<FlyRenderer> makeRenderer(const FlyOptions& opt, const FlySource
   ro.shadeDistance = fo.shadeDistance;
   ro.fps = opt.fps;
   ro.plannedFrames = std::max(1, int(std::lround(double(opt.seconds) * opt.fps)));
+  ro.referenceFrames = opt.renderReference;
+  ro.referenceSpp = opt.renderReferenceSpp;
   ro.outDir = out;
   return std::make_unique<FlyRenderer>(ro, *cs.fileSource, fo.streaming.keepRadius, trace);
 }
@@ -399,6 +401,12 @@ nlohmann::ordered_json finishRender(FlyRenderer& renderer, const std::filesystem
       (out / r["strip"].get<std::string>()).string().c_str(),
       r["video"].get<std::string>().empty() ? r["video_note"].get<std::string>().c_str()
                                             : (out / r["video"].get<std::string>()).string().c_str());
+  for (const auto& f : r["reference"])
+    std::printf(
+        "render: frame %d (flight frame %d) vs a %d spp path-traced reference: relative RMS total %.4f, "
+        "indirect %.4f\n",
+        f["frame"].get<int>(), f["flight_frame"].get<int>(), f["spp"].get<int>(),
+        f["total_rel_rms"].get<double>(), f["indirect_rel_rms"].get<double>());
   return r;
 }
 

@@ -10,6 +10,9 @@
 #include <cstdlib>
 #include <optional>
 
+#include "bake/embree_scene.h"
+#include "bake/shading_inputs.h"
+#include "bake/shading_view.h"
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/hash.h"
@@ -44,7 +47,9 @@ struct RenderedFrame {
   size_t uploadBytes = 0;
   int surfacePixels = 0, missingPixels = 0;
   double fallbackShare = 0.0;  // mean fallback share of the indirect light over surface pixels
-  uint64_t hash = 0;           // of the frame's linear RGB floats
+  uint64_t hash = 0;           // of the frame's image
+  // Against the path-traced reference (reference frames only; < 0: not compared).
+  double referenceTotal = -1.0, referenceIndirect = -1.0, referenceSeconds = 0.0;
 };
 
 double percentile(std::vector<double> v, double q) {
@@ -53,14 +58,23 @@ double percentile(std::vector<double> v, double q) {
   return v[size_t(std::lround(q * double(v.size() - 1)))];
 }
 
-// The shaded frame's linear RGB (ShadeOutput::total) and its GI bookkeeping per pixel.
+// The shaded frame in bake/shading_view.h's layers (R/G/B total, direct, indirect = diffuse + specular,
+// weight, fallback) and its GI bookkeeping per pixel.
 Image frameImage(const gpu::ShadeOutputHost& s, const gpu::GBufferHost& g, RenderedFrame& r) {
-  Image img(s.width, s.height, {"R", "G", "B"});
+  Image img(s.width, s.height,
+            {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect.R", "indirect.G", "indirect.B",
+             "weight", "fallback"});
   double share = 0.0;
   for (int y = 0; y < s.height; ++y)
     for (int x = 0; x < s.width; ++x) {
       const size_t p = size_t(y) * size_t(s.width) + size_t(x);
-      for (int c = 0; c < 3; ++c) img.at(x, y, c) = s.total[p][c];
+      for (int c = 0; c < 3; ++c) {
+        img.at(x, y, c) = s.total[p][c];
+        img.at(x, y, 3 + c) = s.direct[p][c];
+        img.at(x, y, 6 + c) = s.diffuse[p][c] + s.specular[p][c];
+      }
+      img.at(x, y, 9) = s.diffuse[p].w;
+      img.at(x, y, 10) = s.direct[p].w;
       const bool surface = g.position[p].w >= 0.0f && g.emission[p].w < 0.5f;
       if (!surface) continue;
       ++r.surfacePixels;
@@ -72,12 +86,12 @@ Image frameImage(const gpu::ShadeOutputHost& s, const gpu::GBufferHost& g, Rende
   return img;
 }
 
-// Half size by 2 x 2 box filter (the strip's tiles).
+// Half size by 2 x 2 box filter of the R, G, B channels (the strip's tiles).
 Image halfSize(const Image& in) {
-  Image out(std::max(1, in.width / 2), std::max(1, in.height / 2), in.channels);
+  Image out(std::max(1, in.width / 2), std::max(1, in.height / 2), {"R", "G", "B"});
   for (int y = 0; y < out.height; ++y)
     for (int x = 0; x < out.width; ++x)
-      for (int c = 0; c < in.channelCount(); ++c) {
+      for (int c = 0; c < 3; ++c) {
         const int x0 = std::min(2 * x, in.width - 1), y0 = std::min(2 * y, in.height - 1);
         const int x1 = std::min(x0 + 1, in.width - 1), y1 = std::min(y0 + 1, in.height - 1);
         out.at(x, y, c) = 0.25f * (in.at(x0, y0, c) + in.at(x1, y0, c) + in.at(x0, y1, c) + in.at(x1, y1, c));
@@ -88,11 +102,12 @@ Image halfSize(const Image& in) {
 std::string framesCsv(const std::vector<RenderedFrame>& frames) {
   std::string csv =
       "index,flight_frame,time_s,gpu_gbuffer_ms,gpu_shade_ms,upload_ms,upload_bytes,surface_pixels,"
-      "missing_gi_pixels,fallback_share,hash\n";
+      "missing_gi_pixels,fallback_share,hash,reference_total_rel_rms,reference_indirect_rel_rms\n";
   for (const RenderedFrame& f : frames)
-    csv += fmt::format("{},{},{:.4f},{:.4f},{:.4f},{:.4f},{},{},{},{:.5f},{:016x}\n", f.index, f.flightFrame,
-                       f.timeS, f.gbufferMs, f.shadeMs, f.uploadMs, f.uploadBytes, f.surfacePixels,
-                       f.missingPixels, f.fallbackShare, f.hash);
+    csv += fmt::format("{},{},{:.4f},{:.4f},{:.4f},{:.4f},{},{},{},{:.5f},{:016x},{:.5f},{:.5f}\n", f.index,
+                       f.flightFrame, f.timeS, f.gbufferMs, f.shadeMs, f.uploadMs, f.uploadBytes,
+                       f.surfacePixels, f.missingPixels, f.fallbackShare, f.hash, f.referenceTotal,
+                       f.referenceIndirect);
   return csv;
 }
 
@@ -118,6 +133,8 @@ struct FlyRenderer::Impl {
   void start(const streaming::StreamingManager& manager);
   void render(const streaming::FlythroughFrame& f, RenderedFrame& r);
   void writeFrame(const Image& img, const RenderedFrame& r);
+  bool isReference(int index) const;
+  void compareWithReference(const streaming::FlythroughFrame& f, const Image& img, RenderedFrame& r);
   std::optional<std::string> writeStrip() const;
   std::optional<std::string> writeVideo(std::string& note) const;
 };
@@ -167,6 +184,47 @@ void FlyRenderer::Impl::render(const streaming::FlythroughFrame& f, RenderedFram
 void FlyRenderer::Impl::writeFrame(const Image& img, const RenderedFrame& r) {
   if (!exposureEv) exposureEv = std::log2(0.18f / medianLuminance(img));
   writePng(o.outDir / "frames" / fmt::format("frame_{:05d}.png", r.index), img, *exposureEv);
+}
+
+// K reference frames spread over the planned rendered frames: the first, the last and evenly between.
+bool FlyRenderer::Impl::isReference(int index) const {
+  const int planned = std::max(1, (o.plannedFrames + o.every - 1) / o.every), k = o.referenceFrames;
+  if (k <= 0) return false;
+  if (k == 1) return index == planned / 2;
+  for (int i = 0; i < k; ++i)
+    if (index == int(std::lround(double(i) * (planned - 1) / (k - 1)))) return true;
+  return false;
+}
+
+// The same view path-traced over the same cells' geometry (Embree) and the relative RMS against it.
+void FlyRenderer::Impl::compareWithReference(const streaming::FlythroughFrame& f, const Image& img,
+                                             RenderedFrame& r) {
+  const streaming::WorldLayout& l = source.layout();
+  const int ring = std::max(1, int(std::ceil(o.shadeDistance / l.cellSize)));
+  const bake::EmbreeScene scene(shading->worldMesh(l.cellOf(f.position), ring),
+                                fmt::format("fly frame {}", f.index));
+  worlds::SkyState sky;
+  sky.timeOfDayHours = f.timeOfDay;
+  sky.overcast = f.weather;
+  bake::RenderOptions ro;
+  ro.width = o.width;
+  ro.height = o.height;
+  ro.samplesPerPixel = o.referenceSpp;
+  ro.maxBounces = o.referenceBounces;
+  const bake::RenderResult ref = bake::renderShadingReference(
+      scene, worlds::makeSky(sky),
+      bake::PinholeCamera{f.position, f.position + f.direction, o.verticalFovDeg}, ro);
+  if (ref.interrupted) return;
+  const std::vector<uint8_t> mask = bake::shadedSurfaceMask(img, ref.image, 1e30f);
+  r.referenceTotal = bake::layerRelativeRms(img, "", ref.image, "", &mask);
+  r.referenceIndirect = bake::layerRelativeRms(img, "indirect.", ref.image, "indirect.", &mask);
+  r.referenceSeconds = ref.seconds;
+  const fs::path dir = o.outDir / "frames";
+  writePng(dir / fmt::format("frame_{:05d}_reference.png", r.index), ref.image, exposureEv.value_or(0.0f));
+  writePng(dir / fmt::format("frame_{:05d}_error.png", r.index),
+           bake::errorHeatMap(img, "indirect.", ref.image, "indirect."), 1.0f);  // as `lfgi render --compare`
+  spdlog::info("render: frame {} vs a {} spp path-traced reference: total {:.4f}, indirect {:.4f} ({:.1f} s)",
+               r.index, o.referenceSpp, r.referenceTotal, r.referenceIndirect, ref.seconds);
 }
 
 std::optional<std::string> FlyRenderer::Impl::writeStrip() const {
@@ -228,6 +286,7 @@ void FlyRenderer::frame(const streaming::FlythroughFrame& f, const streaming::St
   m.render(f, r);
   const Image img = frameImage(gpu::readShadeOutput(*m.ctx, m.out), gpu::readGBuffer(*m.ctx, m.gbuffer), r);
   m.writeFrame(img, r);
+  if (m.isReference(r.index)) m.compareWithReference(f, img, r);
   // Strip tiles: frames 0, stride, 2 stride, ... of the planned flight (at most kStripFrames).
   const int planned = std::max(1, (m.o.plannedFrames + m.o.every - 1) / m.o.every);
   const int stride = std::max(1, (planned + kStripFrames - 1) / kStripFrames);
@@ -277,6 +336,20 @@ nlohmann::ordered_json FlyRenderer::finish() {
   j["device_bytes_peak"] = m.deviceBytesPeak;
   j["exposure_ev"] = m.exposureEv.value_or(0.0f);
   j["frames_hash"] = fmt::format("{:016x}", hash);
+  nlohmann::ordered_json refs = nlohmann::ordered_json::array();
+  double refIndirect = 0.0;
+  for (const RenderedFrame& f : m.frames) {
+    if (f.referenceIndirect < 0.0) continue;
+    refs.push_back({{"frame", f.index},
+                    {"flight_frame", f.flightFrame},
+                    {"spp", m.o.referenceSpp},
+                    {"total_rel_rms", f.referenceTotal},
+                    {"indirect_rel_rms", f.referenceIndirect},
+                    {"seconds", f.referenceSeconds}});
+    refIndirect += f.referenceIndirect;
+  }
+  j["reference_indirect_rel_rms_mean"] = refs.empty() ? 0.0 : refIndirect / double(refs.size());
+  j["reference"] = refs;
   j["frames_dir"] = "frames";
   j["strip"] = m.writeStrip().value_or("");
   std::string note;

@@ -11,6 +11,10 @@
 // and the shading from GPU timestamps, upload, pixels missing GI, the fallback's share, an image hash).
 // summary() is the summary.json block "render".
 //
+// Reference frames: frames/frame_NNNNN_reference.png (same exposure) and _error.png (indirect heat map,
+// bake/shading_view.h errorHeatMap), and the relative RMS of the total and of the indirect light over the
+// pixels shaded from probes or fallbacks (the "reference" list of the block).
+//
 // A pixel is missing GI when it shows a surface (not sky, not a back face inside solid) and gets light
 // from no probe and no fallback (ShadeOutput: diffuse.w = 0 and direct.w = 0).
 #pragma once
@@ -35,6 +39,11 @@ struct FlyRenderOptions {
   float shadeDistance = 120.0f;  // m: the G-buffer holds the cells within this of the camera
   float fps = 60.0f;             // flight frames per second (the video's rate is fps / every)
   int plannedFrames = 0;         // flight frames planned (spaces the strip's frames over the flight)
+  // Rendered frames also path-traced (bake/shading_inputs.h renderShadingReference, Embree, the same view and
+  // geometry) and compared, spread over the flight (first, last, between); 0: none.
+  int referenceFrames = 0;
+  int referenceSpp = 16;
+  int referenceBounces = 4;
   std::filesystem::path outDir;
 };
 

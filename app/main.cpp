@@ -479,6 +479,15 @@ void addFlyOptions(CLI::App* c, lfgi::app::FlyOptions& o) {
   c->add_option("--render-every", o.renderEvery, "With --render: draw every N-th frame")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
+  c->add_option(
+       "--render-reference", o.renderReference,
+       "With --render: path-trace this many of the rendered frames (spread over the flight) and report "
+       "the image error against them")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
+  c->add_option("--render-reference-spp", o.renderReferenceSpp, "Samples per pixel of those references")
+      ->check(CLI::Range(1, 65536))
+      ->capture_default_str();
   c->add_option("--relight", o.relight,
                 "Relight of resident cells: codec (re-decode) or vir (GPU VIR relight of the world's "
                 "surfels; needs --world)")

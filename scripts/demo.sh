@@ -32,7 +32,8 @@ view=(--world "$world" --cell 1,1 --camera 60,30,60,100,4,100 --fov 60 --time 15
   --reference-spp 16 --compare)
 "$lfgi" render "${view[@]}" --out "$out/render/city.exr" | tee "$out/render.txt"
 "$lfgi" render "${view[@]}" --probes codec --out "$out/render/city_codec.exr" | tee "$out/render_codec.txt"
-"$lfgi" profile --world "$world" --seconds 20 --speed 50 --render 320x180 --render-every 30 --out "$out/profile" |
+"$lfgi" profile --world "$world" --seconds 20 --speed 50 --render 320x180 --render-every 30 \
+  --render-reference 2 --out "$out/profile" |
   tee "$out/profile.txt"
 
 {
@@ -75,6 +76,16 @@ view=(--world "$world" --cell 1,1 --camera 60,30,60,100,4,100 --fov 60 --time 15
   echo "resident; profile/frames/, GPU times in profile/render_frames.csv)."
   echo
   echo "![rendered flight, 8 frames](profile/strip.png)"
+  echo
+  echo "The first and last rendered frames against a 16 spp path-traced reference of the same view (the"
+  echo "'vs a 16 spp path-traced reference' lines above; the flight sweeps 6 h to 20 h, outside the baked"
+  echo "keys 8 h to 17.5 h at both ends):"
+  echo
+  echo "| streamed probes | path-traced reference | indirect error |"
+  echo "|---|---|---|"
+  for f in 00000 00039; do
+    echo "| ![](profile/frames/frame_$f.png) | ![](profile/frames/frame_${f}_reference.png) | ![](profile/frames/frame_${f}_error.png) |"
+  done
   echo
   if [[ -f "$out/profile/flight.mp4" ]]; then
     echo "Video: [profile/flight.mp4](profile/flight.mp4)"

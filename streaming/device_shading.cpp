@@ -128,10 +128,9 @@ void DeviceShading::recordShade(VkCommandBuffer cmd, const shared::GpuCamera& ca
   pass_.record(cmd, scene, g, out);
 }
 
-const gpu::GpuSceneBuffers& DeviceShading::worldScene(glm::ivec2 cell, int ring) {
+worlds::TriangleMesh DeviceShading::worldMesh(glm::ivec2 cell, int ring) {
   const WorldLayout& l = manager_.layout();
   cell = glm::clamp(cell, glm::ivec2(0), l.cells - 1);
-  if (cell == worldSceneCell_ && ring == worldSceneRing_) return worldScene_;
   if (!world_) world_ = std::make_unique<worlds::SyntheticWorld>(source_.world());
   worlds::TriangleMesh mesh;
   for (int dz = -ring; dz <= ring; ++dz)
@@ -143,6 +142,13 @@ const gpu::GpuSceneBuffers& DeviceShading::worldScene(glm::ivec2 cell, int ring)
         it = cellMeshes_.emplace(std::pair(c.x, c.z), worlds::buildCell(*world_, c).mesh).first;
       mesh.append(it->second);
     }
+  return mesh;
+}
+
+const gpu::GpuSceneBuffers& DeviceShading::worldScene(glm::ivec2 cell, int ring) {
+  cell = glm::clamp(cell, glm::ivec2(0), manager_.layout().cells - 1);
+  if (cell == worldSceneCell_ && ring == worldSceneRing_) return worldScene_;
+  const worlds::TriangleMesh mesh = worldMesh(cell, ring);
   worldScene_ = gpu::uploadGpuScene(
       ctx_,
       gpu::buildGpuScene(mesh.positions, mesh.indices, mesh.triangleMaterial, worlds::gpuMaterials(mesh)));

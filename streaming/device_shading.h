@@ -51,6 +51,8 @@ class DeviceShading {
   // ring 1: 3 x 3), built from the source's manifest (worlds::buildCell, each cell's mesh kept once built)
   // and kept until another cell or ring is asked for.
   const gpu::GpuSceneBuffers& worldScene(glm::ivec2 cell, int ring = 1);
+  // The same cells' meshes merged (what worldScene uploads; a path tracer's scene of the same view).
+  worlds::TriangleMesh worldMesh(glm::ivec2 cell, int ring = 1);
   // Records a G-buffer of worldScene(cell, ring) seen from camera into g, then a memory barrier for the
   // shading.
   void recordWorldGBuffer(VkCommandBuffer cmd, const shared::GpuCamera& camera, glm::ivec2 cell,
