@@ -284,6 +284,14 @@ void addCellSizes(nlohmann::ordered_json& j, const FlySources& cs, const streami
     j["cell_read_ms_total"] = cs.fileSource->readMsTotal();
     j["cell_decode_ms_total"] = cs.fileSource->decodeMsTotal();
     j["decoder"] = decoderJson(*cs.fileSource);
+    // Decoded bytes of the largest cell of each kind (tests/baselines/memory_baked.json).
+    const worlds::SyntheticWorld world(cs.fileSource->world());
+    for (int z = 0; z < src.layout.cells.y; ++z)
+      for (int x = 0; x < src.layout.cells.x; ++x) {
+        const std::string key = fmt::format("field_bytes_{}", worlds::cellKindName(world.cellKind({x, z})));
+        const size_t b = cs.fileSource->info({x, z}).fieldBytes;
+        if (!j.contains(key) || j[key].get<size_t>() < b) j[key] = b;
+      }
   }
   j["cell_bytes"] = cellBytes;
   j["bytes_per_probe"] = double(cellBytes) / double(cellProbes);
@@ -439,7 +447,10 @@ int runFly(const FlyOptions& opt) {
       double(src.layout.cells.x) * src.layout.cells.y * src.layout.cellSize * src.layout.cellSize / 1e6;
   nlohmann::ordered_json j = summaryJson(opt, sources, fo, s, km2);
   addCellSizes(j, sources, fo);
-  if (renderer) j["render"] = finishRender(*renderer, out);
+  if (renderer) {
+    j["render"] = finishRender(*renderer, out);
+    j["render_device_bytes_peak"] = j["render"].value("device_bytes_peak", size_t(0));
+  }
   writeFileAtomic(out / "frames.csv", framesCsv(frames));
   writeFileAtomic(out / "summary.json", j.dump(2) + "\n");
   std::printf(
