@@ -449,6 +449,8 @@ int runFly(const FlyOptions& opt) {
   addCellSizes(j, sources, fo);
   if (renderer) {
     j["render"] = finishRender(*renderer, out);
+    for (const char* key : {"gpu_shade_ms_p50", "gpu_shade_ms_p99", "shade_ms_per_mpixel"})
+      if (j["render"].contains(key)) j[key] = j["render"][key];  // also at the top, as the profile contract
     j["render_device_bytes_peak"] = j["render"].value("device_bytes_peak", size_t(0));
   }
   writeFileAtomic(out / "frames.csv", framesCsv(frames));
