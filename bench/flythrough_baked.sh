@@ -36,7 +36,8 @@ if [[ ! -f "$world/world.json" ]]; then
 fi
 echo "bench flythrough_baked: 1/2 bake the path cells of $world (resumable)" >&2
 t0=$(date +%s)
-"$lfgi" bake --world "$world" "${bake_flags[@]}" 2>"$out/bake.log" || { tail -5 "$out/bake.log" >&2; exit 1; }
+"$lfgi" bake --world "$world" "${bake_flags[@]}" >"$out/bake.txt" 2>"$out/bake.log" ||
+  { tail -5 "$out/bake.log" >&2; exit 1; }
 bake_s=$(( $(date +%s) - t0 ))
 "$lfgi" bake-status --world "$world" "${bake_flags[@]}" -q >"$out/bake_status.txt" 2>&1 || true
 "$root/scripts/build.sh" "$root/build" lfgi_bench_flythrough >/dev/null
@@ -45,9 +46,13 @@ extra=()
 if $quick; then extra+=(--quick); fi
 "$root/build/bin/lfgi_bench_flythrough" --out "$out" --world "$world" "${extra[@]}"
 # The bake's own numbers beside the flight's (this run's bake wall time: 0 when every cell was reused).
-python3 - "$out/summary.json" "$world" "$bake_s" "${bake_flags[*]}" <<'PY'
+# The bake packs its cells into region files: "pack: ... N bytes (...) ...: ..., container C B/cell -> DIR".
+region_bytes=$(sed -n 's/^pack: .*), \([0-9]*\) bytes (.*/\1/p' "$out/bake.txt")
+container=$(sed -n 's/^pack: .*container \([0-9.]*\) B\/cell.*/\1/p' "$out/bake.txt")
+python3 - "$out/summary.json" "$world" "$bake_s" "${bake_flags[*]}" "${region_bytes:-0}" "${container:-0}" <<'PY'
 import json, sys, glob, os
 path, world, bake_s, flags = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+region_bytes, container = int(sys.argv[5]), float(sys.argv[6])
 s = json.load(open(path))
 recs = [json.load(open(f)) for f in glob.glob(os.path.join(world, "baked", "cells", "*.json"))]
 s["bake"] = {"flags": flags, "cells": len(recs), "this_run_wall_s": bake_s,
@@ -56,8 +61,16 @@ s["bake"] = {"flags": flags, "cells": len(recs), "this_run_wall_s": bake_s,
              "bytes_total": sum(r["bytes"] for r in recs)}
 cell_km2 = 0.064 * 0.064
 if recs:
-    s["bytes_per_km2"] = s["bake"]["bytes_total"] / (len(recs) * cell_km2)
-    s["bytes_per_km2_note"] = "cell files (all-in: weights, latents, fallback keys, OpenVDB metadata) over the baked cells' area"
+    area = len(recs) * cell_km2
+    s["cell_file_bytes_per_km2"] = s["bake"]["bytes_total"] / area
+    if region_bytes:
+        s["bytes_per_km2"] = region_bytes / area
+        s["bytes_per_km2_note"] = "region files + regions.json (all-in: light field, probe masks, container) over the baked cells' area"
+        s["container_bytes_per_cell"] = container
+    else:
+        s["bytes_per_km2"] = s["cell_file_bytes_per_km2"]
+        s["bytes_per_km2_note"] = "cell files (the bake did not pack regions) over the baked cells' area"
+    s["bake_s_per_km2"] = s["bake"]["cell_seconds_total"] / area
 tmp = path + ".tmp"
 json.dump(s, open(tmp, "w"), indent=2)
 os.replace(tmp, path)
