@@ -127,10 +127,12 @@ struct FlyRenderer::Impl {
   gpu::ShadeOutput out;
   std::optional<float> exposureEv;  // the first frame's auto exposure, kept for the flight
   std::vector<RenderedFrame> frames;
-  std::vector<Image> strip;  // every stripEvery-th frame, half size
+  std::vector<Image> strip;  // up to kStripFrames frames spread over the flight, half size
   size_t deviceBytesPeak = 0;
 
   void start(const streaming::StreamingManager& manager);
+  // The G-buffer's cells: those within the shading distance of the camera's cell.
+  int sceneRing() const { return std::max(1, int(std::ceil(o.shadeDistance / source.layout().cellSize))); }
   void render(const streaming::FlythroughFrame& f, RenderedFrame& r);
   void writeFrame(const Image& img, const RenderedFrame& r);
   bool isReference(int index) const;
@@ -157,8 +159,8 @@ void FlyRenderer::Impl::render(const streaming::FlythroughFrame& f, RenderedFram
   r.uploadMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   const shared::GpuCamera camera =
       gpu::makeGpuCamera(f.position, f.position + f.direction, o.verticalFovDeg, o.width, o.height);
-  const streaming::WorldLayout& l = source.layout();
-  const int ring = std::max(1, int(std::ceil(o.shadeDistance / l.cellSize)));
+  const streaming::WorldLayout l = source.layout();
+  const int ring = sceneRing();
   const gpu::GpuSceneBuffers& scene = shading->worldScene(l.cellOf(f.position), ring);
   gpu::ShadingOptions options;  // direct light with shadow rays, indirect from the probes
   const double submitUs = trace ? trace->nowUs() : 0.0;
@@ -199,9 +201,7 @@ bool FlyRenderer::Impl::isReference(int index) const {
 // The same view path-traced over the same cells' geometry (Embree) and the relative RMS against it.
 void FlyRenderer::Impl::compareWithReference(const streaming::FlythroughFrame& f, const Image& img,
                                              RenderedFrame& r) {
-  const streaming::WorldLayout& l = source.layout();
-  const int ring = std::max(1, int(std::ceil(o.shadeDistance / l.cellSize)));
-  const bake::EmbreeScene scene(shading->worldMesh(l.cellOf(f.position), ring),
+  const bake::EmbreeScene scene(shading->worldMesh(source.layout().cellOf(f.position), sceneRing()),
                                 fmt::format("fly frame {}", f.index));
   worlds::SkyState sky;
   sky.timeOfDayHours = f.timeOfDay;
