@@ -87,7 +87,7 @@ int dropped(const std::string& url, const std::string& command) {
       } catch (const Error& e) {
         if (std::string(e.what()).find(url) == std::string::npos)
           fail("dropped: error without the URL: {}", e.what());
-        example = e.what();
+        if (example.empty()) example = e.what();  // the first: the one the command cut short
         ++failed;
         continue;
       }
@@ -98,7 +98,7 @@ int dropped(const std::string& url, const std::string& command) {
       for (int k = 0; k < 4; ++k)
         if (http.fallback({x, z}).c[size_t(k)] != before[size_t(i)].c[size_t(k)])
           fail("dropped: cell {},{}'s fallback changed", x, z);
-  std::printf("dropped: %d loads failed cleanly, fallbacks kept; e.g. %s\n", failed, example.c_str());
+  std::printf("dropped: %d loads failed cleanly, fallbacks kept; the first: %s\n", failed, example.c_str());
   return failed > 0 ? 0 : 1;
 }
 

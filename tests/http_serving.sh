@@ -5,8 +5,9 @@
 #   2. lfgi::Runtime with VIR visibility samples the same GI over HTTP as from disk (lfgi_http_check
 #      runtime); `lfgi fly --world URL`, with the codec's relight and with --relight vir, flies over it
 #      with no pixel missing GI;
-#   3. the server stopped under an open world: every load fails naming the URL, fallbacks stay
-#      (lfgi_http_check dropped), and a new flight exits 1 naming the URL;
+#   3. the server stopped under an open world, in the middle of a cell's transfer: every load fails
+#      naming the URL, the first mid-transfer, fallbacks stay (lfgi_http_check dropped), and a new flight
+#      exits 1 naming the URL;
 #   4. a region file served shorter than its index says: only the cut cell is corrupt, named.
 # One nginx process (master_process off), so it serves as the user running the test: no worker switches
 # to "nobody", which could not read a private (0700) temporary directory.
@@ -24,12 +25,15 @@ cp -r "$world" "$tmp/www/world"
 stop() { [[ -f "$tmp/nginx.pid" ]] && kill "$(cat "$tmp/nginx.pid")" 2>/dev/null || true; rm -f "$tmp/nginx.pid"; }
 trap stop EXIT
 
-# A free port: try a few, nginx refuses to start on a taken one.
-start() {
-  local port
-  for i in $(seq 0 19); do
-    port=$(( 20000 + ($$ * 7 + i * 131) % 40000 ))
-    cat > "$tmp/nginx.conf" <<CONF
+# nginx.conf for port $1; with $2 = slow, a cell's byte range (a Range not starting at 0: not a region
+# head) is sent at 64 B/s, so a server stopped during it drops the connection mid-transfer.
+conf() {
+  local port="$1" map="" limit=""
+  if [[ "${2:-}" == slow ]]; then
+    map='map $http_range $cell_rate { "" 0; "~^bytes=0-" 0; default 64; }'
+    limit='limit_rate $cell_rate;'
+  fi
+  cat <<CONF
 worker_processes 1;
 master_process off;
 daemon on;
@@ -42,9 +46,18 @@ http {
   proxy_temp_path $tmp/temp/proxy;
   fastcgi_temp_path $tmp/temp/fastcgi;
   default_type application/octet-stream;
-  server { listen 127.0.0.1:$port; root $tmp/www; }
+  $map
+  server { listen 127.0.0.1:$port; root $tmp/www; $limit }
 }
 CONF
+}
+
+# A free port: try a few, nginx refuses to start on a taken one.
+start() {
+  local port
+  for i in $(seq 0 19); do
+    port=$(( 20000 + ($$ * 7 + i * 131) % 40000 ))
+    conf "$port" > "$tmp/nginx.conf"
     if "$nginx" -p "$tmp" -c "$tmp/nginx.conf" -e "$tmp/logs/error.log" 2>>"$tmp/logs/start.log"; then
       for _ in $(seq 1 50); do [[ -s "$tmp/nginx.pid" ]] && break; sleep 0.1; done
       echo "$port"
@@ -77,7 +90,16 @@ truncate -s -64 "$region"
 "$check" truncated "$url" 1,1
 cp "$world/baked/regions/$(basename "$region")" "$region"
 
-"$check" dropped "$url" "kill \$(cat '$tmp/nginx.pid') && sleep 0.5"
+# Under the open world, the server is swapped for a slow one and stopped 1 s into the first cell's
+# transfer: that load fails mid-transfer, the rest find no server; every error names the URL.
+conf "$port" slow > "$tmp/nginx_slow.conf"
+swap="kill \$(cat '$tmp/nginx.pid'); sleep 0.5; '$nginx' -p '$tmp' -c '$tmp/nginx_slow.conf' -e '$tmp/logs/error.log'"
+swap+=" || exit 1; sleep 0.3; (sleep 1; kill \$(cat '$tmp/nginx.pid')) &"
+out=$("$check" dropped "$url" "$swap") || { echo "$out"; exit 1; }
+echo "$out"
+echo "$out" | grep -q "the first: .*Couldn't connect" &&
+  { echo "http_serving: the first load did not fail mid-transfer" >&2; exit 1; }
+sleep 1.5
 rm -f "$tmp/nginx.pid"
 if "$lfgi" fly --world "$url" --seconds 1 --out "$tmp/fly_down" >"$tmp/down.log" 2>&1; then
   echo "http_serving: a flight with the server down succeeded" >&2
