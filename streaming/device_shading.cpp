@@ -1,6 +1,7 @@
 #include "streaming/device_shading.h"
 
 #include <algorithm>
+#include <cstdlib>
 
 #include "core/error.h"
 #include "gpu/buffer.h"
@@ -132,6 +133,11 @@ worlds::TriangleMesh DeviceShading::worldMesh(glm::ivec2 cell, int ring) {
   const WorldLayout& l = manager_.layout();
   cell = glm::clamp(cell, glm::ivec2(0), l.cells - 1);
   if (!world_) world_ = std::make_unique<worlds::SyntheticWorld>(source_.world());
+  // Keep the built meshes of the cells within ring + 1 of this one only: a long flight does not keep every
+  // cell it passed, and a step to the next cell still finds the ones it shares.
+  std::erase_if(cellMeshes_, [&](const auto& kv) {
+    return std::abs(kv.first.first - cell.x) > ring + 1 || std::abs(kv.first.second - cell.y) > ring + 1;
+  });
   worlds::TriangleMesh mesh;
   for (int dz = -ring; dz <= ring; ++dz)
     for (int dx = -ring; dx <= ring; ++dx) {

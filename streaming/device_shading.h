@@ -48,8 +48,8 @@ class DeviceShading {
                    float timeOfDayHours, float weather, const gpu::GpuSceneBuffers& scene,
                    const gpu::ShadingOptions& options, const gpu::GBuffer& g, gpu::ShadeOutput& out);
   // The world's own synthetic geometry: the cells within `ring` cells of `cell` (clamped into the world;
-  // ring 1: 3 x 3), built from the source's manifest (worlds::buildCell, each cell's mesh kept once built)
-  // and kept until another cell or ring is asked for.
+  // ring 1: 3 x 3), built from the source's manifest (worlds::buildCell; each cell's mesh kept while it
+  // stays within ring + 1 of the cell asked for) and kept until another cell or ring is asked for.
   const gpu::GpuSceneBuffers& worldScene(glm::ivec2 cell, int ring = 1);
   // The same cells' meshes merged (what worldScene uploads; a path tracer's scene of the same view).
   worlds::TriangleMesh worldMesh(glm::ivec2 cell, int ring = 1);
