@@ -131,6 +131,8 @@ struct FlyRenderer::Impl {
   size_t deviceBytesPeak = 0;
 
   void start(const streaming::StreamingManager& manager);
+  // Frames the flight will render (frames 0, every, 2 every, ... of the planned flight).
+  int plannedRendered() const { return std::max(1, (o.plannedFrames + o.every - 1) / o.every); }
   // The G-buffer's cells: those within the shading distance of the camera's cell.
   int sceneRing() const { return std::max(1, int(std::ceil(o.shadeDistance / source.layout().cellSize))); }
   void render(const streaming::FlythroughFrame& f, RenderedFrame& r);
@@ -190,7 +192,7 @@ void FlyRenderer::Impl::writeFrame(const Image& img, const RenderedFrame& r) {
 
 // K reference frames spread over the planned rendered frames: the first, the last and evenly between.
 bool FlyRenderer::Impl::isReference(int index) const {
-  const int planned = std::max(1, (o.plannedFrames + o.every - 1) / o.every), k = o.referenceFrames;
+  const int planned = plannedRendered(), k = o.referenceFrames;
   if (k <= 0) return false;
   if (k == 1) return index == planned / 2;
   for (int i = 0; i < k; ++i)
@@ -288,8 +290,7 @@ void FlyRenderer::frame(const streaming::FlythroughFrame& f, const streaming::St
   m.writeFrame(img, r);
   if (m.isReference(r.index)) m.compareWithReference(f, img, r);
   // Strip tiles: frames 0, stride, 2 stride, ... of the planned flight (at most kStripFrames).
-  const int planned = std::max(1, (m.o.plannedFrames + m.o.every - 1) / m.o.every);
-  const int stride = std::max(1, (planned + kStripFrames - 1) / kStripFrames);
+  const int stride = std::max(1, (m.plannedRendered() + kStripFrames - 1) / kStripFrames);
   if (r.index % stride == 0 && int(m.strip.size()) < kStripFrames) m.strip.push_back(halfSize(img));
   m.frames.push_back(r);
 }
