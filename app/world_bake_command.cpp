@@ -161,10 +161,13 @@ CellOutcome bakeOneCell(BakeRun& run, const worlds::CellCoord c) {
     if (!InterruptGuard::interrupted()) throw;
     // Interrupted mid-cell: that cell is not written (bakeCell throws rather than return a partial
     // model).
-    std::fprintf(stderr,
-                 "\nbake: interrupted during cell %d,%d (not written; its training checkpoints are kept) "
-                 "after %zu cells; run the same command again to resume\n",
-                 c.x, c.z, run.done);
+    // Only the per-cell codec's model search keeps checkpoints (bake/world_bake.h checkpointDir).
+    const bool kept = settings.codec == "per-cell" && !settings.checkpointDir.empty();
+    std::fprintf(
+        stderr,
+        "\nbake: interrupted during cell %d,%d (not written%s) after %zu cells; run the same command "
+        "again to resume\n",
+        c.x, c.z, kept ? "; its training checkpoints are kept" : "", run.done);
     return CellOutcome::kInterrupted;
   }
   if (run.opt.reproducible) cf.stats.trainingSeconds = 0.0;  // the only run-dependent field of the file
